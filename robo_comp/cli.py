@@ -1,0 +1,109 @@
+"""``robo-comp``: the one command with subcommands for every part of the system."""
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from pathlib import Path
+
+from robo_comp import __version__
+from robo_comp.errors import RoboCompError
+
+
+def _core(args: argparse.Namespace) -> int:
+    from robo_comp.core.server import Core
+    from robo_comp.world.scenario import default_scenario, load_scenario
+
+    scenario = load_scenario(args.scenario) if args.scenario else default_scenario()
+    teams = [t.strip() for t in args.teams.split(",") if t.strip()] if args.teams else None
+    core = Core(Path(args.state), scenario, teams, host=args.host, port=args.port,
+                heartbeat=args.heartbeat, fsync=args.fsync)
+    core.bind()
+    print(f"core: serving {scenario.name!r} for teams {', '.join(core.tokens.teams)} on "
+          f"tcp://{args.host}:{core.port} (events on port {core.pub_port}); state in {args.state}",
+          flush=True)
+    core.run()
+    return 0
+
+
+def _robots(args: argparse.Namespace) -> int:
+    from robo_comp.client import read_token, resolve_core
+    from robo_comp.robots.host import RobotHost
+
+    host = RobotHost(resolve_core(args.core), read_token(args.token, args.token_file), args.count,
+                     prefix=args.prefix, speed=args.speed, report_hz=args.report_hz, seed=args.seed)
+    host.run(duration=args.duration or None)
+    return 0
+
+
+def _demo(args: argparse.Namespace) -> int:
+    from robo_comp.demo import run_demo
+
+    return run_demo(duration=args.duration, robots=args.robots)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``robo-comp`` with every subcommand."""
+    from robo_comp import ctl
+    from robo_comp.world import plan_cli
+
+    parser = argparse.ArgumentParser(
+        prog="robo-comp", description="Multi-robot search-and-rescue competitions: core, robots, consoles.")
+    parser.add_argument("--version", action="version", version=f"robo-comp {__version__}")
+    parser.add_argument("-v", "--verbose", action="store_true", help="log more")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    c = sub.add_parser("core", help="run the core (ROUTER + PUB) for a match",
+                       description="Run the core. Writes STATE/core.json, team tokens in "
+                                   "STATE/teams/<team>.token and STATE/referee.token (mode 0600).")
+    c.add_argument("--state", required=True, help="state folder (tokens, core.json, event log)")
+    c.add_argument("--scenario", help="scenario file (TOML); default: the built-in arena")
+    c.add_argument("--teams", help="comma-separated team names (default: the scenario's teams)")
+    c.add_argument("--host", default="127.0.0.1", help="address to bind (0.0.0.0 for a LAN)")
+    c.add_argument("--port", type=int, default=5555, help="ROUTER port (0 = any free port)")
+    c.add_argument("--heartbeat", type=float, default=1.0, help="heartbeat interval in seconds")
+    c.add_argument("--fsync", action="store_true", help="fsync the event log every loop turn")
+    c.set_defaults(func=_core)
+
+    r = sub.add_parser("robots", help="host simulated robots of one team",
+                       description="Host N simulated robots; they register, take tasks, report "
+                                   "positions and reconnect on their own.")
+    from robo_comp.ctl import add_connection_args
+
+    add_connection_args(r)
+    r.add_argument("--count", type=int, default=3, help="number of robots")
+    r.add_argument("--prefix", help="robot id prefix (ids PREFIX-1..N; default: the team name)")
+    r.add_argument("--speed", type=float, default=2.0, help="cells per second")
+    r.add_argument("--report-hz", type=float, default=10.0, help="position reports per second")
+    r.add_argument("--seed", type=int, default=0)
+    r.add_argument("--duration", type=float, default=0.0, help="exit after S seconds (0 = run until stopped)")
+    r.set_defaults(func=_robots)
+
+    ctl.add_parser(sub)
+
+    d = sub.add_parser("demo", help="run a demo match on localhost (what 'make demo' runs)")
+    d.add_argument("--duration", type=float, default=20.0, help="seconds of match")
+    d.add_argument("--robots", type=int, default=3, help="robots per team")
+    d.set_defaults(func=_demo)
+
+    plan_cli.add_parser(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``robo-comp`` console script."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
+                        format="%(asctime)s %(name)s %(levelname)s %(message)s")
+    try:
+        return int(args.func(args) or 0)
+    except RoboCompError as e:
+        print(f"robo-comp {args.command}: {e.message}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

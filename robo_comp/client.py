@@ -1,0 +1,217 @@
+"""The public Python client: talk to a core as a team, the referee, a wall or a script.
+
+    from robo_comp.client import Client
+    with Client("tcp://127.0.0.1:5555", token) as c:
+        for row in c.robots():
+            print(row["tag"], row["status"])
+        c.give(101, "goTo", [3, 4])
+        c.stop(101)
+
+Replies come back as plain dicts; error replies raise the matching
+:class:`robo_comp.errors.RoboCompError` subclass, whose ``code`` is the protocol's.
+"""
+from __future__ import annotations
+
+import json
+import time
+from collections import deque
+from pathlib import Path
+from typing import Any
+from urllib.parse import urlparse
+
+import zmq
+
+from robo_comp.core import protocol as P
+from robo_comp.errors import ConnectionLostError, FieldError, TimeoutError_, error_from_code
+
+
+def resolve_core(core: str) -> str:
+    """Turn ``--core`` into a ROUTER URL: a URL as is, or a state folder / ``core.json`` path."""
+    if "://" in core:
+        return core
+    path = Path(core)
+    if path.is_dir():
+        path = path / "core.json"
+    if not path.is_file():
+        raise FieldError(f"--core {core!r} is neither a URL like tcp://HOST:PORT nor a core state folder")
+    try:
+        return json.loads(path.read_text())["router"]
+    except (ValueError, KeyError):
+        raise FieldError(f"{path} is not a core.json written by 'robo-comp core'") from None
+
+
+def read_token(token: str | None, token_file: str | None) -> str:
+    """The token given directly or read from a token file."""
+    if token:
+        return token.strip()
+    if token_file:
+        try:
+            return Path(token_file).read_text().strip()
+        except OSError as e:
+            raise FieldError(f"cannot read the token file {token_file}: {e.strerror}") from None
+    raise FieldError("give a token with --token T or --token-file PATH")
+
+
+def pub_url(router_url: str, pub_port: int) -> str:
+    """The PUB URL on the same host as the ROUTER URL the client used."""
+    host = urlparse(router_url).hostname or "127.0.0.1"
+    if ":" in host:
+        host = f"[{host}]"
+    return f"tcp://{host}:{pub_port}"
+
+
+class Client:
+    """A DEALER connection to the core that has said hello with a token."""
+
+    def __init__(self, core: str, token: str, *, client: str = "client", timeout: float = 5.0,
+                 ctx: zmq.Context | None = None) -> None:
+        self.url = resolve_core(core)
+        self.token = token
+        self.client_name = client
+        self.timeout = timeout
+        self.ctx = ctx or zmq.Context.instance()
+        self.sock: zmq.Socket | None = None
+        self.next_id = 1
+        self.events: deque[dict[str, Any]] = deque(maxlen=10_000)
+        self.info: dict[str, Any] = {}
+        self._last_sent = 0.0
+        self._watching = False
+        self.connect()
+
+    # ------------------------------------------------------------------ connection
+    def connect(self) -> dict[str, Any]:
+        """(Re)open the socket and say hello; returns the core's hello reply."""
+        if self.sock is not None:
+            self.sock.close(0)
+        self.sock = self.ctx.socket(zmq.DEALER)
+        self.sock.setsockopt(zmq.LINGER, 0)
+        self.sock.connect(self.url)
+        self.info = self.request("hello", token=self.token, client=self.client_name)
+        if self._watching:
+            self.request("watch", on=True)
+        return self.info
+
+    def close(self) -> None:
+        """Say bye (best effort) and close the socket."""
+        if self.sock is not None:
+            try:
+                self.sock.send(P.request("bye", self._id(), {}), zmq.NOBLOCK)
+            except zmq.ZMQError:
+                pass
+            self.sock.close(0)
+            self.sock = None
+
+    def __enter__(self) -> Client:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    @property
+    def role(self) -> str:
+        """``team`` or ``referee``."""
+        return self.info.get("role", "")
+
+    @property
+    def team(self) -> str | None:
+        """The team this client speaks for (None for the referee)."""
+        return self.info.get("team")
+
+    def _id(self) -> int:
+        i = self.next_id
+        self.next_id += 1
+        return i
+
+    # ------------------------------------------------------------------ requests
+    def request(self, type_: str, **body: Any) -> dict[str, Any]:
+        """Send one request and wait for its reply; raise the matching error on an error reply."""
+        assert self.sock is not None, "client is closed"
+        rid = self._id()
+        self.sock.send(P.request(type_, rid, body))
+        self._last_sent = time.monotonic()
+        deadline = time.monotonic() + self.timeout
+        while True:
+            left = deadline - time.monotonic()
+            if left <= 0 or not self.sock.poll(left * 1000):
+                raise TimeoutError_(
+                    f"the core at {self.url} did not answer {type_!r} within {self.timeout:.1f} s; is it running?")
+            msg = P.unpack(self.sock.recv())
+            if msg.get("type") == "reply" and msg.get("id") in (rid, 0):
+                if msg.get("ok"):
+                    return msg.get("body") or {}
+                err = msg.get("error") or {}
+                raise error_from_code(err.get("code", "E_INTERNAL"), err.get("message", "unknown error"))
+            self._keep(msg)
+
+    def _keep(self, msg: dict[str, Any]) -> None:
+        if msg.get("type") == "event":
+            self.events.append(msg.get("body") or {})
+
+    def robots(self) -> list[dict[str, Any]]:
+        """The robots this client may see (its team's; all for the referee)."""
+        return self.request("robots")["robots"]
+
+    def monitor(self, tag: int) -> dict[str, Any]:
+        """All monitor data of robot ``tag``."""
+        return self.request("monitor", tag=tag)
+
+    def tasks(self, tag: int) -> dict[str, Any]:
+        """Advertised, current, queued and done tasks of robot ``tag``."""
+        return self.request("tasks", tag=tag)
+
+    def give(self, tag: int, task: str, args: list[Any] | None = None, queue: bool = False) -> dict[str, Any]:
+        """Give a task now (interrupting the current one at its next movement boundary) or queue it."""
+        return self.request("give", tag=tag, task=task, args=list(args or []), queue=queue)
+
+    def stop(self, tag: int) -> dict[str, Any]:
+        """Halt robot ``tag`` at once; its current and queued tasks are cancelled; it stays usable."""
+        return self.request("stop", tag=tag)
+
+    def snapshot(self) -> dict[str, Any]:
+        """Arena, teams and visible robots in one reply (walls and consoles start from this)."""
+        return self.request("snapshot")
+
+    def arena(self) -> dict[str, Any]:
+        """The arena payload (see :func:`robo_comp.core.server.unpack_walls`)."""
+        return self.request("arena")
+
+    # ------------------------------------------------------------------ events
+    def watch(self, on: bool = True) -> None:
+        """Ask the core to push this client's events (its team's, or all for the referee)."""
+        self.request("watch", on=on)
+        self._watching = on
+
+    def next_event(self, timeout: float = 1.0) -> dict[str, Any] | None:
+        """The next pushed event (``{"topic", "team", "data"}``), or None after ``timeout`` seconds."""
+        assert self.sock is not None, "client is closed"
+        deadline = time.monotonic() + timeout
+        while not self.events:
+            now = time.monotonic()
+            hb = self.info.get("heartbeat", 1.0)
+            if now - self._last_sent > hb:
+                self.sock.send(P.request("heartbeat", 0, {}))
+                self._last_sent = now
+            left = deadline - now
+            if left <= 0:
+                return None
+            if self.sock.poll(min(left, hb) * 1000):
+                self._keep(P.unpack(self.sock.recv()))
+        return self.events.popleft()
+
+    def subscribe(self, *topics: str) -> zmq.Socket:
+        """A SUB socket on the core's public event feed (all topics if none are given)."""
+        sub = self.ctx.socket(zmq.SUB)
+        sub.setsockopt(zmq.LINGER, 0)
+        sub.connect(pub_url(self.url, self.info["pub_port"]))
+        for t in topics or ("",):
+            sub.setsockopt(zmq.SUBSCRIBE, t.encode())
+        return sub
+
+
+def recv_event(sub: zmq.Socket) -> tuple[str, dict[str, Any]]:
+    """Read one ``(topic, payload)`` from a SUB socket made by :meth:`Client.subscribe`."""
+    topic, payload = sub.recv_multipart()
+    return topic.decode(), P.unpack(payload)
+
+
+__all__ = ["Client", "ConnectionLostError", "read_token", "recv_event", "resolve_core"]

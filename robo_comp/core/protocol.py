@@ -1,0 +1,233 @@
+"""The wire protocol: msgpack frames, versioned, with typed fields and stable error codes.
+
+Every message is one msgpack map (one ZeroMQ frame after the ROUTER's identity frame)::
+
+    {"v": 1, "type": "give", "id": 7, "body": {...}}          # request or notification
+    {"v": 1, "type": "reply", "id": 7, "ok": True, "body": {...}}
+    {"v": 1, "type": "reply", "id": 7, "ok": False, "error": {"code": "E_FIELD", "message": "..."}}
+
+Requests get exactly one reply. Notifications (``report``, ``heartbeat``) get a reply only
+when they are rejected, so that a sender learns what was wrong. Events go out on the PUB
+socket as two frames ``[topic, msgpack map]`` and to watching sessions as ``event`` messages.
+See ``docs/protocol.md`` for every type and field.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import msgpack
+import numpy as np
+
+from robo_comp.errors import (
+    FieldError,
+    MalformedError,
+    RoboCompError,
+    TooLargeError,
+    UnknownTypeError,
+    VersionError,
+)
+
+PROTOCOL_VERSION = 1
+#: Largest frame the core decodes; larger frames get an ``E_TOO_LARGE`` reply.
+MAX_FRAME = 1 << 20
+#: Hard cap set on the sockets (ZMQ_MAXMSGSIZE): peers sending more are disconnected by libzmq.
+SOCKET_MAX_FRAME = 16 << 20
+#: Largest team radio payload, in bytes once packed.
+MAX_RADIO = 4096
+#: Radio messages per robot per second (token bucket, burst of the same size).
+RADIO_RATE = 20.0
+
+_INT = "int"
+_NUM = "number"
+_STR = "str"
+_BOOL = "bool"
+_LIST = "list"
+_MAP = "map"
+_BIN = "bytes"
+_ANY = "any"
+_OPT_INT = "int or nil"
+
+# Field descriptions: type name -> {field: (kind, required)}.
+REQUESTS: dict[str, dict[str, tuple[str, bool]]] = {
+    # sessions (consoles, walls, scripts)
+    "hello": {"token": (_STR, True), "client": (_STR, False)},
+    "heartbeat": {},
+    "bye": {},
+    "watch": {"on": (_BOOL, False)},
+    "robots": {},
+    "monitor": {"tag": (_INT, True)},
+    "tasks": {"tag": (_INT, True)},
+    "give": {"tag": (_INT, True), "task": (_STR, True), "args": (_LIST, False), "queue": (_BOOL, False)},
+    "stop": {"tag": (_INT, True)},
+    "snapshot": {},
+    "arena": {},
+    # robot hosts
+    "register": {
+        "token": (_STR, True), "robot_id": (_STR, True), "tasks": (_LIST, False),
+        "x": (_NUM, False), "y": (_NUM, False), "heading": (_NUM, False),
+        "task_id": (_OPT_INT, False),
+    },
+    "report": {
+        "tag": (_INT, True), "x": (_NUM, True), "y": (_NUM, True), "heading": (_NUM, True),
+        "moving": (_BOOL, False), "sensors": (_MAP, False),
+    },
+    "task.next": {"tag": (_INT, True)},
+    "task.done": {
+        "tag": (_INT, True), "task_id": (_INT, True), "ok": (_BOOL, True),
+        "status": (_STR, True), "result": (_ANY, False),
+    },
+    "radio": {"tag": (_INT, True), "to": (_OPT_INT, False), "data": (_ANY, True)},
+    "leave": {"tag": (_INT, True)},
+    # replies from a robot host to a core-initiated request (stop)
+    "reply": {},
+}
+
+#: Types a sender may use without a reply on success.
+NOTIFICATIONS = frozenset({"report", "heartbeat"})
+
+#: Messages the core sends to robot hosts (requests expect a ``reply``).
+CORE_TO_HOST = ("heartbeat", "task.start", "task.interrupt", "stop", "radio", "event")
+
+#: Event topics; the PUB socket uses them as the first frame.
+TOPICS = (
+    "robot.registered", "robot.position", "robot.lost", "robot.returned", "robot.left",
+    "task.given", "task.started", "task.done", "robot.stopped", "radio", "refused", "core.started",
+)
+
+
+@dataclass(slots=True)
+class Message:
+    """A decoded, validated protocol message."""
+
+    type: str
+    id: int
+    body: dict[str, Any] = field(default_factory=dict)
+
+
+def pack(obj: Any) -> bytes:
+    """Encode one frame."""
+    return msgpack.packb(obj, use_bin_type=True)
+
+
+def unpack(frame: bytes) -> Any:
+    """Decode one frame without validation (clients reading the core's messages)."""
+    return msgpack.unpackb(frame, raw=False)
+
+
+def request(type_: str, id_: int, body: dict[str, Any] | None = None) -> bytes:
+    """Encode a request or notification frame."""
+    return pack({"v": PROTOCOL_VERSION, "type": type_, "id": id_, "body": body or {}})
+
+
+def ok_reply(id_: int, body: dict[str, Any] | None = None) -> bytes:
+    """Encode a successful reply to request ``id_``."""
+    return pack({"v": PROTOCOL_VERSION, "type": "reply", "id": id_, "ok": True, "body": body or {}})
+
+
+def error_reply(id_: int, err: RoboCompError) -> bytes:
+    """Encode an error reply carrying the error's stable code and its sentence."""
+    return pack({
+        "v": PROTOCOL_VERSION, "type": "reply", "id": id_, "ok": False,
+        "error": {"code": err.code, "message": err.message},
+    })
+
+
+def event_frames(topic: str, payload: dict[str, Any]) -> list[bytes]:
+    """Encode an event for the PUB socket: ``[topic, payload]``."""
+    return [topic.encode(), pack(payload)]
+
+
+def _kind_ok(kind: str, value: Any) -> bool:
+    if kind == _ANY:
+        return True
+    if kind == _INT:
+        return type(value) is int
+    if kind == _OPT_INT:
+        return value is None or type(value) is int
+    if kind == _NUM:
+        return type(value) in (int, float)
+    if kind == _STR:
+        return type(value) is str
+    if kind == _BOOL:
+        return type(value) is bool
+    if kind == _LIST:
+        return type(value) is list
+    if kind == _MAP:
+        return type(value) is dict
+    if kind == _BIN:
+        return type(value) is bytes
+    return False
+
+
+_TYPE_NAMES = {int: "an integer", float: "a number", str: "a string", bool: "true/false",
+               list: "a list", dict: "a map", bytes: "bytes", type(None): "nil"}
+
+
+def _describe(value: Any) -> str:
+    return _TYPE_NAMES.get(type(value), type(value).__name__)
+
+
+def decode_envelope(frame: bytes) -> tuple[dict[str, Any], int]:
+    """Check size and msgpack shape; return the raw map and its request id (0 if unknown).
+
+    Raises a :class:`RoboCompError` whose reply should go to request id 0 when the id
+    cannot be read.
+    """
+    if len(frame) > MAX_FRAME:
+        raise TooLargeError(
+            f"message is {len(frame)} bytes; the limit is {MAX_FRAME} bytes (split or shrink it)")
+    try:
+        raw = msgpack.unpackb(frame, raw=False, strict_map_key=True)
+    except Exception:
+        raise MalformedError("message is not valid msgpack; send one msgpack map per frame") from None
+    if type(raw) is not dict:
+        raise MalformedError(f"message must be a msgpack map, got {_describe(raw)}")
+    return raw, raw.get("id") if type(raw.get("id")) is int else 0
+
+
+def decode(frame: bytes) -> Message:
+    """Decode and validate one incoming frame into a :class:`Message`.
+
+    Raises :class:`RoboCompError` subclasses with a sentence a student understands; the
+    caller replies with the error and goes on serving.
+    """
+    raw, id_ = decode_envelope(frame)
+    return validate(raw, id_)
+
+
+def validate(raw: dict[str, Any], id_: int) -> Message:
+    """Validate a decoded map (version, type, id, body fields)."""
+    v = raw.get("v")
+    if v != PROTOCOL_VERSION:
+        raise VersionError(
+            f"protocol version {v!r} is not spoken here; this core speaks version {PROTOCOL_VERSION}")
+    type_ = raw.get("type")
+    if type(type_) is not str:
+        raise MalformedError("message needs a 'type' string")
+    if type(raw.get("id")) is not int:
+        raise MalformedError("message needs an integer request 'id'")
+    spec = REQUESTS.get(type_)
+    if spec is None:
+        raise UnknownTypeError(f"unknown message type {type_!r}; see docs/protocol.md for the types")
+    if type_ == "reply":
+        return Message(type_, id_, raw)
+    body = raw.get("body", {})
+    if type(body) is not dict:
+        raise FieldError(f"'body' of {type_!r} must be a map, got {_describe(body)}")
+    for name, (kind, required) in spec.items():
+        if name not in body:
+            if required:
+                raise FieldError(f"{type_!r} needs the field {name!r} ({kind})")
+            continue
+        if not _kind_ok(kind, body[name]):
+            raise FieldError(
+                f"field {name!r} of {type_!r} must be {kind}, got {_describe(body[name])}")
+    return Message(type_, id_, body)
+
+
+def unpack_walls(arena: dict[str, Any]) -> np.ndarray:
+    """Rebuild the bool wall grid ``[y, x]`` from an ``arena`` payload (np.packbits, row-major)."""
+    h, w = arena["height"], arena["width"]
+    bits = np.unpackbits(np.frombuffer(arena["walls"], dtype=np.uint8), count=h * w)
+    return bits.reshape(h, w).astype(bool)

@@ -1,0 +1,619 @@
+"""The core: one ROUTER loop with one poller, a PUB socket for events, ownership on every command.
+
+Robot hosts and consoles connect DEALER sockets to the ROUTER. A connection becomes a
+*session* by saying ``hello`` with a token (a team's or the referee's); robot hosts then
+``register`` robots. Every command names a robot tag and is checked against the session's
+principal (``robo_comp.teams.policy``). Events go to the PUB socket (the public view for
+walls) and, in full, to the sessions that ``watch`` and may see them.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import os
+import signal
+import time
+import traceback
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import zmq
+
+from robo_comp.core import protocol as P
+from robo_comp.core.eventlog import EventLog
+from robo_comp.core.registry import RobotRecord, Registry
+from robo_comp.core.tasks import TaskRecord, check_args, check_specs, find_spec
+from robo_comp.errors import (
+    AuthError,
+    FieldError,
+    MalformedError,
+    NotYoursError,
+    RateLimitError,
+    RoboCompError,
+    TooLargeError,
+    UnavailableError,
+)
+from robo_comp.teams.policy import check_owner
+from robo_comp.teams.tokens import Principal, TokenBook
+from robo_comp.world.scenario import Scenario
+
+log = logging.getLogger("robo_comp.core")
+
+#: Keys left out of the PUB (public) view of an event: they stay with the owner and referee.
+PRIVATE_KEYS = frozenset({"status", "result", "data", "args", "message", "cancelled", "code", "robot_id"})
+#: How long a console session may stay silent before it is forgotten (watchers heartbeat).
+SESSION_IDLE = 300.0
+STOP_TIMEOUT = 2.0
+MAX_RESULT = 64 * 1024
+POSITION_LOG_INTERVAL = 1.0
+
+
+@dataclass(slots=True)
+class Session:
+    """A connection that said hello (console, wall, script or robot host)."""
+
+    ident: bytes
+    who: Principal
+    client: str
+    last_seen: float
+    watching: bool = False
+    tags: set[int] = field(default_factory=set)
+
+
+@dataclass(slots=True)
+class PendingStop:
+    """A stop forwarded to a robot host, waiting for its acknowledgement."""
+
+    ident: bytes
+    req_id: int
+    tag: int
+    deadline: float
+    t0: float
+
+
+def arena_payload(scenario: Scenario, teams: list[str]) -> dict[str, Any]:
+    """The public part of a scenario as plain data: walls (np.packbits, row-major), zones,
+    known objects and each team's colour and start zone. Victims are never sent."""
+    h, w = scenario.walls.shape
+    known = {t.name: t for t in scenario.teams}
+    team_rows = []
+    for i, name in enumerate(teams):
+        t = known.get(name)
+        team_rows.append(t.to_dict() if t else {"name": name, "colour": _FALLBACK_COLOURS[i % 6],
+                                               "start": None, "robots": 0})
+    return {"name": scenario.name, "width": int(w), "height": int(h), "cell_cm": scenario.cell_size,
+            "walls": np.packbits(scenario.walls.astype(bool), axis=None).tobytes(),
+            "zones": [z.to_dict() for z in scenario.zones],
+            "objects": [o.to_dict() for o in scenario.objects], "teams": team_rows}
+
+
+_FALLBACK_COLOURS = ("#d62728", "#1f77b4", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b")
+
+
+class Core:
+    """The ZeroMQ ROUTER core. Create, ``bind()``, then ``run()`` (blocks until ``stop()``/signal)."""
+
+    def __init__(self, state_dir: Path, scenario: Scenario, teams: list[str] | None = None, *,
+                 host: str = "127.0.0.1",
+                 port: int = 5555, pub_port: int = 0, heartbeat: float = 1.0, fsync: bool = False) -> None:
+        self.state_dir = Path(state_dir)
+        self.state_dir.mkdir(parents=True, exist_ok=True)
+        self.scenario = scenario
+        self.tokens = TokenBook(self.state_dir, teams or [t.name for t in scenario.teams])
+        self._arena_payload = arena_payload(scenario, self.tokens.teams)
+        self.host = host
+        self.port = port
+        self.pub_port = pub_port
+        self.heartbeat = heartbeat
+        self.registry = Registry()
+        self.sessions: dict[bytes, Session] = {}
+        self.pending_stops: dict[int, PendingStop] = {}
+        self.next_task_id = 1
+        self.next_core_req = 1
+        self.events = EventLog(self.state_dir / "events.log", fsync=fsync)
+        self.ctx = zmq.Context.instance()
+        self.router: zmq.Socket | None = None
+        self.pub: zmq.Socket | None = None
+        self._running = False
+        self.stats = {"received": 0, "errors": 0, "events": 0}
+        self._handlers: dict[str, Callable[[bytes, P.Message], dict[str, Any] | None]] = {
+            "hello": self._on_hello, "heartbeat": self._on_heartbeat, "bye": self._on_bye,
+            "watch": self._on_watch, "robots": self._on_robots, "monitor": self._on_monitor,
+            "tasks": self._on_tasks, "give": self._on_give, "stop": self._on_stop,
+            "snapshot": self._on_snapshot, "register": self._on_register, "report": self._on_report,
+            "task.next": self._on_task_next, "task.done": self._on_task_done, "radio": self._on_radio,
+            "leave": self._on_leave, "reply": self._on_host_reply, "arena": self._on_arena,
+        }
+
+    # ------------------------------------------------------------------ sockets and loop
+    def bind(self) -> None:
+        """Bind the ROUTER and PUB sockets and write ``STATE/core.json``."""
+        self.router = self.ctx.socket(zmq.ROUTER)
+        self.router.setsockopt(zmq.LINGER, 0)
+        self.router.setsockopt(zmq.MAXMSGSIZE, P.SOCKET_MAX_FRAME)
+        self.router.setsockopt(zmq.ROUTER_HANDOVER, 1)
+        self.router.setsockopt(zmq.SNDHWM, 100_000)
+        self.router.setsockopt(zmq.RCVHWM, 100_000)
+        if self.port == 0:
+            self.port = self.router.bind_to_random_port(f"tcp://{self.host}")
+        else:
+            self.router.bind(f"tcp://{self.host}:{self.port}")
+        self.pub = self.ctx.socket(zmq.PUB)
+        self.pub.setsockopt(zmq.LINGER, 0)
+        self.pub.setsockopt(zmq.SNDHWM, 100_000)
+        if self.pub_port == 0:
+            self.pub_port = self.pub.bind_to_random_port(f"tcp://{self.host}")
+        else:
+            self.pub.bind(f"tcp://{self.host}:{self.pub_port}")
+        shown = "127.0.0.1" if self.host in ("0.0.0.0", "*") else self.host
+        info = {"router": f"tcp://{shown}:{self.port}", "pub": f"tcp://{shown}:{self.pub_port}",
+                "pid": os.getpid(), "protocol": P.PROTOCOL_VERSION, "teams": self.tokens.teams,
+                "heartbeat": self.heartbeat, "arena": self.scenario.name}
+        tmp = self.state_dir / "core.json.tmp"
+        tmp.write_text(json.dumps(info, indent=2))
+        os.replace(tmp, self.state_dir / "core.json")
+        self.emit("core.started", None, {"router": info["router"], "teams": self.tokens.teams})
+
+    def stop(self) -> None:
+        """Ask the loop to end after the current turn."""
+        self._running = False
+
+    def run(self) -> None:
+        """Serve until :meth:`stop` or SIGINT/SIGTERM. One thread, one poller."""
+        if self.router is None:
+            self.bind()
+        assert self.router is not None
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            try:
+                signal.signal(sig, lambda *_: self.stop())
+            except ValueError:  # not in the main thread (tests may run a core in a thread)
+                pass
+        poller = zmq.Poller()
+        poller.register(self.router, zmq.POLLIN)
+        self._running = True
+        next_tick = time.monotonic() + self.heartbeat
+        try:
+            while self._running:
+                timeout = max(0.0, next_tick - time.monotonic())
+                if self.pending_stops:
+                    timeout = min(timeout, 0.05)
+                if poller.poll(timeout * 1000):
+                    self._drain()
+                now = time.monotonic()
+                if self.pending_stops:
+                    self._expire_stops(now)
+                if now >= next_tick:
+                    self._tick(now)
+                    next_tick = now + self.heartbeat
+                self.events.flush()
+        finally:
+            self.events.close()
+            self.router.close(0)
+            assert self.pub is not None
+            self.pub.close(0)
+
+    def _drain(self, budget: int = 2000) -> None:
+        """Handle every message waiting on the ROUTER (up to ``budget``) without blocking."""
+        router = self.router
+        assert router is not None
+        for _ in range(budget):
+            try:
+                frames = router.recv_multipart(zmq.NOBLOCK, copy=True)
+            except zmq.Again:
+                return
+            self.stats["received"] += 1
+            ident = frames[0]
+            if len(frames) != 2:
+                self._send_error(ident, 0, MalformedError(
+                    f"expected exactly one frame per message, got {len(frames) - 1}"), None)
+                continue
+            self._handle(ident, frames[1])
+        self.events.flush()
+
+    def _handle(self, ident: bytes, frame: bytes) -> None:
+        req_id = 0
+        msg_type = "?"
+        sess = self.sessions.get(ident)
+        try:
+            raw, req_id = P.decode_envelope(frame)
+            msg = P.validate(raw, req_id)
+            msg_type = msg.type
+            if sess is not None:
+                sess.last_seen = time.monotonic()
+            body = self._handlers[msg.type](ident, msg)
+            if body is not None:
+                self.router.send_multipart([ident, P.ok_reply(req_id, body)])  # type: ignore[union-attr]
+        except RoboCompError as err:
+            self._send_error(ident, req_id, err, sess, msg_type)
+        except Exception:  # never let one bad message take the core down
+            log.error("internal error on %s: %s", msg_type, traceback.format_exc())
+            self._send_error(ident, req_id, RoboCompError(
+                "the core hit an internal error on this request; it was logged and the core goes on"),
+                sess, msg_type)
+
+    def _send_error(self, ident: bytes, req_id: int, err: RoboCompError, sess: Session | None,
+                    msg_type: str = "?") -> None:
+        self.stats["errors"] += 1
+        self.router.send_multipart([ident, P.error_reply(req_id, err)])  # type: ignore[union-attr]
+        team = sess.who.team if sess else None
+        self.emit("refused", team, {"by": sess.who.name if sess else "unknown", "type": msg_type,
+                                    "code": err.code, "message": err.message}, public=False)
+
+    # ------------------------------------------------------------------ events
+    def emit(self, topic: str, team: str | None, data: dict[str, Any], *, public: bool = True,
+             log_it: bool = True) -> None:
+        """Log an event, publish its public view, and push it to watchers who may see it."""
+        self.stats["events"] += 1
+        if log_it:
+            self.events.append(topic, team, data)
+        if public and self.pub is not None:
+            view = {k: v for k, v in data.items() if k not in PRIVATE_KEYS}
+            self.pub.send_multipart([topic.encode(), P.pack(view)])
+        watchers = [s for s in self.sessions.values() if s.watching and
+                    (s.who.role == "referee" or (team is not None and s.who.team == team))]
+        if watchers:
+            frame = P.request("event", 0, {"topic": topic, "team": team, "data": data})
+            for s in watchers:
+                self.router.send_multipart([s.ident, frame])  # type: ignore[union-attr]
+
+    # ------------------------------------------------------------------ helpers
+    def _session(self, ident: bytes) -> Session:
+        s = self.sessions.get(ident)
+        if s is None:
+            raise AuthError("say 'hello' with your team token first (the client does this for you)")
+        return s
+
+    def _robot_for(self, ident: bytes, tag: int) -> RobotRecord:
+        """The robot ``tag`` as commanded by session ``ident`` (ownership checked)."""
+        s = self._session(ident)
+        r = self.registry.robots.get(tag)
+        if r is None:
+            if s.who.role == "referee":
+                self.registry.get(tag)
+            raise NotYoursError(
+                f"robot {tag} is not one of team {s.who.name}'s robots; a team may only see and command its own robots")
+        check_owner(s.who, tag, r.team)
+        return r
+
+    def _hosted(self, ident: bytes, tag: int) -> RobotRecord:
+        """The robot ``tag`` as reported by its host connection ``ident``."""
+        r = self.registry.robots.get(tag)
+        if r is None or r.session != ident:
+            raise NotYoursError(f"robot {tag} is not hosted by this connection; register it first")
+        if r.status != "connected":
+            self._mark_returned(r)
+        return r
+
+    def _send_host(self, r: RobotRecord, type_: str, body: dict[str, Any], req_id: int = 0) -> None:
+        if r.session is not None:
+            self.router.send_multipart([r.session, P.request(type_, req_id, body)])  # type: ignore[union-attr]
+
+    def _new_task(self, r: RobotRecord, name: str, args: list[Any], mode: str, by: str) -> TaskRecord:
+        t = TaskRecord(self.next_task_id, r.tag, name, args, mode, by)
+        self.next_task_id += 1
+        return t
+
+    def _start(self, r: RobotRecord, t: TaskRecord) -> None:
+        t.state = "running"
+        t.started_at = time.time()
+        r.current = t
+        self.emit("task.started", r.team, {"tag": r.tag, "task_id": t.id, "name": t.name, "args": t.args})
+
+    def _finish(self, r: RobotRecord, t: TaskRecord, ok: bool, status: str, result: Any = None,
+                state: str = "done") -> None:
+        t.state = state
+        t.ok = ok
+        t.status = status
+        t.result = result
+        t.finished_at = time.time()
+        r.done.append(t)
+        self.emit("task.done", r.team, {"tag": r.tag, "task_id": t.id, "name": t.name, "ok": ok,
+                                         "state": state, "status": status, "result": result})
+
+    def _mark_lost(self, r: RobotRecord, why: str) -> None:
+        if r.status == "connected":
+            r.status = "lost"
+            r.moving = False
+            self.emit("robot.lost", r.team, {"tag": r.tag, "x": r.x, "y": r.y, "message": why})
+
+    def _mark_returned(self, r: RobotRecord) -> None:
+        if r.status != "connected":
+            r.status = "connected"
+            self.emit("robot.returned", r.team, {"tag": r.tag, "x": r.x, "y": r.y})
+
+    # ------------------------------------------------------------------ timers
+    def _tick(self, now: float) -> None:
+        """Heartbeats out, lost detection, idle sessions forgotten."""
+        hb = P.request("heartbeat", 0, {"t": time.time()})
+        limit = 3 * self.heartbeat
+        for ident, s in list(self.sessions.items()):
+            silent = now - s.last_seen
+            if s.tags:
+                self.router.send_multipart([ident, hb])  # type: ignore[union-attr]
+                if silent > limit:
+                    for tag in s.tags:
+                        r = self.registry.robots[tag]
+                        if r.session == ident:
+                            self._mark_lost(r, f"no message from its host for {silent:.1f} s")
+            elif s.watching:
+                self.router.send_multipart([ident, hb])  # type: ignore[union-attr]
+                if silent > max(SESSION_IDLE / 10, limit * 10):
+                    s.watching = False
+            elif silent > SESSION_IDLE:
+                del self.sessions[ident]
+
+    def _expire_stops(self, now: float) -> None:
+        for cid, p in list(self.pending_stops.items()):
+            if now >= p.deadline:
+                del self.pending_stops[cid]
+                err = P.error_reply(p.req_id, RoboCompError(
+                    f"robot {p.tag} did not confirm the stop within {STOP_TIMEOUT:.0f} s; "
+                    "its host may be lost (it halts on its own when it loses the core)"))
+                self.router.send_multipart([p.ident, err])  # type: ignore[union-attr]
+
+    # ------------------------------------------------------------------ session requests
+    def _on_hello(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
+        who = self.tokens.lookup(msg.body["token"])
+        old = self.sessions.get(ident)
+        sess = Session(ident, who, str(msg.body.get("client", "client"))[:64], time.monotonic())
+        if old is not None and old.who == who:
+            sess.tags, sess.watching = old.tags, old.watching
+        self.sessions[ident] = sess
+        return {"role": who.role, "team": who.team, "protocol": P.PROTOCOL_VERSION,
+                "pub_port": self.pub_port, "heartbeat": self.heartbeat, "teams": self.tokens.teams,
+                "arena": {"name": self.scenario.name, "width": self._arena_payload["width"],
+                          "height": self._arena_payload["height"]}}
+
+    def _on_heartbeat(self, ident: bytes, msg: P.Message) -> None:
+        s = self.sessions.get(ident)
+        if s is not None:
+            for tag in s.tags:
+                r = self.registry.robots[tag]
+                if r.session == ident and r.status == "lost":
+                    self._mark_returned(r)
+        return None
+
+    def _on_bye(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
+        s = self.sessions.pop(ident, None)
+        if s is not None:
+            for tag in s.tags:
+                r = self.registry.robots[tag]
+                if r.session == ident and r.status == "connected":
+                    self._mark_lost(r, "its host said bye without leaving")
+        return {}
+
+    def _on_watch(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
+        s = self._session(ident)
+        s.watching = bool(msg.body.get("on", True))
+        return {"watching": s.watching}
+
+    def _on_robots(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
+        s = self._session(ident)
+        team = None if s.who.role == "referee" else s.who.team
+        return {"robots": [r.summary() for r in self.registry.of_team(team)]}
+
+    def _on_monitor(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
+        return self._robot_for(ident, msg.body["tag"]).monitor()
+
+    def _on_tasks(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
+        r = self._robot_for(ident, msg.body["tag"])
+        return {"tag": r.tag, "advertised": list(r.tasks.values()),
+                "current": r.current.summary() if r.current else None,
+                "pending": r.pending.summary() if r.pending else None,
+                "queued": [t.summary() for t in r.queue], "done": [t.summary() for t in r.done]}
+
+    def _on_arena(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
+        self._session(ident)
+        return self._arena_payload
+
+    def _on_snapshot(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
+        s = self._session(ident)
+        team = None if s.who.role == "referee" else s.who.team
+        return {"arena": self._arena_payload, "teams": self.tokens.teams,
+                "robots": [r.summary() for r in self.registry.of_team(team)], "seq": self.events.seq}
+
+    def _on_give(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
+        s = self._session(ident)
+        r = self._robot_for(ident, msg.body["tag"])
+        spec = find_spec(r.tasks, msg.body["task"], r.tag)
+        args = check_args(spec, msg.body.get("args", []))
+        queue = bool(msg.body.get("queue", False))
+        if r.status == "left":
+            raise UnavailableError(f"robot {r.tag} has left the arena; it takes no tasks until it returns")
+        if not queue and r.status != "connected":
+            raise UnavailableError(
+                f"robot {r.tag} is {r.status} and cannot start a task now; queue it (--queue) for when it returns")
+        t = self._new_task(r, spec["name"], args, "queue" if queue else "now", s.who.name)
+        self.emit("task.given", r.team, {"tag": r.tag, "task_id": t.id, "name": t.name, "args": args,
+                                          "mode": t.mode, "by": s.who.name})
+        if queue:
+            r.queue.append(t)
+            if r.current is None and r.pending is None and r.status == "connected":
+                self._start(r, r.queue.popleft())
+                self._send_host(r, "task.start", r.current.wire())  # type: ignore[union-attr]
+            return {"task_id": t.id, "mode": "queue", "position": len(r.queue)}
+        if r.current is None:
+            self._start(r, t)
+            self._send_host(r, "task.start", t.wire())
+            return {"task_id": t.id, "mode": "now", "interrupts": None}
+        if r.pending is not None:  # a newer "now" replaces an older one not yet started
+            self._finish(r, r.pending, False, f"replaced by task {t.id} before it started", state="cancelled")
+        t.state = "pending"
+        r.pending = t
+        self._send_host(r, "task.interrupt", t.wire())
+        return {"task_id": t.id, "mode": "now", "interrupts": r.current.id}
+
+    def _on_stop(self, ident: bytes, msg: P.Message) -> None:
+        r = self._robot_for(ident, msg.body["tag"])
+        if r.status != "connected" or r.session is None:
+            raise UnavailableError(
+                f"robot {r.tag} is {r.status}; it halts by itself when it loses the core, and cannot be reached now")
+        cid = self.next_core_req
+        self.next_core_req += 1
+        now = time.monotonic()
+        self.pending_stops[cid] = PendingStop(ident, msg.id, r.tag, now + STOP_TIMEOUT, now)
+        self._send_host(r, "stop", {"tag": r.tag}, cid)
+        return None  # the reply goes out when the robot confirms (see _on_host_reply)
+
+    # ------------------------------------------------------------------ robot-host requests
+    def _on_register(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
+        b = msg.body
+        who = self.tokens.lookup(b["token"])
+        if who.role != "team":
+            raise FieldError("robots register with a team token, not the referee's")
+        robot_id = b["robot_id"]
+        if not (0 < len(robot_id) <= 64):
+            raise FieldError("'robot_id' must have 1 to 64 characters")
+        specs = check_specs(b.get("tasks", []))
+        sess = self.sessions.get(ident)
+        if sess is None:
+            sess = Session(ident, who, "robots", time.monotonic())
+            self.sessions[ident] = sess
+        r = self.registry.lookup(who.team, robot_id)  # type: ignore[arg-type]
+        returning = r is not None
+        if r is None:
+            r = self.registry.add(who.team, robot_id)  # type: ignore[arg-type]
+        elif r.session is not None and r.session != ident and r.session in self.sessions:
+            self.sessions[r.session].tags.discard(r.tag)
+        r.session = ident
+        sess.tags.add(r.tag)
+        r.tasks = specs
+        for k in ("x", "y", "heading"):
+            if k in b:
+                setattr(r, k, float(b[k]))
+        was = r.status
+        r.status = "connected"
+        r.last_report = time.time()
+        if returning:
+            if r.current is not None and r.current.id != b.get("task_id"):
+                # the host no longer runs what we think it runs (it restarted): start afresh
+                self._finish(r, r.current, False, "the robot restarted and lost this task", state="cancelled")
+                r.current = None
+            self.emit("robot.returned", r.team, {"tag": r.tag, "x": r.x, "y": r.y, "was": was})
+        else:
+            self.emit("robot.registered", r.team, {"tag": r.tag, "team": r.team, "robot_id": robot_id,
+                                                   "x": r.x, "y": r.y, "heading": r.heading})
+        if r.current is None and r.pending is not None:
+            self._start(r, r.pending)
+            r.pending = None
+        elif r.current is None and r.queue:
+            self._start(r, r.queue.popleft())
+        return {"tag": r.tag, "team": r.team, "returning": returning, "heartbeat": self.heartbeat,
+                "task": r.current.wire() if r.current else None}
+
+    def _on_report(self, ident: bytes, msg: P.Message) -> None:
+        b = msg.body
+        r = self._hosted(ident, b["tag"])
+        r.x, r.y, r.heading = b["x"], b["y"], b["heading"]
+        r.moving = b.get("moving", False)
+        if "sensors" in b:
+            r.sensors = b["sensors"]
+        now = time.time()
+        r.last_report = now
+        payload = {"tag": r.tag, "team": r.team, "x": r.x, "y": r.y, "heading": r.heading, "moving": r.moving}
+        log_it = now - r.last_logged_position >= POSITION_LOG_INTERVAL
+        if log_it:
+            r.last_logged_position = now
+        self.emit("robot.position", r.team, payload, log_it=log_it)
+        return None
+
+    def _on_task_next(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
+        r = self._hosted(ident, msg.body["tag"])
+        if r.current is not None:
+            return {"task": r.current.wire()}
+        if r.queue:
+            self._start(r, r.queue.popleft())
+            return {"task": r.current.wire()}  # type: ignore[union-attr]
+        return {"task": None}
+
+    def _on_task_done(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
+        b = msg.body
+        r = self._hosted(ident, b["tag"])
+        tid = b["task_id"]
+        if r.current is None or r.current.id != tid:
+            raise FieldError(f"task {tid} is not robot {r.tag}'s current task")
+        result = b.get("result")
+        if len(P.pack(result)) > MAX_RESULT:
+            raise TooLargeError(f"a task result may be at most {MAX_RESULT} bytes once packed")
+        self._finish(r, r.current, b["ok"], b["status"][:500], result)
+        r.current = None
+        if r.pending is not None:
+            self._start(r, r.pending)
+            r.pending = None
+        elif r.queue:
+            self._start(r, r.queue.popleft())
+        return {"next": r.current.wire() if r.current else None}
+
+    def _on_radio(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
+        b = msg.body
+        r = self._hosted(ident, b["tag"])
+        size = len(P.pack(b["data"]))
+        if size > P.MAX_RADIO:
+            raise TooLargeError(f"a radio message may be at most {P.MAX_RADIO} bytes; this one is {size}")
+        now = time.monotonic()
+        r.radio_allowance = min(P.RADIO_RATE, r.radio_allowance + (now - r.radio_checked) * P.RADIO_RATE)
+        r.radio_checked = now
+        if r.radio_allowance < 1.0:
+            raise RateLimitError(f"robot {r.tag} may send at most {P.RADIO_RATE:.0f} radio messages per second")
+        r.radio_allowance -= 1.0
+        to = b.get("to")
+        if to is None:
+            targets = [x for x in self.registry.of_team(r.team) if x.tag != r.tag]
+        else:
+            t = self.registry.robots.get(to)
+            if t is None or t.team != r.team:
+                raise NotYoursError(f"robot {to} is not on team {r.team}; the radio reaches your own team only")
+            targets = [t]
+        delivered = 0
+        body = {"from": r.tag, "to": to, "data": b["data"]}
+        for t in targets:
+            if t.status == "connected" and t.session is not None:
+                self.router.send_multipart([t.session, P.request("radio", 0, dict(body, tag=t.tag))])  # type: ignore[union-attr]
+                delivered += 1
+        self.emit("radio", r.team, dict(body, delivered=delivered), public=False)
+        return {"delivered": delivered}
+
+    def _on_leave(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
+        r = self._hosted(ident, msg.body["tag"])
+        r.status = "left"
+        r.moving = False
+        r.session = None
+        self.sessions[ident].tags.discard(r.tag)
+        self.emit("robot.left", r.team, {"tag": r.tag, "x": r.x, "y": r.y})
+        return {}
+
+    def _on_host_reply(self, ident: bytes, msg: P.Message) -> None:
+        raw = msg.body
+        p = self.pending_stops.pop(msg.id, None)
+        if p is None:
+            return None  # a late answer to a stop that already timed out
+        r = self.registry.robots[p.tag]
+        if not raw.get("ok"):
+            err = raw.get("error") or {}
+            self.router.send_multipart([p.ident, P.error_reply(p.req_id, RoboCompError(  # type: ignore[union-attr]
+                f"robot {p.tag} could not stop: {err.get('message', 'no reason given')}"))])
+            return None
+        body = raw.get("body") or {}
+        for k in ("x", "y", "heading"):
+            if type(body.get(k)) in (int, float):
+                setattr(r, k, float(body[k]))
+        r.moving = False
+        cancelled = []
+        if r.current is not None:
+            cancelled.append(r.current.id)
+            self._finish(r, r.current, False, "stopped", state="cancelled")
+            r.current = None
+        for t in ([r.pending] if r.pending else []) + list(r.queue):
+            cancelled.append(t.id)
+            self._finish(r, t, False, "cancelled by stop", state="cancelled")
+        r.pending = None
+        r.queue.clear()
+        ms = (time.monotonic() - p.t0) * 1000
+        self.emit("robot.stopped", r.team, {"tag": r.tag, "x": r.x, "y": r.y, "cancelled": cancelled,
+                                             "ms": round(ms, 3)})
+        self.router.send_multipart([p.ident, P.ok_reply(p.req_id, {  # type: ignore[union-attr]
+            "tag": r.tag, "x": r.x, "y": r.y, "heading": r.heading, "cancelled": cancelled, "ms": ms})])
+        return None

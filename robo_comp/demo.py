@@ -1,0 +1,167 @@
+"""``robo-comp demo``: a core and two teams of simulated robots on localhost, in one command.
+
+Everything runs as real processes talking over real sockets: the core, one robot host per
+team. Two team clients give tasks (now and queued), one robot is stopped and given a new
+task, a cross-team command is refused, and a live summary prints every second.
+"""
+from __future__ import annotations
+
+import json
+import random
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+from robo_comp.client import Client
+from robo_comp.core.protocol import unpack_walls
+from robo_comp.errors import RoboCompError
+
+
+def start_core(state: Path, *extra: str) -> subprocess.Popen[bytes]:
+    """Start ``robo-comp core`` on a free port and wait for its ``core.json``."""
+    proc = subprocess.Popen([sys.executable, "-m", "robo_comp.cli", "core", "--state", str(state),
+                             "--port", "0", *extra], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    info = state / "core.json"
+    t_end = time.monotonic() + 20
+    while not info.exists():
+        if proc.poll() is not None:
+            raise RuntimeError(f"core exited: {proc.stderr.read().decode() if proc.stderr else ''}")
+        if time.monotonic() > t_end:
+            proc.kill()
+            raise RuntimeError("core did not start within 20 s")
+        time.sleep(0.05)
+    return proc
+
+
+def start_robots(state: Path, team: str, count: int, *extra: str) -> subprocess.Popen[bytes]:
+    """Start ``robo-comp robots`` for ``team`` against the core in ``state``."""
+    return subprocess.Popen([sys.executable, "-m", "robo_comp.cli", "robots", "--core", str(state),
+                             "--token-file", str(state / "teams" / f"{team}.token"),
+                             "--count", str(count), *extra],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+
+
+def _free_cells(walls: Any) -> list[tuple[int, int]]:
+    h, w = walls.shape
+    return [(x, y) for y in range(h) for x in range(w) if not walls[y, x]]
+
+
+def run_demo(duration: float = 20.0, robots: int = 3, out: Any = None) -> int:
+    """Run the demo match; prints a live summary and a final table; returns 0 on success."""
+    out = out or sys.stdout
+    rng = random.Random(7)
+    with tempfile.TemporaryDirectory(prefix="robo-comp-demo-") as tmp:
+        state = Path(tmp)
+        core = start_core(state)
+        procs = [core]
+        try:
+            teams = json.loads((state / "core.json").read_text())["teams"][:2]
+            procs += [start_robots(state, t, robots) for t in teams]
+            clients = {t: Client(str(state), (state / "teams" / f"{t}.token").read_text().strip(),
+                                 client="demo") for t in teams}
+            for c in clients.values():
+                c.watch(True)
+            t_end = time.monotonic() + 15
+            while any(len(c.robots()) < robots for c in clients.values()):
+                if time.monotonic() > t_end:
+                    raise RuntimeError("robots did not register within 15 s")
+                time.sleep(0.1)
+            free = _free_cells(unpack_walls(next(iter(clients.values())).arena()))
+            print(f"demo: core and {len(teams)} teams of {robots} robots up; "
+                  f"arena {len(free)} free cells", file=out)
+            _give_opening_tasks(clients, free, rng, out)
+            counts = _watch(clients, free, rng, duration, out)
+            _final_table(clients, counts, out)
+            for c in clients.values():
+                c.close()
+        except (RoboCompError, RuntimeError) as e:
+            print(f"demo failed: {e}", file=out)
+            return 1
+        finally:
+            for p in reversed(procs):
+                p.terminate()
+            for p in procs:
+                try:
+                    p.wait(5)
+                except subprocess.TimeoutExpired:
+                    p.kill()
+    return 0
+
+
+def _give_opening_tasks(clients: dict[str, Client], free: list[tuple[int, int]], rng: random.Random,
+                        out: Any) -> None:
+    teams = list(clients)
+    for team, c in clients.items():
+        for i, r in enumerate(c.robots()):
+            tag = r["tag"]
+            x, y = rng.choice(free)
+            if i % 3 == 0:
+                c.give(tag, "goTo", [x, y])
+            elif i % 3 == 1:
+                c.give(tag, "followPath", [[list(rng.choice(free)), [x, y]]])
+            else:
+                c.give(tag, "examineArea", [x, y])
+            c.give(tag, "goTo", list(rng.choice(free)), queue=True)
+        print(f"demo: team {team} gave each robot a task now and one queued", file=out)
+    # Ownership: the first team may not command the second team's robots.
+    other = clients[teams[1]].robots()[0]["tag"]
+    try:
+        clients[teams[0]].give(other, "goTo", [1, 1])
+    except RoboCompError as e:
+        print(f"demo: team {teams[0]} tried robot {other} of team {teams[1]} -> refused: {e.code}: {e.message}",
+              file=out)
+
+
+def _watch(clients: dict[str, Client], free: list[tuple[int, int]], rng: random.Random, duration: float,
+           out: Any) -> dict[str, int]:
+    counts = {"task.done": 0, "robot.stopped": 0, "robot.lost": 0}
+    t0 = time.monotonic()
+    next_print = t0 + 1
+    stopped = False
+    while time.monotonic() - t0 < duration:
+        for team, c in clients.items():
+            ev = c.next_event(0.05)
+            while ev is not None:
+                topic, data = ev["topic"], ev["data"]
+                if topic in counts:
+                    counts[topic] += 1
+                if topic == "task.done" and data.get("state") == "done":
+                    # keep robots busy: a new queued task whenever one finishes
+                    c.give(data["tag"], "goTo", list(rng.choice(free)), queue=True)
+                ev = c.next_event(0)
+        if not stopped and time.monotonic() - t0 > duration / 3:
+            team, c = next(iter(clients.items()))
+            tag = c.robots()[0]["tag"]
+            res = c.stop(tag)
+            print(f"demo: STOP robot {tag}: halted in {res['ms']:.1f} ms, cancelled {res['cancelled']}",
+                  file=out)
+            c.give(tag, "goTo", list(rng.choice(free)))
+            print(f"demo: robot {tag} took a new task after the stop", file=out)
+            stopped = True
+        if time.monotonic() >= next_print:
+            next_print += 1
+            parts = []
+            for team, c in clients.items():
+                rows = c.robots()
+                moving = sum(r["moving"] for r in rows)
+                parts.append(f"{team}: {moving}/{len(rows)} moving")
+            print(f"[{time.monotonic() - t0:5.1f}s] {'  '.join(parts)}  tasks done: {counts['task.done']}",
+                  file=out, flush=True)
+    return counts
+
+
+def _final_table(clients: dict[str, Client], counts: dict[str, int], out: Any) -> None:
+    print("\nfinal table", file=out)
+    print(f"{'team':<8} {'tag':>5} {'status':<10} {'pos':>13} {'done':>5} {'ok':>4}  current", file=out)
+    for team, c in clients.items():
+        for r in c.robots():
+            t = c.tasks(r["tag"])
+            done = [d for d in t["done"] if d["state"] == "done"]
+            ok = sum(1 for d in done if d["ok"])
+            cur = f"{t['current']['name']}#{t['current']['task_id']}" if t["current"] else "-"
+            print(f"{team:<8} {r['tag']:>5} {r['status']:<10} ({r['x']:5.1f},{r['y']:5.1f}) "
+                  f"{len(done):>5} {ok:>4}  {cur}", file=out)
+    print(f"events seen: {counts}", file=out)

@@ -1,0 +1,377 @@
+"""The robot host: one process, one DEALER socket, one poll loop, many simulated robots.
+
+The host says hello with its team token, fetches the arena, registers its robots (each
+with a stable robot id, so a reconnect keeps the tag) and then runs a fixed-rate loop:
+advance every robot's movement, ask finished tasks for their next step, report positions.
+When the core goes silent for three heartbeat intervals every robot halts and the host
+reconnects on its own; the robots resume where they were once registered again.
+"""
+from __future__ import annotations
+
+import logging
+import random
+import signal
+import time
+from collections import deque
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import zmq
+
+from robo_comp.core import protocol as P
+from robo_comp.core.tasks import check_args
+from robo_comp.errors import RoboCompError
+from robo_comp.robots.body import Body
+from robo_comp.robots.builtin_tasks import builtin_tasks
+from robo_comp.robots.steps import Capture, Step, TaskFailed, TaskSpec
+from robo_comp.world.planner import find_path
+
+log = logging.getLogger("robo_comp.robots")
+
+Reply = Callable[[bool, dict[str, Any]], None]
+
+
+@dataclass(slots=True)
+class RunningTask:
+    """A task a robot is running: its id, name and generator of steps."""
+
+    id: int
+    name: str
+    gen: Iterator[Step]
+    pictures: int = 0
+
+
+@dataclass(slots=True)
+class SimRobot:
+    """One simulated robot hosted here."""
+
+    robot_id: str
+    body: Body
+    host: RobotHost
+    tag: int = 0
+    task: RunningTask | None = None
+    pending: dict[str, Any] | None = None  # a task given "now" that waits for the movement boundary
+    inbox: deque[dict[str, Any]] = field(default_factory=lambda: deque(maxlen=100))
+    last_report: float = 0.0
+
+    # RobotView for tasks -------------------------------------------------
+    def cell(self) -> tuple[int, int]:
+        """The robot's current cell."""
+        return self.body.cell()
+
+    def in_bounds(self, x: int, y: int) -> bool:
+        """True when (x, y) is a free cell of the arena."""
+        walls = self.host.walls
+        return 0 <= y < walls.shape[0] and 0 <= x < walls.shape[1] and not walls[y, x]
+
+    def plan_to(self, goal: tuple[int, int]) -> list[tuple[int, int]] | None:
+        """A 4-connected path from the current cell to ``goal``."""
+        return find_path(self.host.walls, self.cell(), goal)
+
+
+class RobotHost:
+    """Hosts ``count`` simulated robots of one team and keeps them connected to the core."""
+
+    def __init__(self, core_url: str, token: str, count: int, *, prefix: str | None = None,
+                 speed: float = 2.0, turn_rate: float = 180.0, report_hz: float = 10.0,
+                 tick_hz: float = 20.0, tasks: dict[str, TaskSpec] | None = None,
+                 ctx: zmq.Context | None = None, seed: int = 0) -> None:
+        self.url = core_url
+        self.token = token
+        self.count = count
+        self.prefix = prefix
+        self.speed = speed
+        self.turn_rate = turn_rate
+        self.report_interval = 1.0 / report_hz
+        self.tick = 1.0 / tick_hz
+        self.tasks = tasks if tasks is not None else builtin_tasks()
+        self.ctx = ctx or zmq.Context.instance()
+        self.rng = random.Random(seed)
+        self.sock: zmq.Socket | None = None
+        self.poller = zmq.Poller()
+        self.robots: dict[str, SimRobot] = {}
+        self.by_tag: dict[int, SimRobot] = {}
+        self.walls = np.zeros((1, 1), dtype=bool)
+        self.team: str | None = None
+        self.heartbeat = 1.0
+        self.state = "down"  # down, hello, arena, registering, up
+        self.replies: dict[int, Reply] = {}
+        self.next_id = 1
+        self.last_rx = 0.0
+        self.last_tx = 0.0
+        self.state_since = 0.0
+        self._running = False
+        self.reconnects = 0
+        self._waiting = 0
+
+    # ------------------------------------------------------------------ sending
+    def _send(self, type_: str, body: dict[str, Any], on_reply: Reply | None = None) -> None:
+        assert self.sock is not None
+        rid = self.next_id
+        self.next_id += 1
+        if on_reply is not None:
+            self.replies[rid] = on_reply
+        self.sock.send(P.request(type_, rid, body))
+        self.last_tx = time.monotonic()
+
+    def _answer(self, rid: int, body: dict[str, Any]) -> None:
+        assert self.sock is not None
+        self.sock.send(P.ok_reply(rid, body))
+        self.last_tx = time.monotonic()
+
+    # ------------------------------------------------------------------ connection
+    def _open(self) -> None:
+        """Open a fresh socket and say hello (the rest follows from the replies)."""
+        if self.sock is not None:
+            self.poller.unregister(self.sock)
+            self.sock.close(0)
+        self.sock = self.ctx.socket(zmq.DEALER)
+        self.sock.setsockopt(zmq.LINGER, 0)
+        self.sock.setsockopt(zmq.SNDHWM, 100_000)
+        self.sock.setsockopt(zmq.RCVHWM, 100_000)
+        self.sock.connect(self.url)
+        self.poller.register(self.sock, zmq.POLLIN)
+        self.replies.clear()
+        self._set_state("hello")
+        self._send("hello", {"token": self.token, "client": "robots"}, self._on_hello)
+
+    def _set_state(self, state: str) -> None:
+        self.state = state
+        self.state_since = time.monotonic()
+
+    def _on_hello(self, ok: bool, body: dict[str, Any]) -> None:
+        if not ok:
+            raise SystemExit(f"robots: the core refused us: {body.get('message')}")
+        self.team = body["team"]
+        self.heartbeat = float(body.get("heartbeat", 1.0))
+        self._set_state("arena")
+        self._send("arena", {}, self._on_arena)
+
+    def _on_arena(self, ok: bool, body: dict[str, Any]) -> None:
+        if not ok:
+            raise SystemExit(f"robots: cannot fetch the arena: {body.get('message')}")
+        self.walls = P.unpack_walls(body)
+        if not self.robots:
+            self._create_robots(body)
+        self._set_state("registering")
+        adverts = [t.advert() for t in self.tasks.values()]
+        self._waiting = len(self.robots)  # replies still to come before we are "up"
+        for r in self.robots.values():
+            b = r.body
+            self._send("register", {"token": self.token, "robot_id": r.robot_id, "tasks": adverts,
+                                    "x": b.x, "y": b.y, "heading": b.heading,
+                                    "task_id": r.task.id if r.task else None},
+                       lambda ok, body, r=r: self._on_registered(r, ok, body))
+
+    def _create_robots(self, arena: dict[str, Any]) -> None:
+        free = [(x, y) for y in range(self.walls.shape[0]) for x in range(self.walls.shape[1])
+                if not self.walls[y, x]]
+        zone = next((t.get("start") for t in arena.get("teams", []) if t["name"] == self.team), None)
+        cells = [c for c in free if zone and zone["x"] <= c[0] < zone["x"] + zone["w"]
+                 and zone["y"] <= c[1] < zone["y"] + zone["h"]]
+        extra = [c for c in free if c not in set(cells)]
+        self.rng.shuffle(extra)
+        cells += extra
+        prefix = self.prefix or self.team
+        for i in range(self.count):
+            x, y = cells[i % len(cells)]
+            rid = f"{prefix}-{i + 1}"
+            self.robots[rid] = SimRobot(rid, Body(float(x), float(y), 0.0, self.speed, self.turn_rate), self)
+
+    def _on_registered(self, r: SimRobot, ok: bool, body: dict[str, Any]) -> None:
+        if not ok:
+            log.error("robot %s was refused: %s", r.robot_id, body.get("message"))
+        else:
+            if r.tag and r.tag != body["tag"]:
+                self.by_tag.pop(r.tag, None)
+            r.tag = body["tag"]
+            self.by_tag[r.tag] = r
+            task = body.get("task")
+            if task is None:
+                if r.task is not None:  # the core no longer knows our task (it restarted)
+                    r.task = None
+                    r.body.halt()
+            elif r.task is None or r.task.id != task["task_id"]:
+                self._start(r, task)
+        self._waiting -= 1
+        if self._waiting <= 0:
+            self._set_state("up")
+
+    def _lost_core(self, now: float) -> None:
+        """Halt every robot and start reconnecting."""
+        log.warning("lost the core (silent for %.1f s); halting robots and reconnecting", now - self.last_rx)
+        # Movement pauses while we are not "up": step() only runs then; the robots resume
+        # their current steps once registered again.
+        self.reconnects += 1
+        self._open()
+
+    # ------------------------------------------------------------------ messages from the core
+    def _dispatch(self, frame: bytes) -> None:
+        self.last_rx = time.monotonic()
+        try:
+            msg = P.unpack(frame)
+            type_ = msg["type"]
+            rid = msg.get("id", 0)
+            body = msg.get("body") or {}
+        except Exception:
+            log.error("unreadable message from the core; ignored")
+            return
+        if type_ == "reply":
+            cb = self.replies.pop(rid, None)
+            if cb is not None:
+                cb(bool(msg.get("ok")), body if msg.get("ok") else (msg.get("error") or {}))
+            elif not msg.get("ok"):
+                log.warning("core: %s", (msg.get("error") or {}).get("message"))
+            return
+        if type_ == "heartbeat" or type_ == "event":
+            return
+        r = self.by_tag.get(body.get("tag", -1))
+        if type_ == "stop":
+            if r is None:
+                self.sock.send(P.error_reply(rid, RoboCompError("no such robot on this host")))  # type: ignore[union-attr]
+                return
+            self._halt(r)
+            self._answer(rid, {"tag": r.tag, "x": r.body.x, "y": r.body.y, "heading": r.body.heading})
+        elif type_ == "radio" and r is not None:
+            r.inbox.append({"from": body.get("from"), "data": body.get("data")})
+        elif type_ == "task.start" and r is not None:
+            if r.task is None or r.task.id != body["task_id"]:
+                if r.task is not None:
+                    r.body.halt()
+                self._start(r, body)
+        elif type_ == "task.interrupt" and r is not None:
+            if r.task is None or not r.body.moving:
+                if r.task is not None:
+                    self._done(r, False, f"interrupted by task {body['task_id']}")
+                self._start(r, body)
+            else:
+                r.pending = body
+
+    # ------------------------------------------------------------------ tasks
+    def _start(self, r: SimRobot, task: dict[str, Any]) -> None:
+        """Begin ``task`` on ``r`` (validated again here, as the robot must)."""
+        r.pending = None
+        spec = self.tasks.get(task["name"])
+        try:
+            if spec is None:
+                raise TaskFailed(f"this robot has no task {task['name']!r}")
+            args = check_args(spec.advert(), task.get("args", []))
+            r.task = RunningTask(task["task_id"], task["name"], spec.run(r, *args))
+        except (TaskFailed, RoboCompError) as e:
+            r.task = RunningTask(task["task_id"], task["name"], iter(()))
+            self._done(r, False, str(e))
+            return
+        self._advance(r)
+
+    def _advance(self, r: SimRobot) -> None:
+        """Ask the task for its next step (the robot is at a movement boundary)."""
+        t = r.task
+        assert t is not None
+        while True:
+            try:
+                step = next(t.gen)
+            except StopIteration as stop:
+                self._done(r, True, "done", stop.value)
+                return
+            except TaskFailed as e:
+                self._done(r, False, str(e))
+                return
+            except Exception as e:  # a task bug must not take the host down
+                self._done(r, False, f"task {t.name} crashed: {e!r}")
+                return
+            if isinstance(step, Capture):
+                t.pictures += 1
+            r.body.begin(step)
+            return
+
+    def _done(self, r: SimRobot, ok: bool, status: str, result: Any = None) -> None:
+        t = r.task
+        if t is None:
+            return
+        r.task = None
+        r.body.halt()
+        self._send("task.done", {"tag": r.tag, "task_id": t.id, "ok": ok, "status": status,
+                                 "result": result}, lambda ok_, body, r=r: self._on_done_reply(r, ok_, body))
+
+    def _on_done_reply(self, r: SimRobot, ok: bool, body: dict[str, Any]) -> None:
+        nxt = body.get("next") if ok else None
+        if nxt is not None and r.task is None:
+            self._start(r, nxt)
+
+    def _halt(self, r: SimRobot) -> None:
+        """Stop at once: no movement, no task, nothing pending (the core cancels them)."""
+        r.body.halt()
+        r.task = None
+        r.pending = None
+
+    # ------------------------------------------------------------------ loop
+    def step(self, dt: float) -> None:
+        """Advance every robot by ``dt`` seconds (movement, task steps)."""
+        for r in self.robots.values():
+            if r.body.step is not None and r.body.update(dt):
+                if r.pending is not None:
+                    nxt = r.pending
+                    self._done(r, False, f"interrupted by task {nxt['task_id']}")
+                    self._start(r, nxt)
+                elif r.task is not None:
+                    self._advance(r)
+
+    def _report(self, now: float) -> None:
+        for r in self.by_tag.values():
+            moving = r.body.moving
+            if moving or now - r.last_report >= 1.0:
+                r.last_report = now
+                b = r.body
+                self.sock.send(P.request("report", 0, {  # type: ignore[union-attr]
+                    "tag": r.tag, "x": round(b.x, 3), "y": round(b.y, 3),
+                    "heading": round(b.heading, 1), "moving": moving}))
+        self.last_tx = now
+
+    def stop(self) -> None:
+        """End the loop after the current turn."""
+        self._running = False
+
+    def run(self, duration: float | None = None, leave: bool = True) -> None:
+        """Connect and serve until :meth:`stop`, a signal, or ``duration`` seconds."""
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            try:
+                signal.signal(sig, lambda *_: self.stop())
+            except ValueError:
+                pass
+        t_end = None if duration is None else time.monotonic() + duration
+        self._running = True
+        self.last_rx = time.monotonic()
+        self._open()
+        last = time.monotonic()
+        next_tick = last + self.tick
+        next_report = last
+        while self._running and (t_end is None or time.monotonic() < t_end):
+            for sock, _ in self.poller.poll(max(0.0, next_tick - time.monotonic()) * 1000):
+                while True:
+                    try:
+                        frame = sock.recv(zmq.NOBLOCK)
+                    except zmq.Again:
+                        break
+                    self._dispatch(frame)
+            now = time.monotonic()
+            if now >= next_tick:
+                if self.state == "up":
+                    self.step(now - last)
+                    if now >= next_report:
+                        self._report(now)
+                        next_report = now + self.report_interval
+                last = now
+                next_tick = now + self.tick
+                if self.state == "up" and now - self.last_tx > self.heartbeat:
+                    self._send("heartbeat", {})
+                silent = now - self.last_rx
+                if silent > 3 * self.heartbeat and now - self.state_since > 3 * self.heartbeat:
+                    self._lost_core(now)
+        if leave and self.state == "up":
+            for r in self.by_tag.values():
+                self._send("leave", {"tag": r.tag})
+            time.sleep(0.05)
+        if self.sock is not None:
+            self.sock.close(0)

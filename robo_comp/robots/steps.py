@@ -1,0 +1,82 @@
+"""Movement steps and the task interface robots run.
+
+A task is a generator function ``run(robot, *args)`` that yields :class:`Step` objects.
+Each step is one movement (or a picture); the runtime completes it before asking the
+generator for the next one, so an *interrupt* (a new task given "now") takes effect at a
+movement boundary, while a *stop* halts in the middle of a step. The generator's return
+value is the task's result; raising :class:`TaskFailed` ends it with a clear status.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+
+@dataclass(frozen=True, slots=True)
+class Move:
+    """Drive to the neighbouring cell ``(x, y)`` (turning to face it first)."""
+
+    x: int
+    y: int
+
+
+@dataclass(frozen=True, slots=True)
+class Turn:
+    """Turn on the spot by ``degrees`` (positive = clockwise on the map, y pointing down)."""
+
+    degrees: float
+
+
+@dataclass(frozen=True, slots=True)
+class Capture:
+    """Take a picture with the camera; it is uploaded with the task's result."""
+
+    label: str = ""
+
+
+@dataclass(frozen=True, slots=True)
+class Wait:
+    """Stand still for ``seconds``."""
+
+    seconds: float
+
+
+Step = Move | Turn | Capture | Wait
+
+
+class TaskFailed(Exception):
+    """Raised by a task to end with ``ok = False`` and this message as its status."""
+
+
+class RobotView(Protocol):
+    """What a task sees of its robot: plain data and planning, no host internals."""
+
+    tag: int
+
+    def cell(self) -> tuple[int, int]:
+        """The robot's current cell."""
+
+    def plan_to(self, goal: tuple[int, int]) -> list[tuple[int, int]] | None:
+        """A path from the current cell to ``goal`` (inclusive), or None."""
+
+    def in_bounds(self, x: int, y: int) -> bool:
+        """True when ``(x, y)`` is a free cell of the arena."""
+
+
+TaskFn = Callable[..., Iterator[Step]]
+
+
+@dataclass(slots=True)
+class TaskSpec:
+    """A task a robot can run: its advertised description and its generator function."""
+
+    name: str
+    run: TaskFn
+    args: list[dict[str, str]] = field(default_factory=list)
+    description: str = ""
+    source: str = "builtin"
+
+    def advert(self) -> dict[str, Any]:
+        """The description sent to the core in ``register``."""
+        return {"name": self.name, "description": self.description, "args": self.args}
