@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import json
 import random
-import subprocess
 import sys
 import tempfile
 import time
@@ -18,30 +17,7 @@ from typing import Any
 from robo_comp.client import Client
 from robo_comp.core.protocol import unpack_walls
 from robo_comp.errors import RoboCompError
-
-
-def start_core(state: Path, *extra: str) -> subprocess.Popen[bytes]:
-    """Start ``robo-comp core`` on a free port and wait for its ``core.json``."""
-    proc = subprocess.Popen([sys.executable, "-m", "robo_comp.cli", "core", "--state", str(state),
-                             "--port", "0", *extra], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    info = state / "core.json"
-    t_end = time.monotonic() + 20
-    while not info.exists():
-        if proc.poll() is not None:
-            raise RuntimeError(f"core exited: {proc.stderr.read().decode() if proc.stderr else ''}")
-        if time.monotonic() > t_end:
-            proc.kill()
-            raise RuntimeError("core did not start within 20 s")
-        time.sleep(0.05)
-    return proc
-
-
-def start_robots(state: Path, team: str, count: int, *extra: str) -> subprocess.Popen[bytes]:
-    """Start ``robo-comp robots`` for ``team`` against the core in ``state``."""
-    return subprocess.Popen([sys.executable, "-m", "robo_comp.cli", "robots", "--core", str(state),
-                             "--token-file", str(state / "teams" / f"{team}.token"),
-                             "--count", str(count), *extra],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+from robo_comp.launch import start_core, start_robots, stop_all
 
 
 def _free_cells(walls: Any) -> list[tuple[int, int]]:
@@ -81,13 +57,7 @@ def run_demo(duration: float = 20.0, robots: int = 3, out: Any = None) -> int:
             print(f"demo failed: {e}", file=out)
             return 1
         finally:
-            for p in reversed(procs):
-                p.terminate()
-            for p in procs:
-                try:
-                    p.wait(5)
-                except subprocess.TimeoutExpired:
-                    p.kill()
+            stop_all(procs)
     return 0
 
 

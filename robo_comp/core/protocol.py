@@ -62,6 +62,7 @@ REQUESTS: dict[str, dict[str, tuple[str, bool]]] = {
     "stop": {"tag": (_INT, True)},
     "snapshot": {},
     "arena": {},
+    "stats": {},
     # robot hosts
     "register": {
         "token": (_STR, True), "robot_id": (_STR, True), "tasks": (_LIST, False),
@@ -138,26 +139,17 @@ def event_frames(topic: str, payload: dict[str, Any]) -> list[bytes]:
     return [topic.encode(), pack(payload)]
 
 
-def _kind_ok(kind: str, value: Any) -> bool:
-    if kind == _ANY:
-        return True
-    if kind == _INT:
-        return type(value) is int
-    if kind == _OPT_INT:
-        return value is None or type(value) is int
-    if kind == _NUM:
-        return type(value) in (int, float)
-    if kind == _STR:
-        return type(value) is str
-    if kind == _BOOL:
-        return type(value) is bool
-    if kind == _LIST:
-        return type(value) is list
-    if kind == _MAP:
-        return type(value) is dict
-    if kind == _BIN:
-        return type(value) is bytes
-    return False
+_NONE = type(None)
+#: The Python types each field kind admits (None = anything). bool is not an int here.
+_ALLOWED: dict[str, tuple[type, ...] | None] = {
+    _ANY: None, _INT: (int,), _OPT_INT: (int, _NONE), _NUM: (int, float), _STR: (str,),
+    _BOOL: (bool,), _LIST: (list,), _MAP: (dict,), _BIN: (bytes,),
+}
+# Per type: (field, allowed types, required, kind) rows, built once.
+_CHECKS: dict[str, list[tuple[str, tuple[type, ...] | None, bool, str]]] = {
+    t: [(name, _ALLOWED[kind], req, kind) for name, (kind, req) in spec.items()]
+    for t, spec in REQUESTS.items()
+}
 
 
 _TYPE_NAMES = {int: "an integer", float: "a number", str: "a string", bool: "true/false",
@@ -215,12 +207,11 @@ def validate(raw: dict[str, Any], id_: int) -> Message:
     body = raw.get("body", {})
     if type(body) is not dict:
         raise FieldError(f"'body' of {type_!r} must be a map, got {_describe(body)}")
-    for name, (kind, required) in spec.items():
+    for name, allowed, required, kind in _CHECKS[type_]:
         if name not in body:
             if required:
                 raise FieldError(f"{type_!r} needs the field {name!r} ({kind})")
-            continue
-        if not _kind_ok(kind, body[name]):
+        elif allowed is not None and type(body[name]) not in allowed:
             raise FieldError(
                 f"field {name!r} of {type_!r} must be {kind}, got {_describe(body[name])}")
     return Message(type_, id_, body)

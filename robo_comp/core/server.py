@@ -36,7 +36,7 @@ from robo_comp.errors import (
     TooLargeError,
     UnavailableError,
 )
-from robo_comp.teams.policy import check_owner
+from robo_comp.teams.policy import check_owner, check_referee
 from robo_comp.teams.tokens import Principal, TokenBook
 from robo_comp.world.scenario import Scenario
 
@@ -110,6 +110,8 @@ class Core:
         self.heartbeat = heartbeat
         self.registry = Registry()
         self.sessions: dict[bytes, Session] = {}
+        # Who watches what: team name -> routing ids, and the referee's under None.
+        self.watchers: dict[str | None, set[bytes]] = {}
         self.pending_stops: dict[int, PendingStop] = {}
         self.next_task_id = 1
         self.next_core_req = 1
@@ -118,6 +120,7 @@ class Core:
         self.router: zmq.Socket | None = None
         self.pub: zmq.Socket | None = None
         self._running = False
+        self.started = time.monotonic()
         self.stats = {"received": 0, "errors": 0, "events": 0}
         self._handlers: dict[str, Callable[[bytes, P.Message], dict[str, Any] | None]] = {
             "hello": self._on_hello, "heartbeat": self._on_heartbeat, "bye": self._on_bye,
@@ -125,7 +128,7 @@ class Core:
             "tasks": self._on_tasks, "give": self._on_give, "stop": self._on_stop,
             "snapshot": self._on_snapshot, "register": self._on_register, "report": self._on_report,
             "task.next": self._on_task_next, "task.done": self._on_task_done, "radio": self._on_radio,
-            "leave": self._on_leave, "reply": self._on_host_reply, "arena": self._on_arena,
+            "leave": self._on_leave, "reply": self._on_host_reply, "arena": self._on_arena, "stats": self._on_stats,
         }
 
     # ------------------------------------------------------------------ sockets and loop
@@ -250,14 +253,28 @@ class Core:
         if log_it:
             self.events.append(topic, team, data)
         if public and self.pub is not None:
-            view = {k: v for k, v in data.items() if k not in PRIVATE_KEYS}
+            view = {k: v for k, v in data.items() if k not in PRIVATE_KEYS} if PRIVATE_KEYS & data.keys() else data
             self.pub.send_multipart([topic.encode(), P.pack(view)])
-        watchers = [s for s in self.sessions.values() if s.watching and
-                    (s.who.role == "referee" or (team is not None and s.who.team == team))]
-        if watchers:
+        referee = self.watchers.get(None)
+        own = self.watchers.get(team) if team is not None else None
+        if referee or own:
             frame = P.request("event", 0, {"topic": topic, "team": team, "data": data})
-            for s in watchers:
-                self.router.send_multipart([s.ident, frame])  # type: ignore[union-attr]
+            for ident in (*(referee or ()), *(own or ())):
+                self.router.send_multipart([ident, frame])  # type: ignore[union-attr]
+
+    def _set_watch(self, s: Session, on: bool) -> None:
+        s.watching = on
+        group = self.watchers.setdefault(s.who.team, set())
+        if on:
+            group.add(s.ident)
+        else:
+            group.discard(s.ident)
+
+    def _forget(self, ident: bytes) -> Session | None:
+        s = self.sessions.pop(ident, None)
+        if s is not None:
+            self._set_watch(s, False)
+        return s
 
     # ------------------------------------------------------------------ helpers
     def _session(self, ident: bytes) -> Session:
@@ -341,9 +358,9 @@ class Core:
             elif s.watching:
                 self.router.send_multipart([ident, hb])  # type: ignore[union-attr]
                 if silent > max(SESSION_IDLE / 10, limit * 10):
-                    s.watching = False
+                    self._set_watch(s, False)
             elif silent > SESSION_IDLE:
-                del self.sessions[ident]
+                self._forget(ident)
 
     def _expire_stops(self, now: float) -> None:
         for cid, p in list(self.pending_stops.items()):
@@ -357,11 +374,12 @@ class Core:
     # ------------------------------------------------------------------ session requests
     def _on_hello(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
         who = self.tokens.lookup(msg.body["token"])
-        old = self.sessions.get(ident)
+        old = self._forget(ident)
         sess = Session(ident, who, str(msg.body.get("client", "client"))[:64], time.monotonic())
-        if old is not None and old.who == who:
-            sess.tags, sess.watching = old.tags, old.watching
         self.sessions[ident] = sess
+        if old is not None and old.who == who:
+            sess.tags = old.tags
+            self._set_watch(sess, old.watching)
         return {"role": who.role, "team": who.team, "protocol": P.PROTOCOL_VERSION,
                 "pub_port": self.pub_port, "heartbeat": self.heartbeat, "teams": self.tokens.teams,
                 "arena": {"name": self.scenario.name, "width": self._arena_payload["width"],
@@ -377,7 +395,7 @@ class Core:
         return None
 
     def _on_bye(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        s = self.sessions.pop(ident, None)
+        s = self._forget(ident)
         if s is not None:
             for tag in s.tags:
                 r = self.registry.robots[tag]
@@ -387,7 +405,7 @@ class Core:
 
     def _on_watch(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
         s = self._session(ident)
-        s.watching = bool(msg.body.get("on", True))
+        self._set_watch(s, bool(msg.body.get("on", True)))
         return {"watching": s.watching}
 
     def _on_robots(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
@@ -408,6 +426,14 @@ class Core:
     def _on_arena(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
         self._session(ident)
         return self._arena_payload
+
+    def _on_stats(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
+        check_referee(self._session(ident).who, "read the core's counters")
+        by_status: dict[str, int] = {}
+        for r in self.registry.robots.values():
+            by_status[r.status] = by_status.get(r.status, 0) + 1
+        return dict(self.stats, robots=by_status, sessions=len(self.sessions), log_seq=self.events.seq,
+                    uptime=time.monotonic() - self.started)
 
     def _on_snapshot(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
         s = self._session(ident)

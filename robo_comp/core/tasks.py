@@ -88,11 +88,15 @@ def check_args(spec: dict[str, Any], args: list[Any]) -> list[Any]:
     if len(args) != len(want):
         raise BadTaskError(
             f"{spec['name']} takes {len(want)} argument(s), got {len(args)}: use {signature(spec)}")
+    out = []
     for a, value in zip(want, args):
+        if a["type"] == "int" and type(value) is float and value.is_integer():
+            value = int(value)  # 3.0 means 3
         if not _CHECKS[a["type"]](value):
             raise BadTaskError(
                 f"argument {a['name']!r} of {spec['name']} must be {_TYPE_WORDS[a['type']]}, got {value!r:.40}")
-    return list(args)
+        out.append(value)
+    return out
 
 
 def find_spec(specs: dict[str, dict[str, Any]], name: str, tag: int) -> dict[str, Any]:

@@ -26,7 +26,7 @@ from robo_comp.errors import RoboCompError
 from robo_comp.robots.body import Body
 from robo_comp.robots.builtin_tasks import builtin_tasks
 from robo_comp.robots.steps import Capture, Step, TaskFailed, TaskSpec
-from robo_comp.world.planner import find_path
+from robo_comp.world.planner import find_path, warm_up
 
 log = logging.getLogger("robo_comp.robots")
 
@@ -292,6 +292,7 @@ class RobotHost:
             return
         r.task = None
         r.body.halt()
+        self._report_one(r, time.monotonic())  # the owner sees the final pose with the result
         self._send("task.done", {"tag": r.tag, "task_id": t.id, "ok": ok, "status": status,
                                  "result": result}, lambda ok_, body, r=r: self._on_done_reply(r, ok_, body))
 
@@ -318,16 +319,19 @@ class RobotHost:
                 elif r.task is not None:
                     self._advance(r)
 
-    def _report(self, now: float) -> None:
-        for r in self.by_tag.values():
-            moving = r.body.moving
-            if moving or now - r.last_report >= 1.0:
-                r.last_report = now
-                b = r.body
-                self.sock.send(P.request("report", 0, {  # type: ignore[union-attr]
-                    "tag": r.tag, "x": round(b.x, 3), "y": round(b.y, 3),
-                    "heading": round(b.heading, 1), "moving": moving}))
+    def _report_one(self, r: SimRobot, now: float) -> None:
+        r.last_report = now
+        b = r.body
+        self.sock.send(P.request("report", 0, {  # type: ignore[union-attr]
+            "tag": r.tag, "x": round(b.x, 3), "y": round(b.y, 3),
+            "heading": round(b.heading, 1), "moving": b.moving}))
         self.last_tx = now
+
+    def _report(self, now: float) -> None:
+        """Report moving robots every report interval, idle ones once a second."""
+        for r in self.by_tag.values():
+            if r.body.moving or now - r.last_report >= 1.0:
+                self._report_one(r, now)
 
     def stop(self) -> None:
         """End the loop after the current turn."""
@@ -342,6 +346,7 @@ class RobotHost:
                 pass
         t_end = None if duration is None else time.monotonic() + duration
         self._running = True
+        warm_up()  # load the compiled planner before the robots exist, not during a task
         self.last_rx = time.monotonic()
         self._open()
         last = time.monotonic()

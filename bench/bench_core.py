@@ -1,0 +1,274 @@
+"""Core figures (issue 2): report throughput vs a raw ROUTER echo, stop latency, registration.
+
+    .venv/bin/python bench/bench_core.py [--seconds 3] [--robots 200]
+
+Everything runs as real processes over TCP on localhost: the core (``robo-comp core``) in
+its own process, the load in this one. Prints each figure beside its target.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import multiprocessing as mp
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import zmq
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from robo_comp.client import Client  # noqa: E402
+from robo_comp.core import protocol as P  # noqa: E402
+from robo_comp.launch import start_core, start_robots, stop_all  # noqa: E402
+from robo_comp.robots.host import RobotHost  # noqa: E402
+
+
+def _echo_server(port_q: mp.Queue, seconds: float, out_q: mp.Queue) -> None:
+    """The baseline: a raw pyzmq ROUTER that echoes every message, counting them."""
+    ctx = zmq.Context()
+    s = ctx.socket(zmq.ROUTER)
+    s.setsockopt(zmq.SNDHWM, 100_000)
+    s.setsockopt(zmq.RCVHWM, 100_000)
+    port_q.put(s.bind_to_random_port("tcp://127.0.0.1"))
+    n = 0
+    t_first = None
+    poller = zmq.Poller()
+    poller.register(s, zmq.POLLIN)
+    while True:
+        if not poller.poll(2000):
+            break
+        while True:
+            try:
+                frames = s.recv_multipart(zmq.NOBLOCK)
+            except zmq.Again:
+                break
+            if t_first is None:
+                t_first = time.perf_counter()
+            s.send_multipart(frames)
+            n += 1
+        if t_first and time.perf_counter() - t_first > seconds:
+            break
+    out_q.put(n / (time.perf_counter() - t_first))
+
+
+def _blast(url: str, frames: list[bytes], sockets: int, seconds: float, drain: bool) -> int:
+    """Send ``frames`` round-robin over ``sockets`` DEALERs for ``seconds``; return how many were sent."""
+    ctx = zmq.Context.instance()
+    socks = []
+    for _ in range(sockets):
+        d = ctx.socket(zmq.DEALER)
+        d.setsockopt(zmq.LINGER, 0)
+        d.setsockopt(zmq.SNDHWM, 1000)
+        d.connect(url)
+        socks.append(d)
+    time.sleep(0.3)
+    sent = 0
+    t_end = time.perf_counter() + seconds
+    i = 0
+    while time.perf_counter() < t_end:
+        for _ in range(200):
+            d = socks[i % sockets]
+            try:
+                d.send(frames[i % len(frames)], zmq.NOBLOCK)
+                sent += 1
+            except zmq.Again:
+                pass
+            if drain:
+                try:
+                    while True:
+                        d.recv(zmq.NOBLOCK)
+                except zmq.Again:
+                    pass
+            i += 1
+    for d in socks:
+        d.close(0)
+    return sent
+
+
+def raw_echo_rate(robots: int, seconds: float) -> float:
+    """Messages per second a raw ROUTER echo loop handles with ``robots`` clients."""
+    port_q: mp.Queue = mp.Queue()
+    out_q: mp.Queue = mp.Queue()
+    p = mp.Process(target=_echo_server, args=(port_q, seconds, out_q))
+    p.start()
+    port = port_q.get(timeout=10)
+    frame = P.request("report", 0, {"tag": 101, "x": 1.5, "y": 2.5, "heading": 90.0, "moving": True})
+    _blast(f"tcp://127.0.0.1:{port}", [frame], robots, seconds + 0.5, drain=True)
+    rate = out_q.get(timeout=30)
+    p.join(10)
+    return rate
+
+
+def _register_raw(url: str, token: str, robots: int) -> tuple[list[zmq.Socket], list[int]]:
+    ctx = zmq.Context.instance()
+    socks, tags = [], []
+    for i in range(robots):
+        d = ctx.socket(zmq.DEALER)
+        d.setsockopt(zmq.LINGER, 0)
+        d.connect(url)
+        d.send(P.request("register", 1, {"token": token, "robot_id": f"bench-{i}"}))
+        socks.append(d)
+    for d in socks:
+        assert d.poll(10_000), "no register reply"
+        tags.append(P.unpack(d.recv())["body"]["tag"])
+    return socks, tags
+
+
+def core_rate(state: Path, robots: int, seconds: float) -> tuple[float, int]:
+    """Reports per second the core absorbs (ownership check + PUB event) from ``robots`` clients."""
+    info = json.loads((state / "core.json").read_text())
+    url = info["router"]
+    socks, tags = _register_raw(url, (state / "teams/red.token").read_text().strip(), robots)
+    for d in socks:
+        d.close(0)
+    ctx = zmq.Context.instance()
+    # Each robot's reports come from its own connection, as with real robots.
+    senders = []
+    for i in range(robots):
+        d = ctx.socket(zmq.DEALER)
+        d.setsockopt(zmq.LINGER, 0)
+        d.setsockopt(zmq.SNDHWM, 1000)
+        senders.append(d)
+    # re-register on the sending sockets so ownership checks pass (same robot ids keep their tags)
+    tok = (state / "teams/red.token").read_text().strip()
+    for i, d in enumerate(senders):
+        d.connect(url)
+        d.send(P.request("register", 1, {"token": tok, "robot_id": f"bench-{i}"}))
+    for d in senders:
+        d.poll(10_000)
+        d.recv()
+    frames = [P.request("report", 0, {"tag": t, "x": 1.5, "y": 2.5, "heading": 90.0, "moving": True})
+              for t in tags]
+    ref = Client(str(state), (state / "referee.token").read_text().strip(), timeout=30)
+    sub = ref.subscribe("robot.position")
+    time.sleep(0.3)
+    before = ref.request("stats")["received"]
+    t0 = time.perf_counter()
+    sent = 0
+    got_events = 0
+    t_end = t0 + seconds
+    i = 0
+    while time.perf_counter() < t_end:
+        for _ in range(200):
+            try:
+                senders[i % robots].send(frames[i % robots], zmq.NOBLOCK)
+                sent += 1
+            except zmq.Again:
+                pass
+            i += 1
+        try:
+            while True:
+                sub.recv_multipart(zmq.NOBLOCK)
+                got_events += 1
+        except zmq.Again:
+            pass
+    # let the core finish what is queued; the rate counts the time it took to absorb it all
+    after, t_settled = settle(ref)
+    elapsed = t_settled - t0
+    absorbed = after["received"] - before
+    for d in senders:
+        d.close(0)
+    sub.close(0)
+    ref.close()
+    assert after["errors"] == 0, after
+    return absorbed / elapsed, got_events
+
+
+def settle(ref: Client) -> tuple[dict, float]:
+    """Wait until the core has handled everything queued; return its stats and when it got there."""
+    last = ref.request("stats")
+    t_last = time.perf_counter()
+    while True:
+        time.sleep(0.1)
+        now = ref.request("stats")
+        if now["received"] - last["received"] <= 2:  # only our own stats requests
+            return now, t_last
+        last, t_last = now, time.perf_counter()
+
+
+def stop_latency(state: Path, robots: int, samples: int) -> list[float]:
+    """Milliseconds from stop request to reply (robot halted), with ``robots`` reporting at 10 Hz."""
+    host = start_robots(state, "blue", robots, "--report-hz", "10", "--speed", "0.5")
+    try:
+        c = Client(str(state), (state / "teams/blue.token").read_text().strip(), timeout=10)
+        t_end = time.monotonic() + 30
+        while len([r for r in c.robots() if r["status"] == "connected"]) < robots:
+            assert time.monotonic() < t_end, "robots did not register"
+            time.sleep(0.2)
+        rows = c.robots()
+        walls = P.unpack_walls(c.arena())
+        free = [(x, y) for y in range(walls.shape[0]) for x in range(walls.shape[1]) if not walls[y, x]]
+        out = []
+        for k in range(samples):
+            r = rows[k % len(rows)]
+            far = max(free, key=lambda cell: abs(cell[0] - r["x"]) + abs(cell[1] - r["y"]))
+            c.give(r["tag"], "goTo", list(far))
+            time.sleep(0.02)
+            t0 = time.perf_counter()
+            c.stop(r["tag"])
+            out.append((time.perf_counter() - t0) * 1000)
+        c.close()
+        return out
+    finally:
+        stop_all([host])
+
+
+def register_time(state: Path, robots: int) -> float:
+    """Seconds for ``robots`` robots of one host to say hello and all be registered."""
+    url = json.loads((state / "core.json").read_text())["router"]
+    host = RobotHost(url, (state / "teams/red.token").read_text().strip(), robots, prefix="reg")
+    t0 = time.perf_counter()
+    host.running = True
+    host.last_rx = time.monotonic()
+    host._open()
+    while host.state != "up":
+        for sock, _ in host.poller.poll(1000):
+            while True:
+                try:
+                    host._dispatch(sock.recv(zmq.NOBLOCK))
+                except zmq.Again:
+                    break
+        assert time.perf_counter() - t0 < 30, "registration did not finish"
+    dt = time.perf_counter() - t0
+    host.sock.close(0)
+    return dt
+
+
+def pct(xs: list[float], q: float) -> float:
+    """The q-th percentile (0..100) of ``xs``."""
+    s = sorted(xs)
+    return s[min(len(s) - 1, int(round(q / 100 * (len(s) - 1))))]
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seconds", type=float, default=3.0)
+    ap.add_argument("--robots", type=int, default=200)
+    ap.add_argument("--stop-samples", type=int, default=300)
+    ap.add_argument("--register", type=int, default=1000)
+    a = ap.parse_args()
+    print(f"robots={a.robots} seconds={a.seconds}")
+    raw = raw_echo_rate(a.robots, a.seconds)
+    print(f"raw pyzmq ROUTER echo:           {raw:10,.0f} msg/s")
+    with tempfile.TemporaryDirectory() as tmp:
+        state = Path(tmp)
+        core = start_core(state, "--teams", "red,blue", "--heartbeat", "1")
+        try:
+            rate, events = core_rate(state, a.robots, a.seconds)
+            print(f"core, position reports absorbed: {rate:10,.0f} msg/s  = {rate / raw:.0%} of raw echo "
+                  f"(target >= 50%); {events:,} position events read by a subscriber")
+            lat = stop_latency(state, a.robots, a.stop_samples)
+            print(f"stop latency, {a.robots} robots at 10 Hz: p50 {statistics.median(lat):.2f} ms  "
+                  f"p99 {pct(lat, 99):.2f} ms  max {max(lat):.2f} ms  (target p99 < 5 ms; thesis: 558 ms mean)")
+            reg = register_time(state, a.register)
+            print(f"{a.register} robots registered in {reg:.2f} s (target < 2 s)")
+        finally:
+            stop_all([core])
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
