@@ -75,6 +75,15 @@ def next_event_where(c: Client, pred: Callable[[dict[str, Any]], bool], timeout:
     raise AssertionError("timed out waiting for a matching event")
 
 
+@pytest.fixture(scope="session", autouse=True)
+def compiled_planner() -> None:
+    """Compile the planner's numba kernels once, into their on-disk cache, before any robot
+    process starts (a cold compile takes seconds; every later process loads the cache)."""
+    from robo_comp.world.planner import warm_up
+
+    warm_up()
+
+
 @pytest.fixture
 def core(tmp_path: Path, request: pytest.FixtureRequest) -> Iterator[CoreHandle]:
     """A core process with teams red and blue and a fast heartbeat (0.2 s).

@@ -23,8 +23,8 @@ import zmq
 from robo_comp.core import protocol as P
 from robo_comp.core.tasks import check_args
 from robo_comp.errors import RoboCompError
+from robo_comp.plugins.manager import get_plugin_manager
 from robo_comp.robots.body import Body
-from robo_comp.robots.builtin_tasks import builtin_tasks
 from robo_comp.robots.steps import Capture, Step, TaskFailed, TaskSpec
 from robo_comp.world.planner import find_path, warm_up
 
@@ -71,12 +71,21 @@ class SimRobot:
         return find_path(self.host.walls, self.cell(), goal)
 
 
+def collect_tasks(pm: Any) -> dict[str, TaskSpec]:
+    """Tasks from every plugin's ``robo_comp_tasks``; a later-registered plugin wins a name."""
+    tasks: dict[str, TaskSpec] = {}
+    for batch in reversed(pm.hook.robo_comp_tasks()):  # pluggy calls the newest plugin first
+        for t in batch:
+            tasks[t.name] = t
+    return tasks
+
+
 class RobotHost:
     """Hosts ``count`` simulated robots of one team and keeps them connected to the core."""
 
     def __init__(self, core_url: str, token: str, count: int, *, prefix: str | None = None,
                  speed: float = 2.0, turn_rate: float = 180.0, report_hz: float = 10.0,
-                 tick_hz: float = 20.0, tasks: dict[str, TaskSpec] | None = None,
+                 tick_hz: float = 20.0, driver: str = "sim", plugins: Any = None,
                  ctx: zmq.Context | None = None, seed: int = 0) -> None:
         self.url = core_url
         self.token = token
@@ -86,7 +95,9 @@ class RobotHost:
         self.turn_rate = turn_rate
         self.report_interval = 1.0 / report_hz
         self.tick = 1.0 / tick_hz
-        self.tasks = tasks if tasks is not None else builtin_tasks()
+        self.pm = plugins or get_plugin_manager()
+        self.driver_kind = driver
+        self.tasks = collect_tasks(self.pm)
         self.ctx = ctx or zmq.Context.instance()
         self.rng = random.Random(seed)
         self.sock: zmq.Socket | None = None
@@ -178,7 +189,12 @@ class RobotHost:
         for i in range(self.count):
             x, y = cells[i % len(cells)]
             rid = f"{prefix}-{i + 1}"
-            self.robots[rid] = SimRobot(rid, Body(float(x), float(y), 0.0, self.speed, self.turn_rate), self)
+            body = self.pm.hook.robo_comp_driver(kind=self.driver_kind, options={
+                "x": x, "y": y, "heading": 0.0, "speed": self.speed, "turn_rate": self.turn_rate,
+                "robot_id": rid})
+            if body is None:
+                raise SystemExit(f"robots: no plugin provides the driver {self.driver_kind!r}")
+            self.robots[rid] = SimRobot(rid, body, self)
 
     def _on_registered(self, r: SimRobot, ok: bool, body: dict[str, Any]) -> None:
         if not ok:
@@ -242,6 +258,9 @@ class RobotHost:
                     r.body.halt()
                 self._start(r, body)
         elif type_ == "task.interrupt" and r is not None:
+            if r.task is not None:
+                self.pm.hook.robo_comp_task_interrupted(robot=r, task_name=r.task.name, task_id=r.task.id,
+                                                        by_task_id=body["task_id"])
             if r.task is None or not r.body.moving:
                 if r.task is not None:
                     self._done(r, False, f"interrupted by task {body['task_id']}")
