@@ -16,8 +16,14 @@ def _core(args: argparse.Namespace) -> int:
 
     scenario = load_scenario(args.scenario) if args.scenario else default_scenario()
     teams = [t.strip() for t in args.teams.split(",") if t.strip()] if args.teams else None
+    pm = None
+    if args.rules:
+        from robo_comp.plugins.manager import load_rules
+
+        pm = load_rules(args.rules)
     core = Core(Path(args.state), scenario, teams, host=args.host, port=args.port,
-                heartbeat=args.heartbeat, fsync=args.fsync)
+                heartbeat=args.heartbeat, fsync=args.fsync, plugins=pm,
+                practice=args.practice or not args.scenario)
     core.bind()
     print(f"core: serving {scenario.name!r} for teams {', '.join(core.tokens.teams)} on "
           f"tcp://{args.host}:{core.port} (events on port {core.pub_port}); state in {args.state}",
@@ -32,6 +38,10 @@ def _robots(args: argparse.Namespace) -> int:
 
     host = RobotHost(resolve_core(args.core), read_token(args.token, args.token_file), args.count,
                      prefix=args.prefix, speed=args.speed, report_hz=args.report_hz, seed=args.seed)
+    if args.scenario:  # an organiser-run host knows the truth, so its camera shows victims
+        from robo_comp.world.scenario import load_scenario
+
+        host.victims = [(float(v.x), float(v.y)) for v in load_scenario(args.scenario).victims]
     host.run(duration=args.duration or None)
     return 0
 
@@ -63,6 +73,10 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--port", type=int, default=5555, help="ROUTER port (0 = any free port)")
     c.add_argument("--heartbeat", type=float, default=1.0, help="heartbeat interval in seconds")
     c.add_argument("--fsync", action="store_true", help="fsync the event log every loop turn")
+    c.add_argument("--practice", action="store_true",
+                   help="no match phases: running at once, no time limit (the default without --scenario)")
+    c.add_argument("--rules", metavar="MODULE:OBJECT",
+                   help="scoring rules plugin to use instead of the default search-and-rescue rules")
     c.set_defaults(func=_core)
 
     r = sub.add_parser("robots", help="host simulated robots of one team",
@@ -76,6 +90,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--speed", type=float, default=2.0, help="cells per second")
     r.add_argument("--report-hz", type=float, default=10.0, help="position reports per second")
     r.add_argument("--seed", type=int, default=0)
+    r.add_argument("--scenario", help="the match's scenario file (organisers only): the camera then shows victims")
     r.add_argument("--duration", type=float, default=0.0, help="exit after S seconds (0 = run until stopped)")
     r.set_defaults(func=_robots)
 

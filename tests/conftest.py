@@ -99,3 +99,10 @@ def core(tmp_path: Path, request: pytest.FixtureRequest) -> Iterator[CoreHandle]
     for c in h.clients:
         c.close()
     stop_all([h.proc, *h.procs])
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """Register markers and let cores started by tests import test-only plugins."""
+    config.addinivalue_line("markers", "rules(spec): scoring rules plugin of the match fixture")
+    here = str(Path(__file__).parent)
+    os.environ["PYTHONPATH"] = os.pathsep.join(filter(None, [here, os.environ.get("PYTHONPATH")]))

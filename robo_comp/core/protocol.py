@@ -63,6 +63,15 @@ REQUESTS: dict[str, dict[str, tuple[str, bool]]] = {
     "snapshot": {},
     "arena": {},
     "stats": {},
+    # the match (referee: match, penalty, disqualify, broadcast)
+    "match": {"action": (_STR, True), "seconds": (_NUM, False)},
+    "score": {},
+    "penalty": {"team": (_STR, True), "points": (_NUM, True), "reason": (_STR, True)},
+    "disqualify": {"tag": (_OPT_INT, False), "team": (_STR, False), "reason": (_STR, False)},
+    "broadcast": {"message": (_STR, True)},
+    "find": {"tag": (_INT, True), "x": (_NUM, True), "y": (_NUM, True), "kind": (_STR, False),
+             "evidence": (_LIST, False)},
+    "picture.get": {"id": (_INT, True)},
     # robot hosts
     "register": {
         "token": (_STR, True), "robot_id": (_STR, True), "tasks": (_LIST, False),
@@ -80,20 +89,25 @@ REQUESTS: dict[str, dict[str, tuple[str, bool]]] = {
     },
     "radio": {"tag": (_INT, True), "to": (_OPT_INT, False), "data": (_ANY, True)},
     "leave": {"tag": (_INT, True)},
+    "picture": {"tag": (_INT, True), "x": (_NUM, True), "y": (_NUM, True), "heading": (_NUM, True),
+                "png": (_BIN, True), "label": (_STR, False)},
+    "bump": {"tag": (_INT, True), "x": (_NUM, True), "y": (_NUM, True), "with": (_OPT_INT, False)},
     # replies from a robot host to a core-initiated request (stop)
     "reply": {},
 }
 
 #: Types a sender may use without a reply on success.
-NOTIFICATIONS = frozenset({"report", "heartbeat"})
+NOTIFICATIONS = frozenset({"report", "heartbeat", "bump"})
 
 #: Messages the core sends to robot hosts (requests expect a ``reply``).
-CORE_TO_HOST = ("heartbeat", "task.start", "task.interrupt", "stop", "radio", "event")
+CORE_TO_HOST = ("heartbeat", "task.start", "task.interrupt", "stop", "radio", "hold", "event")
 
 #: Event topics; the PUB socket uses them as the first frame.
 TOPICS = (
     "robot.registered", "robot.position", "robot.lost", "robot.returned", "robot.left",
     "task.given", "task.started", "task.done", "robot.stopped", "radio", "refused", "core.started",
+    "match.phase", "score", "score.change", "penalty", "disqualified", "broadcast", "find.reported",
+    "picture", "robot.bump",
 )
 
 

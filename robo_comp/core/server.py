@@ -23,6 +23,7 @@ import numpy as np
 import zmq
 
 from robo_comp.core import protocol as P
+from robo_comp.core.competition import EVERYONE, Competition
 from robo_comp.core.eventlog import EventLog
 from robo_comp.core.registry import RobotRecord, Registry
 from robo_comp.core.tasks import TaskRecord, check_args, check_specs, find_spec
@@ -36,6 +37,8 @@ from robo_comp.errors import (
     TooLargeError,
     UnavailableError,
 )
+from robo_comp.plugins.manager import get_plugin_manager
+from robo_comp.scoring.config import ScoringConfig
 from robo_comp.teams.policy import check_owner, check_referee
 from robo_comp.teams.tokens import Principal, TokenBook
 from robo_comp.world.scenario import Scenario
@@ -87,7 +90,8 @@ def arena_payload(scenario: Scenario, teams: list[str]) -> dict[str, Any]:
     return {"name": scenario.name, "width": int(w), "height": int(h), "cell_cm": scenario.cell_size,
             "walls": np.packbits(scenario.walls.astype(bool), axis=None).tobytes(),
             "zones": [z.to_dict() for z in scenario.zones],
-            "objects": [o.to_dict() for o in scenario.objects], "teams": team_rows}
+            "objects": [o.to_dict() for o in scenario.objects], "teams": team_rows,
+            "camera": {"fov": scenario.camera.fov, "range": scenario.camera.range}}
 
 
 _FALLBACK_COLOURS = ("#d62728", "#1f77b4", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b")
@@ -98,7 +102,8 @@ class Core:
 
     def __init__(self, state_dir: Path, scenario: Scenario, teams: list[str] | None = None, *,
                  host: str = "127.0.0.1",
-                 port: int = 5555, pub_port: int = 0, heartbeat: float = 1.0, fsync: bool = False) -> None:
+                 port: int = 5555, pub_port: int = 0, heartbeat: float = 1.0, fsync: bool = False,
+                 practice: bool = False, scoring: ScoringConfig | None = None, plugins: Any = None) -> None:
         self.state_dir = Path(state_dir)
         self.state_dir.mkdir(parents=True, exist_ok=True)
         self.scenario = scenario
@@ -121,7 +126,8 @@ class Core:
         self.pub: zmq.Socket | None = None
         self._running = False
         self.started = time.monotonic()
-        self.stats = {"received": 0, "errors": 0, "events": 0}
+        self.stats = {"received": 0, "errors": 0, "events": 0, "dropped": 0}
+        self._out: list[tuple[zmq.Socket, list[bytes]]] = []
         self._handlers: dict[str, Callable[[bytes, P.Message], dict[str, Any] | None]] = {
             "hello": self._on_hello, "heartbeat": self._on_heartbeat, "bye": self._on_bye,
             "watch": self._on_watch, "robots": self._on_robots, "monitor": self._on_monitor,
@@ -130,6 +136,9 @@ class Core:
             "task.next": self._on_task_next, "task.done": self._on_task_done, "radio": self._on_radio,
             "leave": self._on_leave, "reply": self._on_host_reply, "arena": self._on_arena, "stats": self._on_stats,
         }
+        self.pm = plugins or get_plugin_manager()
+        self.competition = Competition(self, scoring or ScoringConfig(), practice)
+        self._handlers.update(self.competition.handlers())
 
     # ------------------------------------------------------------------ sockets and loop
     def bind(self) -> None:
@@ -158,7 +167,9 @@ class Core:
         tmp = self.state_dir / "core.json.tmp"
         tmp.write_text(json.dumps(info, indent=2))
         os.replace(tmp, self.state_dir / "core.json")
-        self.emit("core.started", None, {"router": info["router"], "teams": self.tokens.teams})
+        self.emit("core.started", None, {"router": info["router"], "teams": self.tokens.teams,
+                                         "arena": self._arena_payload})
+        self._commit()
 
     def stop(self) -> None:
         """Ask the loop to end after the current turn."""
@@ -191,8 +202,9 @@ class Core:
                 if now >= next_tick:
                     self._tick(now)
                     next_tick = now + self.heartbeat
-                self.events.flush()
+                self._commit()
         finally:
+            self._commit()
             self.events.close()
             self.router.close(0)
             assert self.pub is not None
@@ -214,7 +226,6 @@ class Core:
                     f"expected exactly one frame per message, got {len(frames) - 1}"), None)
                 continue
             self._handle(ident, frames[1])
-        self.events.flush()
 
     def _handle(self, ident: bytes, frame: bytes) -> None:
         req_id = 0
@@ -228,7 +239,7 @@ class Core:
                 sess.last_seen = time.monotonic()
             body = self._handlers[msg.type](ident, msg)
             if body is not None:
-                self.router.send_multipart([ident, P.ok_reply(req_id, body)])  # type: ignore[union-attr]
+                self._send(ident, P.ok_reply(req_id, body))
         except RoboCompError as err:
             self._send_error(ident, req_id, err, sess, msg_type)
         except Exception:  # never let one bad message take the core down
@@ -240,10 +251,31 @@ class Core:
     def _send_error(self, ident: bytes, req_id: int, err: RoboCompError, sess: Session | None,
                     msg_type: str = "?") -> None:
         self.stats["errors"] += 1
-        self.router.send_multipart([ident, P.error_reply(req_id, err)])  # type: ignore[union-attr]
+        self._send(ident, P.error_reply(req_id, err))
         team = sess.who.team if sess else None
         self.emit("refused", team, {"by": sess.who.name if sess else "unknown", "type": msg_type,
                                     "code": err.code, "message": err.message}, public=False)
+
+    # ------------------------------------------------------------------ output
+    def _send(self, ident: bytes, frame: bytes) -> None:
+        """Queue a frame for ``ident``; it leaves in :meth:`_commit`, after the log flush."""
+        self._out.append((self.router, [ident, frame]))
+
+    def _commit(self) -> None:
+        """Flush the event log, then send every queued reply and event.
+
+        Nothing is acknowledged before the events it caused were handed to the OS (and, with
+        ``--fsync``, forced to disk): an acknowledged event survives ``kill -9`` of the core.
+        """
+        self.events.flush()
+        out, self._out = self._out, []
+        for sock, frames in out:
+            try:
+                sock.send_multipart(frames, zmq.NOBLOCK)
+            except zmq.Again:  # a peer's queue is full (slow consumer): drop, never block the loop
+                self.stats["dropped"] += 1
+            except zmq.ZMQError as e:  # e.g. EHOSTUNREACH for a vanished peer
+                log.debug("send failed: %s", e)
 
     # ------------------------------------------------------------------ events
     def emit(self, topic: str, team: str | None, data: dict[str, Any], *, public: bool = True,
@@ -254,13 +286,19 @@ class Core:
             self.events.append(topic, team, data)
         if public and self.pub is not None:
             view = {k: v for k, v in data.items() if k not in PRIVATE_KEYS} if PRIVATE_KEYS & data.keys() else data
-            self.pub.send_multipart([topic.encode(), P.pack(view)])
-        referee = self.watchers.get(None)
-        own = self.watchers.get(team) if team is not None else None
-        if referee or own:
+            self._out.append((self.pub, [topic.encode(), P.pack(view)]))
+        if team == EVERYONE:
+            targets: list[bytes] = [i for group in self.watchers.values() for i in group]
+        else:
+            referee = self.watchers.get(None)
+            own = self.watchers.get(team) if team is not None else None
+            targets = [*(referee or ()), *(own or ())]
+        if targets:
             frame = P.request("event", 0, {"topic": topic, "team": team, "data": data})
-            for ident in (*(referee or ()), *(own or ())):
-                self.router.send_multipart([ident, frame])  # type: ignore[union-attr]
+            for ident in targets:
+                self._send(ident, frame)
+        if topic != "robot.position":
+            self.pm.hook.robo_comp_event(topic=topic, team=team, data=data)
 
     def _set_watch(self, s: Session, on: bool) -> None:
         s.watching = on
@@ -306,7 +344,7 @@ class Core:
 
     def _send_host(self, r: RobotRecord, type_: str, body: dict[str, Any], req_id: int = 0) -> None:
         if r.session is not None:
-            self.router.send_multipart([r.session, P.request(type_, req_id, body)])  # type: ignore[union-attr]
+            self._send(r.session, P.request(type_, req_id, body))
 
     def _new_task(self, r: RobotRecord, name: str, args: list[Any], mode: str, by: str) -> TaskRecord:
         t = TaskRecord(self.next_task_id, r.tag, name, args, mode, by)
@@ -335,6 +373,30 @@ class Core:
             r.status = "lost"
             r.moving = False
             self.emit("robot.lost", r.team, {"tag": r.tag, "x": r.x, "y": r.y, "message": why})
+            self.competition.feed({"kind": "robot.lost", "team": r.team, "tag": r.tag})
+
+    def host_sessions(self) -> list[bytes]:
+        """Routing ids of the connections that host robots."""
+        return [ident for ident, s in self.sessions.items() if s.tags]
+
+    def halt_and_remove(self, tag: int, reason: str) -> None:
+        """Halt a robot (no confirmation awaited), cancel its tasks, take it out of the match."""
+        r = self.registry.get(tag)
+        if r.status == "connected":
+            self._send_host(r, "stop", {"tag": r.tag})
+        for t in ([r.current] if r.current else []) + ([r.pending] if r.pending else []) + list(r.queue):
+            self._finish(r, t, False, f"cancelled: {reason}", state="cancelled")
+        r.current = r.pending = None
+        r.queue.clear()
+        r.moving = False
+        r.status = "disqualified"
+
+    def on_finished(self) -> None:
+        """The match is over: write the results into the state folder."""
+        try:
+            self.competition.write_results(self.state_dir)
+        except Exception:
+            log.error("could not write the results: %s", traceback.format_exc())
 
     def _mark_returned(self, r: RobotRecord) -> None:
         if r.status != "connected":
@@ -343,20 +405,21 @@ class Core:
 
     # ------------------------------------------------------------------ timers
     def _tick(self, now: float) -> None:
-        """Heartbeats out, lost detection, idle sessions forgotten."""
+        """Heartbeats out, lost detection, idle sessions forgotten, the match clock."""
+        self.competition.tick(now)
         hb = P.request("heartbeat", 0, {"t": time.time()})
         limit = 3 * self.heartbeat
         for ident, s in list(self.sessions.items()):
             silent = now - s.last_seen
             if s.tags:
-                self.router.send_multipart([ident, hb])  # type: ignore[union-attr]
+                self._send(ident, hb)
                 if silent > limit:
                     for tag in s.tags:
                         r = self.registry.robots[tag]
                         if r.session == ident:
                             self._mark_lost(r, f"no message from its host for {silent:.1f} s")
             elif s.watching:
-                self.router.send_multipart([ident, hb])  # type: ignore[union-attr]
+                self._send(ident, hb)
                 if silent > max(SESSION_IDLE / 10, limit * 10):
                     self._set_watch(s, False)
             elif silent > SESSION_IDLE:
@@ -369,7 +432,7 @@ class Core:
                 err = P.error_reply(p.req_id, RoboCompError(
                     f"robot {p.tag} did not confirm the stop within {STOP_TIMEOUT:.0f} s; "
                     "its host may be lost (it halts on its own when it loses the core)"))
-                self.router.send_multipart([p.ident, err])  # type: ignore[union-attr]
+                self._send(p.ident, err)
 
     # ------------------------------------------------------------------ session requests
     def _on_hello(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
@@ -381,6 +444,7 @@ class Core:
             sess.tags = old.tags
             self._set_watch(sess, old.watching)
         return {"role": who.role, "team": who.team, "protocol": P.PROTOCOL_VERSION,
+                "match": self.competition.state(),
                 "pub_port": self.pub_port, "heartbeat": self.heartbeat, "teams": self.tokens.teams,
                 "arena": {"name": self.scenario.name, "width": self._arena_payload["width"],
                           "height": self._arena_payload["height"]}}
@@ -439,11 +503,15 @@ class Core:
         s = self._session(ident)
         team = None if s.who.role == "referee" else s.who.team
         return {"arena": self._arena_payload, "teams": self.tokens.teams,
-                "robots": [r.summary() for r in self.registry.of_team(team)], "seq": self.events.seq}
+                "robots": [r.summary() for r in self.registry.of_team(team)], "seq": self.events.seq,
+                "match": self.competition.state(), "score": self.competition.board.table(),
+                "finds": [f for f in self.competition.finds if team is None or f["team"] == team]}
 
     def _on_give(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
         s = self._session(ident)
         r = self._robot_for(ident, msg.body["tag"])
+        self.competition.check_robot(r.tag)
+        self.competition.check_phase("give")
         spec = find_spec(r.tasks, msg.body["task"], r.tag)
         args = check_args(spec, msg.body.get("args", []))
         queue = bool(msg.body.get("queue", False))
@@ -474,6 +542,7 @@ class Core:
 
     def _on_stop(self, ident: bytes, msg: P.Message) -> None:
         r = self._robot_for(ident, msg.body["tag"])
+        self.competition.check_robot(r.tag)
         if r.status != "connected" or r.session is None:
             raise UnavailableError(
                 f"robot {r.tag} is {r.status}; it halts by itself when it loses the core, and cannot be reached now")
@@ -528,7 +597,8 @@ class Core:
         elif r.current is None and r.queue:
             self._start(r, r.queue.popleft())
         return {"tag": r.tag, "team": r.team, "returning": returning, "heartbeat": self.heartbeat,
-                "task": r.current.wire() if r.current else None}
+                "task": r.current.wire() if r.current else None,
+                "hold": self.competition.phase in ("paused", "finished")}
 
     def _on_report(self, ident: bytes, msg: P.Message) -> None:
         b = msg.body
@@ -597,7 +667,7 @@ class Core:
         body = {"from": r.tag, "to": to, "data": b["data"]}
         for t in targets:
             if t.status == "connected" and t.session is not None:
-                self.router.send_multipart([t.session, P.request("radio", 0, dict(body, tag=t.tag))])  # type: ignore[union-attr]
+                self._send(t.session, P.request("radio", 0, dict(body, tag=t.tag)))
                 delivered += 1
         self.emit("radio", r.team, dict(body, delivered=delivered), public=False)
         return {"delivered": delivered}
@@ -619,8 +689,8 @@ class Core:
         r = self.registry.robots[p.tag]
         if not raw.get("ok"):
             err = raw.get("error") or {}
-            self.router.send_multipart([p.ident, P.error_reply(p.req_id, RoboCompError(  # type: ignore[union-attr]
-                f"robot {p.tag} could not stop: {err.get('message', 'no reason given')}"))])
+            self._send(p.ident, P.error_reply(p.req_id, RoboCompError(
+                f"robot {p.tag} could not stop: {err.get('message', 'no reason given')}")))
             return None
         body = raw.get("body") or {}
         for k in ("x", "y", "heading"):
@@ -640,6 +710,6 @@ class Core:
         ms = (time.monotonic() - p.t0) * 1000
         self.emit("robot.stopped", r.team, {"tag": r.tag, "x": r.x, "y": r.y, "cancelled": cancelled,
                                              "ms": round(ms, 3)})
-        self.router.send_multipart([p.ident, P.ok_reply(p.req_id, {  # type: ignore[union-attr]
-            "tag": r.tag, "x": r.x, "y": r.y, "heading": r.heading, "cancelled": cancelled, "ms": ms})])
+        self._send(p.ident, P.ok_reply(p.req_id, {
+            "tag": r.tag, "x": r.x, "y": r.y, "heading": r.heading, "cancelled": cancelled, "ms": ms}))
         return None

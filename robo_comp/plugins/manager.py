@@ -21,3 +21,24 @@ def get_plugin_manager(load_entry_points: bool = True) -> pluggy.PluginManager:
         pm.load_setuptools_entrypoints(ENTRY_POINT_GROUP)
     pm.check_pending()
     return pm
+
+
+def load_rules(spec: str) -> pluggy.PluginManager:
+    """A plugin manager whose scoring rules are the plugin ``MODULE:OBJECT`` instead of the
+    default ``sar_rules`` (which is blocked). Raises :class:`FieldError` with a clear message."""
+    import importlib
+
+    from robo_comp.errors import FieldError
+
+    mod_name, _, attr = spec.partition(":")
+    try:
+        obj = getattr(importlib.import_module(mod_name), attr or "plugin")
+    except (ImportError, AttributeError) as e:
+        raise FieldError(f"cannot load the rules plugin {spec!r}: {e}") from None
+    pm = pluggy.PluginManager(hookspecs.PROJECT)
+    pm.add_hookspecs(hookspecs)
+    pm.set_blocked("sar_rules")
+    pm.load_setuptools_entrypoints(ENTRY_POINT_GROUP)
+    pm.register(obj, name=f"rules:{spec}")
+    pm.check_pending()
+    return pm

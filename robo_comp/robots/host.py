@@ -26,6 +26,7 @@ from robo_comp.errors import RoboCompError
 from robo_comp.plugins.manager import get_plugin_manager
 from robo_comp.robots.body import Body
 from robo_comp.robots.steps import Capture, Step, TaskFailed, TaskSpec
+from robo_comp.world.camera import FLOOR, CameraView, encode_png, render_view
 from robo_comp.world.planner import find_path, warm_up
 
 log = logging.getLogger("robo_comp.robots")
@@ -40,7 +41,7 @@ class RunningTask:
     id: int
     name: str
     gen: Iterator[Step]
-    pictures: int = 0
+    pictures: list[int] = field(default_factory=list)
 
 
 @dataclass(slots=True)
@@ -116,6 +117,12 @@ class RobotHost:
         self._running = False
         self.reconnects = 0
         self._waiting = 0
+        self.holding = False
+        self.camera: dict[str, float] = {"fov": 60.0, "range": 6.0}
+        self._floor = np.zeros((1, 1, 3), dtype=np.uint8)
+        #: Victims the host's camera can show: ground truth, only for organiser-run hosts
+        #: started with a scenario (``robo-comp robots --scenario``).
+        self.victims: list[tuple[float, float]] = []
 
     # ------------------------------------------------------------------ sending
     def _send(self, type_: str, body: dict[str, Any], on_reply: Reply | None = None) -> None:
@@ -164,6 +171,8 @@ class RobotHost:
         if not ok:
             raise SystemExit(f"robots: cannot fetch the arena: {body.get('message')}")
         self.walls = P.unpack_walls(body)
+        self.camera = body.get("camera") or {"fov": 60.0, "range": 6.0}
+        self._floor = np.broadcast_to(FLOOR, (*self.walls.shape, 3))
         if not self.robots:
             self._create_robots(body)
         self._set_state("registering")
@@ -204,6 +213,7 @@ class RobotHost:
                 self.by_tag.pop(r.tag, None)
             r.tag = body["tag"]
             self.by_tag[r.tag] = r
+            self.holding = bool(body.get("hold", False))
             task = body.get("task")
             if task is None:
                 if r.task is not None:  # the core no longer knows our task (it restarted)
@@ -242,6 +252,9 @@ class RobotHost:
                 log.warning("core: %s", (msg.get("error") or {}).get("message"))
             return
         if type_ == "heartbeat" or type_ == "event":
+            return
+        if type_ == "hold":  # the match is paused or over: robots hold still, tasks wait
+            self.holding = bool(body.get("on"))
             return
         r = self.by_tag.get(body.get("tag", -1))
         if type_ == "stop":
@@ -301,14 +314,27 @@ class RobotHost:
                 self._done(r, False, f"task {t.name} crashed: {e!r}")
                 return
             if isinstance(step, Capture):
-                t.pictures += 1
+                self._take_picture(r, t, step.label)
             r.body.begin(step)
             return
+
+    def _take_picture(self, r: SimRobot, t: RunningTask, label: str) -> None:
+        """Render the camera picture at the robot's pose and upload it as evidence."""
+        b = r.body
+        others = [(o.body.x, o.body.y, (128, 128, 128)) for o in self.robots.values() if o is not r]
+        view = CameraView(self.walls, self._floor, others, self.victims)
+        png = encode_png(render_view(view, b.x, b.y, b.heading, self.camera["fov"], self.camera["range"]))
+        self._send("picture", {"tag": r.tag, "x": b.x, "y": b.y, "heading": b.heading, "png": png,
+                               "label": label[:64]},
+                   lambda ok, body, t=t: t.pictures.append(body["id"]) if ok else
+                   log.warning("picture refused: %s", body.get("message")))
 
     def _done(self, r: SimRobot, ok: bool, status: str, result: Any = None) -> None:
         t = r.task
         if t is None:
             return
+        if t.pictures and (result is None or isinstance(result, dict)):
+            result = dict(result or {}, pictures=list(t.pictures))
         r.task = None
         r.body.halt()
         self._report_one(r, time.monotonic())  # the owner sees the final pose with the result
@@ -381,7 +407,7 @@ class RobotHost:
                     self._dispatch(frame)
             now = time.monotonic()
             if now >= next_tick:
-                if self.state == "up":
+                if self.state == "up" and not self.holding:
                     self.step(now - last)
                     if now >= next_report:
                         self._report(now)

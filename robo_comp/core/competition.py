@@ -1,0 +1,268 @@
+"""The match inside the core: phases, referee powers, finds, pictures (evidence) and scores.
+
+:class:`Competition` owns the match clock and the scoreboard and adds its request handlers
+to the core's table; the core calls :meth:`Competition.check_phase` before commands that a
+phase may forbid, and :meth:`Competition.tick` every heartbeat.
+"""
+from __future__ import annotations
+
+import hashlib
+import math
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from robo_comp.core import protocol as P
+from robo_comp.errors import FieldError, ForbiddenError, NotYoursError, PhaseError, TooLargeError
+from robo_comp.scoring.board import Scoreboard, ScoreLine
+from robo_comp.scoring.config import ScoringConfig
+from robo_comp.scoring.match import MatchClock
+from robo_comp.teams.policy import check_owner, check_referee
+from robo_comp.world.visibility import in_view
+
+if TYPE_CHECKING:
+    from robo_comp.core.server import Core
+
+MAX_PICTURE = 256 * 1024
+EVERYONE = "*"
+
+# Which phases allow what (stop is always allowed: it is the safety command).
+_ALLOWED = {
+    "give": ("running",),
+    "find": ("running",),
+    "upload": ("setup", "running"),
+}
+_WHY = {
+    "setup": "the match has not started yet; the referee starts it (robots may register and uploads are allowed now)",
+    "paused": "the match is paused by the referee; robots hold until it resumes",
+    "finished": "the match is over; results are frozen",
+}
+
+
+class Competition:
+    """Match clock, scoreboard, finds and pictures of one core."""
+
+    def __init__(self, core: Core, config: ScoringConfig, practice: bool) -> None:
+        self.core = core
+        self.config = config
+        self.clock = MatchClock(duration=math.inf if practice else float(core.scenario.duration),
+                                phase="running" if practice else "setup",
+                                running_since=time.monotonic() if practice else None)
+        self.board = Scoreboard(core.tokens.teams, core.pm, config)
+        self.pictures: dict[int, dict[str, Any]] = {}
+        self.examined: dict[str, dict[str, set[int]]] = {t: {} for t in core.tokens.teams}
+        self.finds: list[dict[str, Any]] = []
+        self.disqualified_robots: dict[int, str] = {}
+        self.next_picture = 1
+        self.picture_dir = core.state_dir / "pictures"
+        self.victims = [v.to_dict() for v in core.scenario.victims]
+
+    def handlers(self) -> dict[str, Callable[[bytes, P.Message], dict[str, Any] | None]]:
+        """Request handlers this module adds to the core."""
+        return {"match": self._on_match, "score": self._on_score, "penalty": self._on_penalty,
+                "disqualify": self._on_disqualify, "broadcast": self._on_broadcast, "find": self._on_find,
+                "picture": self._on_picture, "picture.get": self._on_picture_get, "bump": self._on_bump}
+
+    # ------------------------------------------------------------------ phases
+    @property
+    def phase(self) -> str:
+        """The current phase."""
+        return self.clock.phase
+
+    def check_phase(self, what: str) -> None:
+        """Raise :class:`PhaseError` when the phase forbids ``what``."""
+        if self.clock.phase not in _ALLOWED[what]:
+            raise PhaseError(f"cannot {what} now: {_WHY.get(self.clock.phase, self.clock.phase)}")
+
+    def check_robot(self, tag: int) -> None:
+        """Refuse commands to a disqualified robot."""
+        why = self.disqualified_robots.get(tag)
+        if why is not None:
+            raise ForbiddenError(f"robot {tag} was disqualified by the referee: {why}")
+
+    def state(self) -> dict[str, Any]:
+        """Phase and clock as plain data."""
+        return self.clock.state(time.monotonic())
+
+    def tick(self, now: float) -> None:
+        """Finish the match when its time is up."""
+        if self.clock.expired(now):
+            self._change("finish", "time is up")
+
+    def _change(self, action: str, by: str, seconds: float | None = None) -> dict[str, Any]:
+        now = time.monotonic()
+        before = self.clock.phase
+        self.clock.apply(action, now, seconds)
+        st = self.clock.state(now)
+        self.core.emit("match.phase", EVERYONE, dict(st, action=action, by=by, was=before))
+        if self.clock.phase != before:
+            hold = self.clock.phase in ("paused", "finished")
+            for ident in self.core.host_sessions():
+                self.core._send(ident, P.request("hold", 0, {"on": hold, "phase": self.clock.phase}))
+        if self.clock.phase == "finished" and before != "finished":
+            self.core.on_finished()
+        return st
+
+    def _on_match(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
+        who = self.core._session(ident).who
+        check_referee(who, "change the match phase")
+        action = msg.body["action"]
+        seconds = msg.body.get("seconds")
+        return self._change(action, who.name, float(seconds) if seconds is not None else None)
+
+    # ------------------------------------------------------------------ scores
+    def scores(self) -> dict[str, Any]:
+        """The scoreboard with the clock."""
+        return dict(self.state(), teams=self.board.table(), scoring=self.config.to_dict())
+
+    def _score_changed(self, lines: list[ScoreLine]) -> None:
+        if not lines:
+            return
+        for ln in lines:
+            self.core.emit("score.change", ln.team, ln.to_dict())
+        self.core.emit("score", EVERYONE, {"teams": self.board.table(), **self.state()})
+
+    def feed(self, event: dict[str, Any]) -> None:
+        """Give a scoring-relevant event to the rules while the match runs."""
+        if self.clock.phase == "running" and event.get("team") in self.board.found:
+            self._score_changed(self.board.apply(event, self.clock.elapsed(time.monotonic())))
+
+    def _on_score(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
+        who = self.core._session(ident).who
+        out = self.scores()
+        out["lines"] = [ln.to_dict() for ln in self.board.lines if who.role == "referee" or ln.team == who.team]
+        return out
+
+    # ------------------------------------------------------------------ referee powers
+    def _team_arg(self, team: Any) -> str:
+        if team not in self.board.found:
+            raise FieldError(f"there is no team {team!r}; the teams are {', '.join(self.board.teams)}")
+        return team
+
+    def _on_penalty(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
+        who = self.core._session(ident).who
+        check_referee(who, "give penalties")
+        team = self._team_arg(msg.body["team"])
+        reason = msg.body.get("reason", "").strip()
+        if not reason:
+            raise FieldError("a penalty needs a reason, so the team knows why")
+        if self.clock.phase == "finished":
+            raise PhaseError("the match is over; results are frozen")
+        lines = self.board.apply({"kind": "penalty", "team": team, "points": msg.body["points"],
+                                  "reason": reason}, self.clock.elapsed(time.monotonic()))
+        self.core.emit("penalty", team, {"team": team, "points": msg.body["points"], "reason": reason})
+        self._score_changed(lines)
+        return {"teams": self.board.table()}
+
+    def _on_disqualify(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
+        who = self.core._session(ident).who
+        check_referee(who, "disqualify robots or teams")
+        reason = msg.body.get("reason", "").strip() or "no reason given"
+        tags: list[int] = []
+        if msg.body.get("team") is not None:
+            team = self._team_arg(msg.body["team"])
+            self.board.disqualified.add(team)
+            tags = [r.tag for r in self.core.registry.of_team(team)]
+        elif msg.body.get("tag") is not None:
+            tags = [self.core.registry.get(msg.body["tag"]).tag]
+        else:
+            raise FieldError("disqualify needs a 'tag' or a 'team'")
+        for tag in tags:
+            self.disqualified_robots[tag] = reason
+            self.core.halt_and_remove(tag, reason)
+        self.core.emit("disqualified", EVERYONE, {"team": msg.body.get("team"), "tags": tags, "reason": reason})
+        self.core.emit("score", EVERYONE, {"teams": self.board.table(), **self.state()})
+        return {"tags": tags}
+
+    def _on_broadcast(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
+        who = self.core._session(ident).who
+        check_referee(who, "broadcast messages")
+        text = msg.body["message"][:500]
+        self.core.emit("broadcast", EVERYONE, {"message": text, "by": who.name})
+        return {}
+
+    # ------------------------------------------------------------------ pictures and finds
+    def _on_picture(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
+        b = msg.body
+        r = self.core._hosted(ident, b["tag"])
+        png = b["png"]
+        if len(png) > MAX_PICTURE:
+            raise TooLargeError(f"a picture may be at most {MAX_PICTURE // 1024} KiB")
+        if not png.startswith(b"\x89PNG\r\n\x1a\n"):
+            raise FieldError("'png' must be a PNG image")
+        pid = self.next_picture
+        self.next_picture += 1
+        self.picture_dir.mkdir(exist_ok=True)
+        (self.picture_dir / f"{pid}.png").write_bytes(png)
+        seen = self._victims_seen(b["x"], b["y"], b["heading"])
+        for vid in seen:
+            self.examined[r.team].setdefault(vid, set()).add(pid)
+        meta = {"id": pid, "tag": r.tag, "team": r.team, "x": b["x"], "y": b["y"], "heading": b["heading"],
+                "t": time.time(), "sha256": hashlib.sha256(png).hexdigest()[:16], "victims": seen,
+                "label": b.get("label", "")}
+        self.pictures[pid] = meta
+        public = {k: meta[k] for k in ("id", "tag", "team", "x", "y", "heading", "t")}
+        self.core.emit("picture", r.team, dict(public, victims=seen, sha256=meta["sha256"]), public=False)
+        self.core.emit("picture", r.team, public, log_it=False)
+        return {"id": pid}
+
+    def _victims_seen(self, x: float, y: float, heading: float) -> list[str]:
+        cam = self.core.scenario.camera
+        pts = [(v["x"], v["y"]) for v in self.victims]
+        flags = in_view(self.core.scenario.walls, pts, x, y, heading, cam.fov, cam.range)
+        return [v["id"] for v, f in zip(self.victims, flags) if f]
+
+    def _on_picture_get(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
+        who = self.core._session(ident).who
+        meta = self.pictures.get(msg.body["id"])
+        if meta is None:
+            raise NotYoursError(f"there is no picture {msg.body['id']} of team {who.name}")
+        check_owner(who, meta["tag"], meta["team"])
+        png = (self.picture_dir / f"{meta['id']}.png").read_bytes()
+        public = {k: v for k, v in meta.items() if k != "victims"}
+        return dict(public, png=png)
+
+    def _on_find(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
+        b = msg.body
+        sess = self.core._session(ident)
+        if b["tag"] in sess.tags:
+            r = self.core._hosted(ident, b["tag"])
+        else:
+            r = self.core._robot_for(ident, b["tag"])
+        self.check_robot(r.tag)
+        self.check_phase("find")
+        evidence = b.get("evidence", [])
+        if type(evidence) is not list or not all(type(e) is int for e in evidence) or len(evidence) > 32:
+            raise FieldError("'evidence' must be a list of at most 32 picture ids")
+        for pid in evidence:
+            meta = self.pictures.get(pid)
+            if meta is None or meta["team"] != r.team:
+                raise NotYoursError(f"picture {pid} is not one of team {r.team}'s pictures")
+        find = {"team": r.team, "tag": r.tag, "x": float(b["x"]), "y": float(b["y"]),
+                "kind": str(b.get("kind", ""))[:32], "evidence": evidence}
+        truth = {"victims": self.victims, "examined": self.examined[r.team]}
+        verdict = self.board.judge(find, truth)
+        fid = len(self.finds) + 1
+        record = dict(find, id=fid, verdict=verdict, t=self.clock.elapsed(time.monotonic()))
+        self.finds.append(record)
+        state = "confirmed" if verdict["valid"] else ("duplicate" if verdict.get("duplicate") else "rejected")
+        self.core.emit("find.reported", r.team, {"id": fid, "team": r.team, "tag": r.tag, "x": find["x"],
+                                                 "y": find["y"], "kind": find["kind"], "state": state,
+                                                 "evidence": evidence, "message": verdict["reason"]})
+        self.feed({"kind": "find.judged", "team": r.team, "tag": r.tag, "verdict": verdict})
+        return {"id": fid, "state": state, "message": verdict["reason"]}
+
+    def _on_bump(self, ident: bytes, msg: P.Message) -> None:
+        r = self.core._hosted(ident, msg.body["tag"])
+        self.core.emit("robot.bump", r.team, {"tag": r.tag, "team": r.team, "x": msg.body["x"],
+                                              "y": msg.body["y"], "with": msg.body.get("with")})
+        self.feed({"kind": "robot.bump", "team": r.team, "tag": r.tag})
+        return None
+
+    # ------------------------------------------------------------------ results
+    def write_results(self, folder: Path) -> dict[str, Any]:
+        """Write ``results.json``, ``results.csv`` and ``scores.png`` into ``folder``."""
+        from robo_comp.scoring.results import write_results
+
+        return write_results(folder, self.scores(), [ln.to_dict() for ln in self.board.lines], self.finds)

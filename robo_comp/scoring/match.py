@@ -1,0 +1,81 @@
+"""Match phases and the match clock: setup → running ⇄ paused → finished.
+
+Only the referee changes phases. The clock counts only while running; ``extend`` adds time.
+The core asks :meth:`MatchClock.expired` every heartbeat and finishes the match at zero.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from robo_comp.errors import FieldError, PhaseError
+
+PHASES = ("setup", "running", "paused", "finished")
+ACTIONS = ("start", "pause", "resume", "finish", "extend")
+# action -> (phases it is allowed from, phase it leads to)
+_TRANSITIONS: dict[str, tuple[tuple[str, ...], str | None]] = {
+    "start": (("setup",), "running"),
+    "pause": (("running",), "paused"),
+    "resume": (("paused",), "running"),
+    "finish": (("setup", "running", "paused"), "finished"),
+    "extend": (("setup", "running", "paused"), None),
+}
+
+
+@dataclass
+class MatchClock:
+    """The phase and the running time of one match; times are ``time.monotonic()`` seconds."""
+
+    duration: float = math.inf
+    phase: str = "setup"
+    elapsed_before: float = 0.0
+    running_since: float | None = None
+
+    def elapsed(self, now: float) -> float:
+        """Seconds the match has been running."""
+        return self.elapsed_before + (now - self.running_since if self.running_since is not None else 0.0)
+
+    def remaining(self, now: float) -> float:
+        """Seconds left (``inf`` for a match without a time limit)."""
+        return max(0.0, self.duration - self.elapsed(now))
+
+    def expired(self, now: float) -> bool:
+        """True when a running match has used up its time."""
+        return self.phase == "running" and self.remaining(now) <= 0.0
+
+    def apply(self, action: str, now: float, seconds: float | None = None) -> str:
+        """Carry out a referee action; return the new phase or raise :class:`PhaseError`."""
+        if action not in _TRANSITIONS:
+            raise FieldError(f"unknown match action {action!r}; use one of {', '.join(ACTIONS)}")
+        allowed, to = _TRANSITIONS[action]
+        if self.phase not in allowed:
+            raise PhaseError(f"cannot {action} the match while it is {self.phase}"
+                             + (" (it is over; results are frozen)" if self.phase == "finished" else ""))
+        if action == "extend":
+            if seconds is None or not (0 < seconds <= 24 * 3600):
+                raise FieldError("extend needs 'seconds' between 0 and 86400")
+            self.duration += seconds
+            return self.phase
+        if self.running_since is not None:  # leaving "running"
+            self.elapsed_before = self.elapsed(now)
+            self.running_since = None
+        if to == "running":
+            self.running_since = now
+        assert to is not None
+        self.phase = to
+        return to
+
+    def state(self, now: float) -> dict[str, Any]:
+        """Phase and times as plain data (``remaining`` is nil without a time limit)."""
+        rem = self.remaining(now)
+        return {"phase": self.phase, "elapsed": round(self.elapsed(now), 3),
+                "remaining": None if math.isinf(rem) else round(rem, 3),
+                "duration": None if math.isinf(self.duration) else self.duration}
+
+    def restore(self, phase: str, elapsed: float, duration: float | None, now: float) -> None:
+        """Set the clock from a logged state (recovery): a running match keeps running."""
+        self.phase = phase
+        self.elapsed_before = elapsed
+        self.duration = math.inf if duration is None else duration
+        self.running_since = now if phase == "running" else None
