@@ -39,8 +39,8 @@ def test_lost_detection_and_return(core):
     try:
         ev = next_event_where(blue, lambda e: e["topic"] == "robot.lost", timeout=5)
         assert ev["data"]["tag"] in tags
-        assert time.monotonic() - t0 < 3 * HEARTBEAT + 1.5
-        assert {r["status"] for r in blue.robots()} == {"lost"}
+        assert time.monotonic() - t0 < 3 * HEARTBEAT + 3.0  # 3 beats of silence, a tick, slack for load
+        wait_for(lambda: {r["status"] for r in blue.robots()} == {"lost"}, 3, "both robots lost")
     finally:
         p.send_signal(signal.SIGCONT)
     next_event_where(blue, lambda e: e["topic"] == "robot.returned", timeout=10)

@@ -131,4 +131,8 @@ def test_examine_area_and_follow_path(one_robot):
     assert d["ok"] and d["result"] == {"visited": 2}
     tid = red.give(tag, "examineArea", list(near[0]))["task_id"]
     d = done_event(red, tid)
-    assert d["ok"] and d["result"]["pictures"] == 4
+    assert d["ok"] and d["result"]["examined"] == list(near[0])
+    pics = d["result"]["pictures"]
+    assert len(pics) == 4 and len(set(pics)) == 4
+    png = red.request("picture.get", id=pics[0])["png"]
+    assert png[:8] == b"\x89PNG\r\n\x1a\n"

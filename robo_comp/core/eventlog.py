@@ -38,19 +38,22 @@ class LogRecord:
 class EventLog:
     """Appends events to ``path``; ``flush()`` pushes them to the OS (and fsyncs if asked)."""
 
-    def __init__(self, path: Path, fsync: bool = False) -> None:
+    def __init__(self, path: Path, fsync: bool = False, *, seq: int = 0, good_end: int | None = None) -> None:
+        """Open ``path`` for appending. After recovery pass the last ``seq`` and the offset
+        ``good_end`` past the last good record: a damaged tail beyond it is cut off."""
         self.path = path
         self.fsync = fsync
         path.parent.mkdir(parents=True, exist_ok=True)
-        fresh = not path.exists() or path.stat().st_size == 0
-        self._f: BinaryIO = open(path, "ab", buffering=1 << 16)
-        self.seq = 0
+        fresh = not path.exists() or path.stat().st_size == 0 or good_end == 0
+        if good_end is not None and path.exists() and path.stat().st_size > good_end:
+            with open(path, "r+b") as f:
+                f.truncate(good_end)
+        self._f: BinaryIO = open(path, "wb" if fresh else "ab", buffering=1 << 16)
+        self.seq = seq
         self._dirty = False
         if fresh:
             self._write({"format": FORMAT, "version": FORMAT_VERSION, "started": time.time()})
-        else:
-            for rec in read_log(path, strict=False):
-                self.seq = rec.seq
+            self.flush()
 
     def _write(self, obj: dict[str, Any]) -> None:
         blob = msgpack.packb(obj, use_bin_type=True)
@@ -88,40 +91,63 @@ class LogCorrupt(Exception):
         self.reason = reason
 
 
+class LogReader:
+    """Iterates over a log's records; afterwards ``good_end`` is the byte offset just past the
+    last good record and ``damage`` says what was wrong past it (None for a clean log)."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.good_end = 0
+        self.damage: LogCorrupt | None = None
+        self.last_seq = 0
+
+    def __iter__(self) -> Iterator[LogRecord]:
+        with open(self.path, "rb") as f:
+            data = f.read()
+        view = memoryview(data)  # slices without copying
+        off = 0
+        first = True
+        unpack = msgpack.unpackb
+        while off < len(data):
+            if off + 4 > len(data):
+                self.damage = LogCorrupt(off, "truncated length prefix")
+                return
+            (n,) = _LEN.unpack_from(data, off)
+            if n > MAX_RECORD or off + 4 + n > len(data):
+                self.damage = LogCorrupt(off, "truncated record")
+                return
+            try:
+                obj = unpack(view[off + 4: off + 4 + n], raw=False)
+            except Exception:
+                self.damage = LogCorrupt(off, "record is not valid msgpack")
+                return
+            if first:
+                if type(obj) is not dict or obj.get("format") != FORMAT:
+                    self.damage = LogCorrupt(off, "not a robo_comp event log")
+                    return
+                if obj.get("version") != FORMAT_VERSION:
+                    self.damage = LogCorrupt(off, f"log format version {obj.get('version')} is not supported")
+                    return
+                first = False
+            else:
+                try:
+                    rec = LogRecord(obj["seq"], obj["t"], obj["topic"], obj.get("team"), obj["data"])
+                except (KeyError, TypeError):
+                    self.damage = LogCorrupt(off, "record lacks seq/t/topic/data")
+                    return
+                self.last_seq = rec.seq
+                yield rec
+            off += 4 + n
+            self.good_end = off
+
+
 def read_log(path: Path, strict: bool = True) -> Iterator[LogRecord]:
     """Yield the events of a log in order.
 
     A truncated or corrupt tail raises :class:`LogCorrupt` in strict mode, after every good
     record before it was yielded; otherwise reading stops quietly at the damage.
     """
-    with open(path, "rb") as f:
-        data = f.read()
-    off = 0
-    first = True
-    while off < len(data):
-        if off + 4 > len(data):
-            return _damage(strict, off, "truncated length prefix")
-        (n,) = _LEN.unpack_from(data, off)
-        if n > MAX_RECORD or off + 4 + n > len(data):
-            return _damage(strict, off, "truncated record")
-        try:
-            obj = msgpack.unpackb(data[off + 4: off + 4 + n], raw=False)
-        except Exception:
-            return _damage(strict, off, "record is not valid msgpack")
-        if first:
-            if type(obj) is not dict or obj.get("format") != FORMAT:
-                return _damage(strict, off, "not a robo_comp event log")
-            if obj.get("version") != FORMAT_VERSION:
-                return _damage(strict, off, f"log format version {obj.get('version')} is not supported")
-            first = False
-        else:
-            try:
-                yield LogRecord(obj["seq"], obj["t"], obj["topic"], obj.get("team"), obj["data"])
-            except (KeyError, TypeError):
-                return _damage(strict, off, "record lacks seq/t/topic/data")
-        off += 4 + n
-
-
-def _damage(strict: bool, off: int, reason: str) -> None:
-    if strict:
-        raise LogCorrupt(off, reason)
+    reader = LogReader(path)
+    yield from reader
+    if strict and reader.damage is not None:
+        raise reader.damage

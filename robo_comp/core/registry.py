@@ -34,7 +34,6 @@ class RobotRecord:
     session: bytes | None = None  # routing id of the host connection
     registered_at: float = field(default_factory=time.time)
     last_report: float = 0.0
-    last_logged_position: float = 0.0
     radio_allowance: float = 0.0
     radio_checked: float = 0.0
 

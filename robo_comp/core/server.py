@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import logging
 import os
+import secrets
 import signal
 import time
 import traceback
@@ -25,6 +26,7 @@ import zmq
 from robo_comp.core import protocol as P
 from robo_comp.core.competition import EVERYONE, Competition
 from robo_comp.core.eventlog import EventLog
+from robo_comp.core.recovery import RecoveryReport, recover
 from robo_comp.core.registry import RobotRecord, Registry
 from robo_comp.core.tasks import TaskRecord, check_args, check_specs, find_spec
 from robo_comp.errors import (
@@ -46,12 +48,12 @@ from robo_comp.world.scenario import Scenario
 log = logging.getLogger("robo_comp.core")
 
 #: Keys left out of the PUB (public) view of an event: they stay with the owner and referee.
-PRIVATE_KEYS = frozenset({"status", "result", "data", "args", "message", "cancelled", "code", "robot_id"})
+PRIVATE_KEYS = frozenset({"status", "result", "data", "args", "message", "cancelled", "code", "robot_id",
+                          "tasks"})
 #: How long a console session may stay silent before it is forgotten (watchers heartbeat).
 SESSION_IDLE = 300.0
 STOP_TIMEOUT = 2.0
 MAX_RESULT = 64 * 1024
-POSITION_LOG_INTERVAL = 1.0
 
 
 @dataclass(slots=True)
@@ -120,14 +122,15 @@ class Core:
         self.pending_stops: dict[int, PendingStop] = {}
         self.next_task_id = 1
         self.next_core_req = 1
-        self.events = EventLog(self.state_dir / "events.log", fsync=fsync)
         self.ctx = zmq.Context.instance()
         self.router: zmq.Socket | None = None
         self.pub: zmq.Socket | None = None
         self._running = False
         self.started = time.monotonic()
+        self.core_id = secrets.token_hex(8)  # tells clients when they talk to a restarted core
         self.stats = {"received": 0, "errors": 0, "events": 0, "dropped": 0}
         self._out: list[tuple[zmq.Socket, list[bytes]]] = []
+        self._moved: set[int] = set()
         self._handlers: dict[str, Callable[[bytes, P.Message], dict[str, Any] | None]] = {
             "hello": self._on_hello, "heartbeat": self._on_heartbeat, "bye": self._on_bye,
             "watch": self._on_watch, "robots": self._on_robots, "monitor": self._on_monitor,
@@ -139,6 +142,14 @@ class Core:
         self.pm = plugins or get_plugin_manager()
         self.competition = Competition(self, scoring or ScoringConfig(), practice)
         self._handlers.update(self.competition.handlers())
+        log_path = self.state_dir / "events.log"
+        self.recovered: RecoveryReport | None = None
+        if log_path.exists() and log_path.stat().st_size > 0:
+            self.recovered = recover(self, log_path)
+            self.events = EventLog(log_path, fsync=fsync, seq=self.recovered.seq,
+                                   good_end=self.recovered.good_end)
+        else:
+            self.events = EventLog(log_path, fsync=fsync)
 
     # ------------------------------------------------------------------ sockets and loop
     def bind(self) -> None:
@@ -169,6 +180,8 @@ class Core:
         os.replace(tmp, self.state_dir / "core.json")
         self.emit("core.started", None, {"router": info["router"], "teams": self.tokens.teams,
                                          "arena": self._arena_payload})
+        if self.recovered is not None:
+            self.emit("core.recovered", None, self.recovered.to_dict())
         self._commit()
 
     def stop(self) -> None:
@@ -335,6 +348,9 @@ class Core:
 
     def _hosted(self, ident: bytes, tag: int) -> RobotRecord:
         """The robot ``tag`` as reported by its host connection ``ident``."""
+        if ident not in self.sessions:
+            raise AuthError("this connection is not known to the core (did the core restart?); "
+                            "say hello and register your robots again")
         r = self.registry.robots.get(tag)
         if r is None or r.session != ident:
             raise NotYoursError(f"robot {tag} is not hosted by this connection; register it first")
@@ -404,10 +420,22 @@ class Core:
             self.emit("robot.returned", r.team, {"tag": r.tag, "x": r.x, "y": r.y})
 
     # ------------------------------------------------------------------ timers
+    def _log_positions(self) -> None:
+        """Log the robots that moved since the last heartbeat as one batched record
+        (the PUB feed carried every report; the log keeps one sample per robot per beat)."""
+        if not self._moved:
+            return
+        rows = [self.registry.robots[t] for t in sorted(self._moved)]
+        self._moved.clear()
+        self.events.append("robot.positions", None, {
+            "tags": [r.tag for r in rows], "x": [r.x for r in rows], "y": [r.y for r in rows],
+            "heading": [r.heading for r in rows]})
+
     def _tick(self, now: float) -> None:
         """Heartbeats out, lost detection, idle sessions forgotten, the match clock."""
+        self._log_positions()
         self.competition.tick(now)
-        hb = P.request("heartbeat", 0, {"t": time.time()})
+        hb = P.request("heartbeat", 0, {"t": time.time(), "core_id": self.core_id})
         limit = 3 * self.heartbeat
         for ident, s in list(self.sessions.items()):
             silent = now - s.last_seen
@@ -443,7 +471,7 @@ class Core:
         if old is not None and old.who == who:
             sess.tags = old.tags
             self._set_watch(sess, old.watching)
-        return {"role": who.role, "team": who.team, "protocol": P.PROTOCOL_VERSION,
+        return {"role": who.role, "team": who.team, "protocol": P.PROTOCOL_VERSION, "core_id": self.core_id,
                 "match": self.competition.state(),
                 "pub_port": self.pub_port, "heartbeat": self.heartbeat, "teams": self.tokens.teams,
                 "arena": {"name": self.scenario.name, "width": self._arena_payload["width"],
@@ -580,17 +608,19 @@ class Core:
             if k in b:
                 setattr(r, k, float(b[k]))
         was = r.status
-        r.status = "connected"
+        r.status = "disqualified" if r.tag in self.competition.disqualified_robots else "connected"
         r.last_report = time.time()
         if returning:
             if r.current is not None and r.current.id != b.get("task_id"):
                 # the host no longer runs what we think it runs (it restarted): start afresh
                 self._finish(r, r.current, False, "the robot restarted and lost this task", state="cancelled")
                 r.current = None
-            self.emit("robot.returned", r.team, {"tag": r.tag, "x": r.x, "y": r.y, "was": was})
+            self.emit("robot.returned", r.team, {"tag": r.tag, "x": r.x, "y": r.y, "was": was,
+                                                 "tasks": list(specs.values())})
         else:
             self.emit("robot.registered", r.team, {"tag": r.tag, "team": r.team, "robot_id": robot_id,
-                                                   "x": r.x, "y": r.y, "heading": r.heading})
+                                                   "x": r.x, "y": r.y, "heading": r.heading,
+                                                   "tasks": list(specs.values())})
         if r.current is None and r.pending is not None:
             self._start(r, r.pending)
             r.pending = None
@@ -607,13 +637,10 @@ class Core:
         r.moving = b.get("moving", False)
         if "sensors" in b:
             r.sensors = b["sensors"]
-        now = time.time()
-        r.last_report = now
-        payload = {"tag": r.tag, "team": r.team, "x": r.x, "y": r.y, "heading": r.heading, "moving": r.moving}
-        log_it = now - r.last_logged_position >= POSITION_LOG_INTERVAL
-        if log_it:
-            r.last_logged_position = now
-        self.emit("robot.position", r.team, payload, log_it=log_it)
+        r.last_report = time.time()
+        self._moved.add(r.tag)
+        self.emit("robot.position", r.team, {"tag": r.tag, "team": r.team, "x": r.x, "y": r.y,
+                                             "heading": r.heading, "moving": r.moving}, log_it=False)
         return None
 
     def _on_task_next(self, ident: bytes, msg: P.Message) -> dict[str, Any]:

@@ -118,6 +118,7 @@ class RobotHost:
         self.reconnects = 0
         self._waiting = 0
         self.holding = False
+        self.core_id: str | None = None
         self.camera: dict[str, float] = {"fov": 60.0, "range": 6.0}
         self._floor = np.zeros((1, 1, 3), dtype=np.uint8)
         #: Victims the host's camera can show: ground truth, only for organiser-run hosts
@@ -164,6 +165,7 @@ class RobotHost:
             raise SystemExit(f"robots: the core refused us: {body.get('message')}")
         self.team = body["team"]
         self.heartbeat = float(body.get("heartbeat", 1.0))
+        self.core_id = body.get("core_id")
         self._set_state("arena")
         self._send("arena", {}, self._on_arena)
 
@@ -227,7 +229,11 @@ class RobotHost:
 
     def _lost_core(self, now: float) -> None:
         """Halt every robot and start reconnecting."""
-        log.warning("lost the core (silent for %.1f s); halting robots and reconnecting", now - self.last_rx)
+        self._reconnect(f"lost the core (silent for {now - self.last_rx:.1f} s)")
+
+    def _reconnect(self, why: str) -> None:
+        """Hello and register again on a fresh socket; robots hold still meanwhile."""
+        log.warning("%s; halting robots and reconnecting", why)
         # Movement pauses while we are not "up": step() only runs then; the robots resume
         # their current steps once registered again.
         self.reconnects += 1
@@ -245,13 +251,21 @@ class RobotHost:
             log.error("unreadable message from the core; ignored")
             return
         if type_ == "reply":
+            err = msg.get("error") or {}
+            if not msg.get("ok") and err.get("code") == "E_AUTH" and self.state == "up":
+                self._reconnect("the core does not know this connection")
+                return
             cb = self.replies.pop(rid, None)
             if cb is not None:
-                cb(bool(msg.get("ok")), body if msg.get("ok") else (msg.get("error") or {}))
+                cb(bool(msg.get("ok")), body if msg.get("ok") else err)
             elif not msg.get("ok"):
-                log.warning("core: %s", (msg.get("error") or {}).get("message"))
+                log.warning("core: %s", err.get("message"))
             return
-        if type_ == "heartbeat" or type_ == "event":
+        if type_ == "heartbeat":
+            if self.state == "up" and body.get("core_id") not in (None, self.core_id):
+                self._reconnect("the core restarted")
+            return
+        if type_ == "event":
             return
         if type_ == "hold":  # the match is paused or over: robots hold still, tasks wait
             self.holding = bool(body.get("on"))
@@ -399,7 +413,7 @@ class RobotHost:
         next_report = last
         while self._running and (t_end is None or time.monotonic() < t_end):
             for sock, _ in self.poller.poll(max(0.0, next_tick - time.monotonic()) * 1000):
-                while True:
+                while sock is self.sock:  # a reconnect replaces the socket mid-loop
                     try:
                         frame = sock.recv(zmq.NOBLOCK)
                     except zmq.Again:
