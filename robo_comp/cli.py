@@ -36,12 +36,14 @@ def _robots(args: argparse.Namespace) -> int:
     from robo_comp.client import read_token, resolve_core
     from robo_comp.robots.host import RobotHost
 
-    host = RobotHost(resolve_core(args.core), read_token(args.token, args.token_file), args.count,
-                     prefix=args.prefix, speed=args.speed, report_hz=args.report_hz, seed=args.seed)
+    truth = None
     if args.scenario:  # an organiser-run host knows the truth, so its camera shows victims
         from robo_comp.world.scenario import load_scenario
 
-        host.victims = [(float(v.x), float(v.y)) for v in load_scenario(args.scenario).victims]
+        truth = load_scenario(args.scenario)
+    host = RobotHost(resolve_core(args.core), read_token(args.token, args.token_file), args.count,
+                     prefix=args.prefix, speed=args.speed, report_hz=args.report_hz, seed=args.seed,
+                     truth=truth)
     host.run(duration=args.duration or None)
     return 0
 
@@ -87,7 +89,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_connection_args(r)
     r.add_argument("--count", type=int, default=3, help="number of robots")
     r.add_argument("--prefix", help="robot id prefix (ids PREFIX-1..N; default: the team name)")
-    r.add_argument("--speed", type=float, default=2.0, help="cells per second")
+    r.add_argument("--speed", type=float, help="cells per second (default: the scenario's robot speed)")
     r.add_argument("--report-hz", type=float, default=10.0, help="position reports per second")
     r.add_argument("--seed", type=int, default=0)
     r.add_argument("--scenario", help="the match's scenario file (organisers only): the camera then shows victims")

@@ -47,7 +47,9 @@ def test_goto_moves_cell_by_cell_and_reports_done(one_robot):
     d = done_event(red, tid)
     assert d["ok"] and d["state"] == "done" and d["result"] == {"reached": list(target)}
     m = red.monitor(tag)
-    assert (m["x"], m["y"]) == (float(target[0]), float(target[1]))
+    # teams see the positioning system's estimate (noise σ 0.25 cells), not the truth
+    assert abs(m["x"] - target[0]) < 1.0 and abs(m["y"] - target[1]) < 1.0
+    assert set(m["sensors"]) >= {"front", "left", "right", "down", "bump"}
     assert len(seen) >= 3  # positions were reported while moving, not just start and end
     assert m["done"][-1]["task_id"] == tid
 

@@ -17,8 +17,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import msgpack
-import numpy as np
 
+from robo_comp.world.public import unpack_walls  # noqa: F401  (clients read arenas with it)
 from robo_comp.errors import (
     FieldError,
     MalformedError,
@@ -230,9 +230,3 @@ def validate(raw: dict[str, Any], id_: int) -> Message:
                 f"field {name!r} of {type_!r} must be {kind}, got {_describe(body[name])}")
     return Message(type_, id_, body)
 
-
-def unpack_walls(arena: dict[str, Any]) -> np.ndarray:
-    """Rebuild the bool wall grid ``[y, x]`` from an ``arena`` payload (np.packbits, row-major)."""
-    h, w = arena["height"], arena["width"]
-    bits = np.unpackbits(np.frombuffer(arena["walls"], dtype=np.uint8), count=h * w)
-    return bits.reshape(h, w).astype(bool)

@@ -43,6 +43,7 @@ from robo_comp.plugins.manager import get_plugin_manager
 from robo_comp.scoring.config import ScoringConfig
 from robo_comp.teams.policy import check_owner, check_referee
 from robo_comp.teams.tokens import Principal, TokenBook
+from robo_comp.world.public import arena_payload
 from robo_comp.world.scenario import Scenario
 
 log = logging.getLogger("robo_comp.core")
@@ -77,26 +78,6 @@ class PendingStop:
     tag: int
     deadline: float
     t0: float
-
-
-def arena_payload(scenario: Scenario, teams: list[str]) -> dict[str, Any]:
-    """The public part of a scenario as plain data: walls (np.packbits, row-major), zones,
-    known objects and each team's colour and start zone. Victims are never sent."""
-    h, w = scenario.walls.shape
-    known = {t.name: t for t in scenario.teams}
-    team_rows = []
-    for i, name in enumerate(teams):
-        t = known.get(name)
-        team_rows.append(t.to_dict() if t else {"name": name, "colour": _FALLBACK_COLOURS[i % 6],
-                                               "start": None, "robots": 0})
-    return {"name": scenario.name, "width": int(w), "height": int(h), "cell_cm": scenario.cell_size,
-            "walls": np.packbits(scenario.walls.astype(bool), axis=None).tobytes(),
-            "zones": [z.to_dict() for z in scenario.zones],
-            "objects": [o.to_dict() for o in scenario.objects], "teams": team_rows,
-            "camera": {"fov": scenario.camera.fov, "range": scenario.camera.range}}
-
-
-_FALLBACK_COLOURS = ("#d62728", "#1f77b4", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b")
 
 
 class Core:

@@ -4,13 +4,13 @@ from __future__ import annotations
 from typing import Any
 
 from robo_comp.plugins.hookspecs import hookimpl
-from robo_comp.robots.body import Body
+from robo_comp.robots.drivers import ArenaDriver
 from robo_comp.robots.builtin_tasks import BUILTIN_TASKS
 from robo_comp.robots.steps import TaskSpec
 
 
 class BuiltinPlugin:
-    """goTo, followPath, examineArea and the ``sim`` driver (grid kinematics)."""
+    """goTo, followPath, examineArea and the ``sim`` driver (the host's simulated arena)."""
 
     @hookimpl
     def robo_comp_tasks(self) -> list[TaskSpec]:
@@ -18,12 +18,11 @@ class BuiltinPlugin:
         return list(BUILTIN_TASKS)
 
     @hookimpl
-    def robo_comp_driver(self, kind: str, options: dict[str, Any]) -> Body | None:
-        """The simulated grid driver for ``kind == "sim"``."""
+    def robo_comp_driver(self, kind: str, options: dict[str, Any]) -> ArenaDriver | None:
+        """The simulated driver for ``kind == "sim"``: options ``arena``, ``localization``, ``robot_id``."""
         if kind != "sim":
             return None
-        return Body(float(options.get("x", 0)), float(options.get("y", 0)), float(options.get("heading", 0)),
-                    float(options.get("speed", 2.0)), float(options.get("turn_rate", 180.0)))
+        return ArenaDriver(options["arena"], options["robot_id"], options["localization"])
 
 
 plugin = BuiltinPlugin()

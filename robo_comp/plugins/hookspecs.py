@@ -54,7 +54,7 @@ def robo_comp_driver(kind: str, options: dict[str, Any]) -> Any:
 
     ``kind`` names the driver (``"sim"``, ``"er1"``, ...). Return an object with
     ``begin(step)``, ``update(dt) -> bool``, ``halt()``, ``cell()``, ``moving`` and ``x, y,
-    heading`` (see :class:`robo_comp.robots.body.Body`), or None if ``kind`` is not yours.
+    heading`` (see :class:`robo_comp.robots.drivers.ArenaDriver`), or None if ``kind`` is not yours.
     The first non-None answer is used.
     """
 

@@ -24,10 +24,13 @@ from robo_comp.core import protocol as P
 from robo_comp.core.tasks import check_args
 from robo_comp.errors import RoboCompError
 from robo_comp.plugins.manager import get_plugin_manager
-from robo_comp.robots.body import Body
+from robo_comp.robots.drivers import ArenaDriver
 from robo_comp.robots.steps import Capture, Step, TaskFailed, TaskSpec
-from robo_comp.world.camera import FLOOR, CameraView, encode_png, render_view
+from robo_comp.world.arena import Arena
+from robo_comp.world.localization import Localization
 from robo_comp.world.planner import find_path, warm_up
+from robo_comp.world.public import scenario_from_payload
+from robo_comp.world.scenario import Scenario
 
 log = logging.getLogger("robo_comp.robots")
 
@@ -49,18 +52,19 @@ class SimRobot:
     """One simulated robot hosted here."""
 
     robot_id: str
-    body: Body
+    driver: ArenaDriver
     host: RobotHost
     tag: int = 0
     task: RunningTask | None = None
     pending: dict[str, Any] | None = None  # a task given "now" that waits for the movement boundary
     inbox: deque[dict[str, Any]] = field(default_factory=lambda: deque(maxlen=100))
     last_report: float = 0.0
+    last_sensed: float = 0.0
 
     # RobotView for tasks -------------------------------------------------
     def cell(self) -> tuple[int, int]:
         """The robot's current cell."""
-        return self.body.cell()
+        return self.driver.cell()
 
     def in_bounds(self, x: int, y: int) -> bool:
         """True when (x, y) is a free cell of the arena."""
@@ -85,16 +89,17 @@ class RobotHost:
     """Hosts ``count`` simulated robots of one team and keeps them connected to the core."""
 
     def __init__(self, core_url: str, token: str, count: int, *, prefix: str | None = None,
-                 speed: float = 2.0, turn_rate: float = 180.0, report_hz: float = 10.0,
+                 speed: float | None = None, report_hz: float = 10.0, sensor_hz: float = 2.0,
                  tick_hz: float = 20.0, driver: str = "sim", plugins: Any = None,
-                 ctx: zmq.Context | None = None, seed: int = 0) -> None:
+                 ctx: zmq.Context | None = None, seed: int = 0, truth: Scenario | None = None) -> None:
         self.url = core_url
         self.token = token
         self.count = count
         self.prefix = prefix
         self.speed = speed
-        self.turn_rate = turn_rate
+        self.truth = truth
         self.report_interval = 1.0 / report_hz
+        self.sensor_interval = 1.0 / sensor_hz
         self.tick = 1.0 / tick_hz
         self.pm = plugins or get_plugin_manager()
         self.driver_kind = driver
@@ -119,11 +124,8 @@ class RobotHost:
         self._waiting = 0
         self.holding = False
         self.core_id: str | None = None
-        self.camera: dict[str, float] = {"fov": 60.0, "range": 6.0}
-        self._floor = np.zeros((1, 1, 3), dtype=np.uint8)
-        #: Victims the host's camera can show: ground truth, only for organiser-run hosts
-        #: started with a scenario (``robo-comp robots --scenario``).
-        self.victims: list[tuple[float, float]] = []
+        self.world: Arena | None = None
+        self.loc: Localization | None = None
 
     # ------------------------------------------------------------------ sending
     def _send(self, type_: str, body: dict[str, Any], on_reply: Reply | None = None) -> None:
@@ -172,40 +174,55 @@ class RobotHost:
     def _on_arena(self, ok: bool, body: dict[str, Any]) -> None:
         if not ok:
             raise SystemExit(f"robots: cannot fetch the arena: {body.get('message')}")
-        self.walls = P.unpack_walls(body)
-        self.camera = body.get("camera") or {"fov": 60.0, "range": 6.0}
-        self._floor = np.broadcast_to(FLOOR, (*self.walls.shape, 3))
+        if self.world is None:
+            self._build_world(body)
         if not self.robots:
             self._create_robots(body)
         self._set_state("registering")
         adverts = [t.advert() for t in self.tasks.values()]
         self._waiting = len(self.robots)  # replies still to come before we are "up"
         for r in self.robots.values():
-            b = r.body
+            b = r.driver
             self._send("register", {"token": self.token, "robot_id": r.robot_id, "tasks": adverts,
                                     "x": b.x, "y": b.y, "heading": b.heading,
                                     "task_id": r.task.id if r.task else None},
                        lambda ok, body, r=r: self._on_registered(r, ok, body))
 
+    def _build_world(self, arena: dict[str, Any]) -> None:
+        """The simulated arena: the organiser's scenario (with victims) or the public one."""
+        public = scenario_from_payload(arena)
+        scenario = public
+        if self.truth is not None:
+            if self.truth.walls.shape != public.walls.shape or (self.truth.walls != public.walls).any():
+                raise SystemExit("robots: --scenario does not match the core's arena (different walls)")
+            scenario = self.truth
+        self.world = Arena(scenario, capacity=max(16, self.count))
+        if self.speed:
+            self.world.speed = self.speed
+        self.loc = Localization(self.world)
+        self.walls = self.world.walls
+
     def _create_robots(self, arena: dict[str, Any]) -> None:
+        assert self.world is not None and self.team is not None
+        start = [c for c in self.world.free_start_cells(self.team)] if any(
+            t["name"] == self.team and t.get("start") for t in arena.get("teams", [])) else []
         free = [(x, y) for y in range(self.walls.shape[0]) for x in range(self.walls.shape[1])
-                if not self.walls[y, x]]
-        zone = next((t.get("start") for t in arena.get("teams", []) if t["name"] == self.team), None)
-        cells = [c for c in free if zone and zone["x"] <= c[0] < zone["x"] + zone["w"]
-                 and zone["y"] <= c[1] < zone["y"] + zone["h"]]
-        extra = [c for c in free if c not in set(cells)]
-        self.rng.shuffle(extra)
-        cells += extra
+                if not self.walls[y, x] and (x, y) not in set(start)]
+        self.rng.shuffle(free)
+        cells = start + free
         prefix = self.prefix or self.team
+        if self.count > len(cells):
+            raise SystemExit(f"robots: the arena has room for {len(cells)} robots, not {self.count}")
         for i in range(self.count):
-            x, y = cells[i % len(cells)]
+            x, y = cells[i]
             rid = f"{prefix}-{i + 1}"
-            body = self.pm.hook.robo_comp_driver(kind=self.driver_kind, options={
-                "x": x, "y": y, "heading": 0.0, "speed": self.speed, "turn_rate": self.turn_rate,
-                "robot_id": rid})
-            if body is None:
+            self.world.add_robot(rid, self.team, x, y, 0.0)
+            driver = self.pm.hook.robo_comp_driver(kind=self.driver_kind, options={
+                "arena": self.world, "localization": self.loc, "robot_id": rid})
+            if driver is None:
                 raise SystemExit(f"robots: no plugin provides the driver {self.driver_kind!r}")
-            self.robots[rid] = SimRobot(rid, body, self)
+            self.robots[rid] = SimRobot(rid, driver, self)
+        self.loc.update()  # type: ignore[union-attr]
 
     def _on_registered(self, r: SimRobot, ok: bool, body: dict[str, Any]) -> None:
         if not ok:
@@ -220,7 +237,7 @@ class RobotHost:
             if task is None:
                 if r.task is not None:  # the core no longer knows our task (it restarted)
                     r.task = None
-                    r.body.halt()
+                    r.driver.halt()
             elif r.task is None or r.task.id != task["task_id"]:
                 self._start(r, task)
         self._waiting -= 1
@@ -276,19 +293,19 @@ class RobotHost:
                 self.sock.send(P.error_reply(rid, RoboCompError("no such robot on this host")))  # type: ignore[union-attr]
                 return
             self._halt(r)
-            self._answer(rid, {"tag": r.tag, "x": r.body.x, "y": r.body.y, "heading": r.body.heading})
+            self._answer(rid, {"tag": r.tag, "x": r.driver.x, "y": r.driver.y, "heading": r.driver.heading})
         elif type_ == "radio" and r is not None:
             r.inbox.append({"from": body.get("from"), "data": body.get("data")})
         elif type_ == "task.start" and r is not None:
             if r.task is None or r.task.id != body["task_id"]:
                 if r.task is not None:
-                    r.body.halt()
+                    r.driver.halt()
                 self._start(r, body)
         elif type_ == "task.interrupt" and r is not None:
             if r.task is not None:
                 self.pm.hook.robo_comp_task_interrupted(robot=r, task_name=r.task.name, task_id=r.task.id,
                                                         by_task_id=body["task_id"])
-            if r.task is None or not r.body.moving:
+            if r.task is None or not r.driver.moving:
                 if r.task is not None:
                     self._done(r, False, f"interrupted by task {body['task_id']}")
                 self._start(r, body)
@@ -329,16 +346,15 @@ class RobotHost:
                 return
             if isinstance(step, Capture):
                 self._take_picture(r, t, step.label)
-            r.body.begin(step)
+            r.driver.begin(step)
             return
 
     def _take_picture(self, r: SimRobot, t: RunningTask, label: str) -> None:
-        """Render the camera picture at the robot's pose and upload it as evidence."""
-        b = r.body
-        others = [(o.body.x, o.body.y, (128, 128, 128)) for o in self.robots.values() if o is not r]
-        view = CameraView(self.walls, self._floor, others, self.victims)
-        png = encode_png(render_view(view, b.x, b.y, b.heading, self.camera["fov"], self.camera["range"]))
-        self._send("picture", {"tag": r.tag, "x": b.x, "y": b.y, "heading": b.heading, "png": png,
+        """Take the camera picture at the robot's true pose and upload it as evidence."""
+        assert self.world is not None
+        png = self.world.camera(r.robot_id)
+        x, y, heading = r.driver.truth()
+        self._send("picture", {"tag": r.tag, "x": x, "y": y, "heading": heading, "png": png,
                                "label": label[:64]},
                    lambda ok, body, t=t: t.pictures.append(body["id"]) if ok else
                    log.warning("picture refused: %s", body.get("message")))
@@ -350,7 +366,7 @@ class RobotHost:
         if t.pictures and (result is None or isinstance(result, dict)):
             result = dict(result or {}, pictures=list(t.pictures))
         r.task = None
-        r.body.halt()
+        r.driver.halt()
         self._report_one(r, time.monotonic())  # the owner sees the final pose with the result
         self._send("task.done", {"tag": r.tag, "task_id": t.id, "ok": ok, "status": status,
                                  "result": result}, lambda ok_, body, r=r: self._on_done_reply(r, ok_, body))
@@ -362,16 +378,30 @@ class RobotHost:
 
     def _halt(self, r: SimRobot) -> None:
         """Stop at once: no movement, no task, nothing pending (the core cancels them)."""
-        r.body.halt()
+        r.driver.halt()
         r.task = None
         r.pending = None
 
     # ------------------------------------------------------------------ loop
     def step(self, dt: float) -> None:
-        """Advance every robot by ``dt`` seconds (movement, task steps)."""
+        """Advance the arena and every robot by ``dt`` seconds (movement, task steps)."""
+        assert self.world is not None and self.loc is not None
+        for ev in self.world.step(dt):
+            if ev.kind == "bump":
+                r = self.robots[ev.tag]
+                r.driver.bump = ev.data
+                if r.tag:
+                    other = self.robots.get(ev.data.get("other") or "")
+                    self._send("bump", {"tag": r.tag, "x": ev.data["x"], "y": ev.data["y"],
+                                        "with": other.tag if other else None})
+        self.loc.update()
         for r in self.robots.values():
-            if r.body.step is not None and r.body.update(dt):
-                if r.pending is not None:
+            if r.driver.step is not None and r.driver.update(dt):
+                if r.driver.bump is not None and r.task is not None:
+                    b = r.driver.bump
+                    self._done(r, False, f"bumped into {b.get('what', 'something')} at "
+                                         f"({b['x']:.1f}, {b['y']:.1f}) and stopped")
+                elif r.pending is not None:
                     nxt = r.pending
                     self._done(r, False, f"interrupted by task {nxt['task_id']}")
                     self._start(r, nxt)
@@ -379,17 +409,22 @@ class RobotHost:
                     self._advance(r)
 
     def _report_one(self, r: SimRobot, now: float) -> None:
+        """Report what the robot believes (the positioning system's estimate), and now and
+        then its sensor readings."""
         r.last_report = now
-        b = r.body
-        self.sock.send(P.request("report", 0, {  # type: ignore[union-attr]
-            "tag": r.tag, "x": round(b.x, 3), "y": round(b.y, 3),
-            "heading": round(b.heading, 1), "moving": b.moving}))
+        x, y, heading = r.driver.pose
+        body: dict[str, Any] = {"tag": r.tag, "x": round(x, 3), "y": round(y, 3),
+                                "heading": round(heading, 1), "moving": r.driver.moving}
+        if now - r.last_sensed >= self.sensor_interval and self.world is not None:
+            r.last_sensed = now
+            body["sensors"] = self.world.sense(r.robot_id)
+        self.sock.send(P.request("report", 0, body))  # type: ignore[union-attr]
         self.last_tx = now
 
     def _report(self, now: float) -> None:
         """Report moving robots every report interval, idle ones once a second."""
         for r in self.by_tag.values():
-            if r.body.moving or now - r.last_report >= 1.0:
+            if r.driver.moving or now - r.last_report >= 1.0:
                 self._report_one(r, now)
 
     def stop(self) -> None:

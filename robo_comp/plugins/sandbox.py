@@ -1,0 +1,967 @@
+"""Parent-side handle of a team sandbox: one child process per (team, robot host).
+
+The robot host drives every :class:`Sandbox` from its single poll loop; nothing here starts a
+thread. Per loop iteration the host
+
+* waits on :meth:`Sandbox.fileno` for reading (and for writing if :meth:`Sandbox.wants_write`),
+  with a timeout no later than :meth:`Sandbox.deadline`;
+* calls :meth:`Sandbox.handle_readable` when readable, :meth:`Sandbox.handle_writable` when
+  writable and :meth:`Sandbox.check_timers` when the deadline has passed (or simply
+  :meth:`Sandbox.poll` which does all three without blocking);
+* acts on the returned records (:class:`TaskDone`, :class:`TaskFailed`, :class:`LogLine`, ...).
+
+Robot-API calls from team code reach ``handler(tag, name, args)``; it returns plain data, or
+:data:`PENDING` and later :meth:`Sandbox.resolve` / :meth:`Sandbox.reject` the call. Without a
+handler the calls come out as :class:`RpcCall` records.
+
+Blocking conveniences (:meth:`Sandbox.load`, :meth:`Sandbox.run_task`, :func:`poll_many`) are
+for tests, tools and simple hosts.
+"""
+from __future__ import annotations
+
+import collections
+import os
+import select
+import signal
+import socket
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable, Iterable
+
+import msgpack
+
+from robo_comp.errors import BadTaskError, NotYoursError, UnavailableError, UploadError
+from robo_comp.plugins import contract
+from robo_comp.plugins.contract import BUILTIN_TASKS, ModuleInfo
+from robo_comp.plugins.sandbox_child import (
+    EXIT_INTERNAL, EXIT_MEMORY, EXIT_PROTOCOL, FrameError, FrameReader, pack,
+)
+
+__all__ = [
+    "PENDING", "Limits", "Sandbox", "poll_many",
+    "Record", "Ready", "RpcCall", "LogLine", "TaskDone", "TaskFailed", "Loaded", "LoadFailed",
+    "Unloaded", "SandboxStopped",
+]
+
+
+class _Pending:
+    __slots__ = ()
+
+    def __repr__(self) -> str:
+        return "PENDING"
+
+
+PENDING: Any = _Pending()
+"""Return this from the handler when the answer comes later (``resolve``/``reject``)."""
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Limits of one sandbox. Times in seconds; wall-clock ones are enforced by the parent."""
+
+    cpu_seconds: int = 2
+    """CPU seconds team code may use without an answer from the parent (rlimit backstop)."""
+    memory_mib: int = 256
+    """Address-space limit of the child process."""
+    wall_seconds: float = 2.0
+    """Wall-clock time team code may compute between two robot-API calls (a *slice*)."""
+    load_seconds: float = 3.0
+    """Wall-clock time for checking a module and running its body (before ``init``)."""
+    init_seconds: float = 1.0
+    """Wall-clock time for ``init(robot)``, robot-API calls included."""
+    cancel_grace: float = 0.5
+    """How long a cancelled run may take to end before the child is killed."""
+    message_bytes: int = 65536
+    """Largest message either side may send."""
+    result_bytes: int = 16384
+    """Largest task result (encoded)."""
+    output_bytes: int = 65536
+    """Print/log output per run."""
+    max_runs: int = 8
+    """Concurrent runs (tasks + loads) per sandbox; one worker thread each."""
+    spawn_seconds: float = 10.0
+    """Time the child may take to start."""
+    rpc_per_second: float = 1000.0
+    """Robot-API calls per second a sandbox may make (token bucket; 0 = unlimited). Calls
+    over the rate are not refused, only answered later, so a busy loop cannot hog the host."""
+    rpc_burst: int = 200
+    """Calls allowed at once before the rate applies."""
+    nice: int = 10
+    """Scheduling niceness added to the child: the host's loop wins over team code for CPU."""
+    max_respawns: int = 5
+    """Respawns allowed per ``respawn_window`` seconds before the sandbox gives up."""
+    respawn_window: float = 60.0
+
+    def wire(self, seed: int) -> dict[str, Any]:
+        """The subset the child needs."""
+        return {"cpu_seconds": self.cpu_seconds, "memory_mib": self.memory_mib,
+                "message_bytes": self.message_bytes, "result_bytes": self.result_bytes,
+                "output_bytes": self.output_bytes, "workers": self.max_runs + 1, "seed": seed,
+                "nice": self.nice,
+                "debug": os.environ.get("ROBO_COMP_SANDBOX_DEBUG") == "1"}
+
+
+# --------------------------------------------------------------------------- records
+@dataclass
+class Record:
+    """Base of everything :meth:`Sandbox.handle_readable` and friends return."""
+
+
+@dataclass
+class Ready(Record):
+    """The child is up (after a start or a respawn)."""
+
+    pid: int
+
+
+@dataclass
+class RpcCall(Record):
+    """A robot-API call the host must answer (only when the sandbox has no handler)."""
+
+    call_id: int
+    run_id: int
+    tag: int
+    name: str
+    args: list
+
+
+@dataclass
+class LogLine(Record):
+    """Team output: ``stream`` is ``print``, ``log`` (robot.log) or ``stdout``/``stderr``."""
+
+    run_id: int | None
+    tag: int | None
+    stream: str
+    text: str
+
+
+@dataclass
+class TaskDone(Record):
+    """A task returned; ``result`` is plain data."""
+
+    run_id: int
+    tag: int
+    task: str
+    result: Any
+
+
+@dataclass
+class TaskFailed(Record):
+    """A task ended without a result.
+
+    ``reason``: ``error`` (team code raised), ``cancelled``, ``limit`` (this run broke a limit;
+    the message names it) or ``restart`` (another run broke a limit and the child was restarted).
+    """
+
+    run_id: int
+    tag: int
+    task: str
+    message: str
+    reason: str
+    line: int | None = None
+
+
+@dataclass
+class Loaded(Record):
+    """A module passed the contract and is now active (``previous``: version it replaced)."""
+
+    load_id: int
+    module: ModuleInfo
+    previous: str | None = None
+
+
+@dataclass
+class LoadFailed(Record):
+    """A module failed the contract; the previous modules stay active."""
+
+    load_id: int
+    file: str
+    error: UploadError
+
+
+@dataclass
+class Unloaded(Record):
+    """A module was removed."""
+
+    name: str
+
+
+@dataclass
+class SandboxStopped(Record):
+    """The child was killed or died. ``respawned``: a fresh child with the good modules follows."""
+
+    reason: str
+    message: str
+    respawned: bool
+
+
+# --------------------------------------------------------------------------- internal state
+@dataclass
+class _Run:
+    id: int
+    kind: str  # "task" | "load"
+    tag: Any
+    task: str
+    deadline: float | None
+    limit_text: str
+    calls: set[int] = field(default_factory=set)
+    cancelled: bool = False
+    violation: str | None = None
+    file: str = ""
+    source: str = ""
+    replay: bool = False
+    budget: float = 0.0
+    held: bool = False
+
+
+class Sandbox:
+    """One team's sandbox on one robot host (see the module docstring for the loop contract).
+
+    ``tags`` are the robots of ``team`` on this host; team code can only act for them.
+    ``handler(tag, name, args)`` answers robot-API calls (plain data or :data:`PENDING`).
+    ``builtin_tasks`` are the host's predefined task names (``code`` modules may replace them).
+    """
+
+    def __init__(self, team: str, tags: Iterable[int] = (),
+                 handler: Callable[[int, str, list], Any] | None = None,
+                 limits: Limits | None = None, *, seed: int = 0,
+                 builtin_tasks: Iterable[str] = BUILTIN_TASKS, start: bool = True) -> None:
+        self.team = team
+        self.tags: list[int] = list(tags)
+        self.handler = handler
+        self.limits = limits or Limits()
+        self.seed = seed
+        self.builtin_tasks = tuple(builtin_tasks)
+        self.proc: subprocess.Popen | None = None
+        self.sock: socket.socket | None = None
+        self._reader: FrameReader | None = None
+        self._outbuf = bytearray()
+        self._out: list[Record] = []
+        self._backlog: collections.deque[Record] = collections.deque()
+        self._runs: dict[int, _Run] = {}
+        self._calls: dict[int, int] = {}  # call id -> run id
+        self._next_id = 1
+        self._held: list[dict] = []
+        self._loads: collections.deque[int] = collections.deque()
+        self._throttled: collections.deque[tuple] = collections.deque()
+        self._tokens = float(self.limits.rpc_burst)
+        self._token_time = time.monotonic()
+        self._good: dict[str, tuple[str, str, ModuleInfo]] = {}  # name -> (file, source, info)
+        self._spawn_deadline: float | None = None
+        self._respawns: collections.deque[float] = collections.deque()
+        self._killed_by_us: str | None = None
+        self.ready = False
+        self.closed = False
+        self.stopped_reason: str | None = None
+        if start:
+            self.start()
+
+    # ------------------------------------------------------------------ process
+    def start(self) -> None:
+        """Spawn the child (returns at once; a :class:`Ready` record follows)."""
+        parent, child = socket.socketpair(socket.AF_UNIX, socket.SOCK_STREAM)
+        env = {"MALLOC_ARENA_MAX": "1", "PYTHONDONTWRITEBYTECODE": "1",
+               "PATH": os.environ.get("PATH", "/usr/bin:/bin")}
+        debug = os.environ.get("ROBO_COMP_SANDBOX_DEBUG") == "1"
+        import robo_comp
+        pkg_root = os.path.dirname(os.path.dirname(os.path.abspath(robo_comp.__file__)))
+        cmd = [sys.executable, "-I", "-B", "-c",
+               f"import sys; sys.path.insert(0, {pkg_root!r}); "
+               "from robo_comp.plugins.sandbox_child import main; main()",
+               "--fd", str(child.fileno()),
+               "--limits", msgpack.packb(self.limits.wire(self.seed)).hex()]
+        try:
+            self.proc = subprocess.Popen(
+                cmd, stdin=subprocess.DEVNULL,
+                stdout=None if debug else subprocess.DEVNULL,
+                stderr=None if debug else subprocess.DEVNULL,
+                pass_fds=(child.fileno(),), start_new_session=True, close_fds=True, env=env,
+                cwd="/")
+        finally:
+            child.close()
+        parent.setblocking(False)
+        self.sock = parent
+        self._reader = FrameReader(self.limits.message_bytes)
+        self._outbuf = bytearray()
+        self.ready = False
+        self._killed_by_us = None
+        self._spawn_deadline = time.monotonic() + self.limits.spawn_seconds
+
+    @property
+    def pid(self) -> int | None:
+        """The child's process id (None when not running)."""
+        return self.proc.pid if self.proc is not None and self.proc.returncode is None else None
+
+    @property
+    def alive(self) -> bool:
+        """True while a child process is running."""
+        return self.proc is not None and self.proc.poll() is None
+
+    def fileno(self) -> int:
+        """The socket to poll for reading (-1 when stopped)."""
+        return self.sock.fileno() if self.sock is not None else -1
+
+    def deadline(self) -> float | None:
+        """Earliest ``time.monotonic()`` at which :meth:`check_timers` must run (or None)."""
+        ds = [r.deadline for r in self._runs.values() if r.deadline is not None]
+        if self._spawn_deadline is not None:
+            ds.append(self._spawn_deadline)
+        if self._throttled and self.limits.rpc_per_second:
+            ds.append(self._token_time + max(0.0, 1.0 - self._tokens) / self.limits.rpc_per_second)
+        return min(ds) if ds else None
+
+    def wants_write(self) -> bool:
+        """True when queued outgoing bytes wait for the socket to become writable."""
+        return bool(self._outbuf)
+
+    def close(self) -> None:
+        """Kill the child and forget everything (the sandbox cannot be used afterwards)."""
+        self.closed = True
+        self._kill()
+        self._runs.clear()
+        self._calls.clear()
+
+    def __enter__(self) -> "Sandbox":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+    # ------------------------------------------------------------------ sending
+    def _send(self, msg: dict) -> None:
+        if self.sock is None:
+            return
+        data = pack(msg)
+        if len(data) - 4 > max(self.limits.message_bytes, contract.MAX_SOURCE_BYTES + 4096):
+            raise ValueError("message too large for the sandbox")
+        self._outbuf += data
+        self._flush()
+
+    def handle_writable(self) -> list[Record]:
+        """Flush queued bytes to the child (call when the socket is writable)."""
+        self._flush()
+        return self._take()
+
+    def _flush(self) -> None:
+        while self._outbuf and self.sock is not None:
+            try:
+                n = self.sock.send(self._outbuf)
+            except (BlockingIOError, InterruptedError):
+                break
+            except OSError:
+                self._outbuf.clear()
+                break
+            del self._outbuf[:n]
+        if len(self._outbuf) > 8 * 1024 * 1024:
+            self._stop("protocol", "the sandbox does not read its messages")
+
+    # ------------------------------------------------------------------ uploads
+    def begin_load(self, filename: str, source: str | bytes) -> int:
+        """Start loading a module as a candidate; returns the load id.
+
+        A :class:`Loaded` or :class:`LoadFailed` record follows. File-name and size problems
+        raise :class:`UploadError` at once.
+        """
+        try:
+            contract.check_filename(filename)
+            source = contract.check_source(source)
+        except contract.ContractError as exc:
+            raise contract.upload_error(str(filename)[:80], exc.rule, exc.detail, exc.line) from None
+        return self._begin_load(filename, source, replay=False)
+
+    def _begin_load(self, filename: str, source: str, replay: bool) -> int:
+        self._require_running()
+        rid = self._new_id()
+        budget = self.limits.load_seconds
+        run = _Run(rid, "load", self.tags[0] if self.tags else None, "<load>", None,
+                   f"wall-clock limit ({budget:g} s) exceeded while loading {filename}",
+                   file=filename, source=source, replay=replay, budget=budget, held=True)
+        self._runs[rid] = run
+        self._loads.append(rid)
+        self._next_load()
+        return rid
+
+    def _next_load(self) -> None:
+        """Loads go to the child one at a time (atomic, in order); the clock starts on send."""
+        if any(r.kind == "load" and not r.held for r in self._runs.values()):
+            return
+        while self._loads:
+            run = self._runs.get(self._loads.popleft())
+            if run is None:
+                continue
+            run.held = False
+            if self.ready:
+                run.deadline = time.monotonic() + run.budget
+            self._send({"t": "load", "r": run.id, "g": run.tag, "file": run.file,
+                        "src": run.source, "builtin": list(self.builtin_tasks)})
+            return
+
+    def load(self, filename: str, source: str | bytes, timeout: float = 10.0) -> ModuleInfo:
+        """Blocking :meth:`begin_load`: returns the module or raises :class:`UploadError`.
+
+        Other records arriving meanwhile are kept for the next :meth:`poll`.
+        """
+        rid = self.begin_load(filename, source)
+        rec = self._wait(lambda r: isinstance(r, (Loaded, LoadFailed)) and r.load_id == rid, timeout)
+        if rec is None:
+            raise UploadError(f"{filename}: timeout: no answer from the sandbox", file=filename,
+                              rule="timeout")
+        if isinstance(rec, LoadFailed):
+            raise rec.error
+        return rec.module
+
+    def unload(self, name: str) -> bool:
+        """Remove module ``name`` (an :class:`Unloaded` record follows); False if unknown."""
+        if name not in self._good:
+            return False
+        del self._good[name]
+        self._send({"t": "unload", "name": name})
+        return True
+
+    def modules(self) -> list[ModuleInfo]:
+        """The active modules (name, version, kind, file, sha256, tasks, replaces)."""
+        return [info for (_, _, info) in self._good.values()]
+
+    def advertised_tasks(self) -> dict[str, dict[str, Any]]:
+        """Tasks of the active modules as plain data, keyed by task name.
+
+        Each value: ``{"name", "description", "args": [{"name", "type", "description"}],
+        "module", "version", "kind", "replaces_builtin"}``.
+        """
+        out: dict[str, dict[str, Any]] = {}
+        for info in self.modules():
+            for tname, spec in info.tasks.items():
+                out[tname] = {**spec, "module": info.name, "version": info.version,
+                              "kind": info.kind, "replaces_builtin": tname in info.replaces}
+        return out
+
+    # ------------------------------------------------------------------ tasks
+    def add_tag(self, tag: int) -> None:
+        """Let this sandbox act for robot ``tag`` too (one of the team's robots)."""
+        if tag not in self.tags:
+            self.tags.append(tag)
+
+    def remove_tag(self, tag: int) -> None:
+        """Stop acting for ``tag``; its further robot-API calls are refused."""
+        if tag in self.tags:
+            self.tags.remove(tag)
+
+    def start_task(self, tag: int, task: str, args: list | tuple = ()) -> int:
+        """Run ``task`` of a loaded module for robot ``tag``; returns the run id.
+
+        Raises :class:`NotYoursError` for a tag not given to this sandbox and
+        :class:`BadTaskError` for an unknown task, wrong arguments or too many runs.
+        """
+        if tag not in self.tags:
+            raise NotYoursError(f"robot {tag} is not one of team {self.team}'s robots here")
+        tasks = self.advertised_tasks()
+        spec = tasks.get(task)
+        if spec is None:
+            known = ", ".join(sorted(tasks)) or "none"
+            raise BadTaskError(f"no uploaded module provides task {task!r}; uploaded tasks: {known}")
+        args = contract.check_task_args(spec, list(args))
+        if sum(r.kind == "task" for r in self._runs.values()) >= self.limits.max_runs:
+            raise BadTaskError(f"too many tasks running in team {self.team}'s sandbox "
+                               f"(limit {self.limits.max_runs})")
+        self._require_running(UnavailableError)
+        rid = self._new_id()
+        budget = self.limits.wall_seconds
+        run = _Run(rid, "task", tag, task, time.monotonic() + budget if self.ready else None,
+                   f"wall-clock limit ({budget:g} s) exceeded", budget=budget)
+        self._runs[rid] = run
+        msg = {"t": "run", "r": rid, "g": tag, "task": task, "module": spec["module"], "a": args}
+        if self._replaying():
+            run.deadline = None  # held until the respawned child has its modules back
+            run.held = True
+            self._held.append(msg)
+        else:
+            self._send(msg)
+        return rid
+
+    def _replaying(self) -> bool:
+        return any(r.replay for r in self._runs.values() if r.kind == "load")
+
+    def _release_held(self) -> None:
+        if self._held and not self._replaying():
+            held, self._held = self._held, []
+            now = time.monotonic()
+            for msg in held:
+                run = self._runs.get(msg["r"])
+                if run is not None:
+                    run.held = False
+                    if self.ready:
+                        run.deadline = now + run.budget
+                    self._send(msg)
+
+    def run_task(self, tag: int, task: str, args: list | tuple = (),
+                 timeout: float = 30.0) -> TaskDone | TaskFailed | None:
+        """Blocking :meth:`start_task`: the run's final record (None on timeout)."""
+        rid = self.start_task(tag, task, args)
+        return self._wait(lambda r: isinstance(r, (TaskDone, TaskFailed)) and r.run_id == rid,
+                          timeout)
+
+    def cancel(self, run_id: int) -> bool:
+        """Interrupt/stop a run: its pending robot-API calls fail with ``TaskCancelled`` in team
+        code, a computing run gets ``TaskCancelled`` raised at once; if it has not ended after
+        ``cancel_grace`` seconds the child is killed. False if the run is unknown."""
+        run = self._runs.get(run_id)
+        if run is None:
+            return False
+        if not run.cancelled:
+            run.cancelled = True
+            run.limit_text = (f"the task did not stop within {self.limits.cancel_grace:g} s of "
+                              "being cancelled (wall-clock limit)")
+            for call_id in list(run.calls):
+                self._answer(call_id, ok=False, error="task cancelled", cancelled=True)
+            self._send({"t": "cancel", "r": run_id})
+            run.deadline = time.monotonic() + self.limits.cancel_grace
+        return True
+
+    def running(self) -> dict[int, tuple[int, str]]:
+        """Active task runs: ``{run_id: (tag, task)}``."""
+        return {r.id: (r.tag, r.task) for r in self._runs.values() if r.kind == "task"}
+
+    # ------------------------------------------------------------------ rpc answers
+    def resolve(self, call_id: int, value: Any) -> None:
+        """Answer a pending robot-API call with plain ``value``."""
+        self._answer(call_id, ok=True, value=value)
+
+    def reject(self, call_id: int, message: str) -> None:
+        """Fail a pending robot-API call; team code gets ``RobotError(message)``."""
+        self._answer(call_id, ok=False, error=message)
+
+    def _answer(self, call_id: int, ok: bool, value: Any = None, error: str = "",
+                cancelled: bool = False) -> None:
+        rid = self._calls.pop(call_id, None)
+        if rid is None:
+            return
+        run = self._runs.get(rid)
+        if run is not None:
+            run.calls.discard(call_id)
+            if run.kind == "task" and not run.cancelled and not run.calls:
+                run.deadline = time.monotonic() + self.limits.wall_seconds
+        msg: dict[str, Any] = {"t": "reply", "c": call_id, "ok": ok}
+        if ok:
+            msg["v"] = value
+        else:
+            msg["e"] = str(error)[:1000]
+            if cancelled:
+                msg["x"] = True
+        try:
+            self._send(msg)
+        except (TypeError, ValueError, OverflowError) as exc:
+            self._send({"t": "reply", "c": call_id, "ok": False,
+                        "e": f"the host's answer is not plain data or too large ({exc})"})
+
+    # ------------------------------------------------------------------ the loop side
+    def poll(self, timeout: float = 0.0) -> list[Record]:
+        """Wait up to ``timeout`` for input, then do all pending work; returns records."""
+        if self._backlog:
+            out = list(self._backlog)
+            self._backlog.clear()
+            return out + self.check_timers()
+        if self.sock is not None:
+            d = self.deadline()
+            if d is not None:
+                timeout = max(0.0, min(timeout, d - time.monotonic()))
+            wl = [self.sock] if self._outbuf else []
+            try:
+                r, w, _ = select.select([self.sock], wl, [], timeout)
+            except (OSError, ValueError):
+                r, w = [], []
+            out: list[Record] = []
+            if w:
+                out += self.handle_writable()
+            if r:
+                out += self.handle_readable()
+            return out + self.check_timers()
+        if timeout:
+            time.sleep(timeout)
+        return self.check_timers()
+
+    def handle_readable(self) -> list[Record]:
+        """Read what the child sent and process it; returns records."""
+        if self.sock is None or self._reader is None:
+            return self._take()
+        while self.sock is not None:
+            try:
+                data = self.sock.recv(1 << 18)
+            except (BlockingIOError, InterruptedError):
+                break
+            except OSError:
+                data = b""
+            if not data:
+                self._child_gone()
+                break
+            try:
+                msgs = self._reader.feed(data)
+            except FrameError as exc:
+                self._stop("message", str(exc))
+                break
+            for msg in msgs:
+                try:
+                    self._dispatch(msg)
+                except (KeyError, TypeError, ValueError, AttributeError):
+                    self._stop("protocol", f"protocol violation in a {str(msg.get('t'))[:20]!r} "
+                                           "message")
+                    break
+            if len(data) < (1 << 18):
+                break
+        return self._take()
+
+    def check_timers(self, now: float | None = None) -> list[Record]:
+        """Enforce wall-clock limits (kill + respawn); returns records."""
+        now = time.monotonic() if now is None else now
+        if self._throttled:
+            self._release_throttled()
+        if self._spawn_deadline is not None and now >= self._spawn_deadline:
+            self._stop("spawn", f"the sandbox did not start within {self.limits.spawn_seconds:g} s")
+            return self._take()
+        late = [r for r in self._runs.values() if r.deadline is not None and now >= r.deadline]
+        if late:
+            run = min(late, key=lambda r: r.deadline or 0.0)
+            self._stop("wall", run.violation or run.limit_text, culprit=run.id)
+        return self._take()
+
+    def _take(self) -> list[Record]:
+        out, self._out = self._out, []
+        return out
+
+    # ------------------------------------------------------------------ dispatch
+    def _dispatch(self, msg: dict) -> None:
+        t = msg["t"]
+        if t == "call":
+            self._on_call(msg)
+        elif t == "log":
+            text = msg["text"]
+            if type(text) is not str:
+                raise TypeError
+            run = self._runs.get(msg.get("run")) if msg.get("run") is not None else None
+            self._out.append(LogLine(run.id if run else None, run.tag if run else None,
+                                     str(msg.get("stream", "print"))[:10], text))
+        elif t in ("done", "failed"):
+            run = self._runs.pop(msg["r"], None)
+            if run is None:
+                return
+            self._forget_calls(run)
+            if t == "done":
+                self._out.append(TaskDone(run.id, run.tag, run.task, msg.get("v")))
+            else:
+                why = str(msg.get("why", "error"))
+                if why not in ("error", "cancelled", "limit"):
+                    why = "error"
+                if run.cancelled and why == "error":
+                    why = "cancelled"
+                text = str(msg.get("m", ""))[:2000]
+                self._out.append(TaskFailed(run.id, run.tag, run.task, text, why,
+                                            msg.get("line") if type(msg.get("line")) is int else None))
+        elif t == "loaded":
+            run = self._runs.pop(msg["r"], None)
+            if run is None:
+                return
+            self._forget_calls(run)
+            tasks = msg["tasks"]
+            if type(tasks) is not dict:
+                raise TypeError
+            info = ModuleInfo(name=str(msg["name"]), version=str(msg["version"]),
+                              kind=str(msg["kind"]), file=run.file,
+                              sha256=contract.source_hash(run.source), tasks=tasks,
+                              description=str(msg.get("description", "")),
+                              replaces=[t for t in tasks if t in self.builtin_tasks])
+            prev = self._good.get(info.name)
+            if run.replay and prev is None:  # unloaded while it was being replayed
+                self._send({"t": "unload", "name": info.name})
+                self._next_load()
+                self._release_held()
+                return
+            self._good[info.name] = (run.file, run.source, info)
+            self._out.append(Loaded(run.id, info, prev[2].version if prev else None))
+            self._next_load()
+            self._release_held()
+        elif t == "load_failed":
+            run = self._runs.pop(msg["r"], None)
+            if run is None:
+                return
+            self._forget_calls(run)
+            line = msg.get("line") if type(msg.get("line")) is int else None
+            err = contract.upload_error(run.file, str(msg.get("rule", "contract"))[:20],
+                                        str(msg.get("m", ""))[:1000], line)
+            if run.replay:
+                self._good = {k: v for k, v in self._good.items() if v[0] != run.file}
+            self._out.append(LoadFailed(run.id, run.file, err))
+            self._next_load()
+            self._release_held()
+        elif t == "phase":
+            run = self._runs.get(msg["r"])
+            if run is not None and msg.get("phase") == "init":
+                run.deadline = time.monotonic() + self.limits.init_seconds
+                run.limit_text = (f"{run.file}: init: init(robot) did not finish within "
+                                  f"{self.limits.init_seconds:g} s (wall-clock limit)")
+        elif t == "violation":
+            run = self._runs.get(msg["r"])
+            if run is not None and run.violation is None:
+                run.violation = str(msg.get("message", "limit exceeded"))[:300]
+        elif t == "unloaded":
+            self._out.append(Unloaded(str(msg.get("name"))))
+        elif t == "ready":
+            self.ready = True
+            self._spawn_deadline = None
+            now = time.monotonic()
+            for run in self._runs.values():  # the clocks start when the child can work
+                if run.deadline is None and not run.held and not run.calls:
+                    run.deadline = now + run.budget
+            self._out.append(Ready(int(msg["pid"])))
+        else:
+            raise ValueError(t)
+
+    def _on_call(self, msg: dict) -> None:
+        call_id, rid, tag, name, args = msg["c"], msg["r"], msg["g"], msg["n"], msg["a"]
+        if type(call_id) is not int or type(name) is not str or type(args) is not list:
+            raise TypeError
+        run = self._runs.get(rid)
+        if run is None:
+            raise KeyError(rid)
+        run.calls.add(call_id)
+        self._calls[call_id] = rid
+        if run.kind == "task":
+            run.deadline = None  # waiting for the host: no wall-clock
+        if tag not in self.tags:
+            self._answer(call_id, ok=False,
+                         error=f"robot {tag} is not one of team {self.team}'s robots here")
+            return
+        if run.cancelled:
+            self._answer(call_id, ok=False, error="task cancelled", cancelled=True)
+            return
+        if self._throttled or not self._take_token():
+            self._throttled.append((call_id, rid, tag, name, args))  # answered when due
+            return
+        self._deliver(call_id, rid, tag, name, args)
+
+    def _take_token(self) -> bool:
+        rate = self.limits.rpc_per_second
+        if not rate:
+            return True
+        now = time.monotonic()
+        self._tokens = min(float(self.limits.rpc_burst),
+                           self._tokens + (now - self._token_time) * rate)
+        self._token_time = now
+        if self._tokens >= 1.0:
+            self._tokens -= 1.0
+            return True
+        return False
+
+    def _release_throttled(self) -> None:
+        while self._throttled and self._take_token():
+            call_id, rid, tag, name, args = self._throttled.popleft()
+            if call_id in self._calls and rid in self._runs:
+                self._deliver(call_id, rid, tag, name, args)
+
+    def _deliver(self, call_id: int, rid: int, tag: int, name: str, args: list) -> None:
+        """Hand one robot-API call to the handler (or out as an :class:`RpcCall`)."""
+        if self.handler is None:
+            self._out.append(RpcCall(call_id, rid, tag, name, args))
+            return
+        try:
+            value = self.handler(tag, name, args)
+        except Exception as exc:  # the host refused (bad args, unavailable, ...)
+            self._answer(call_id, ok=False, error=str(getattr(exc, "message", exc)))
+            return
+        if value is not PENDING:
+            self._answer(call_id, ok=True, value=value)
+
+    def _forget_calls(self, run: _Run) -> None:
+        for c in run.calls:
+            self._calls.pop(c, None)
+
+    # ------------------------------------------------------------------ death and respawn
+    def _child_gone(self) -> None:
+        rc = None
+        if self.proc is not None:
+            try:
+                rc = self.proc.wait(timeout=2.0)
+            except subprocess.TimeoutExpired:
+                self._kill()
+                rc = self.proc.returncode
+        reason, text = self._classify(rc)
+        self._stop(reason, text, already_dead=True)
+
+    def _classify(self, rc: int | None) -> tuple[str, str]:
+        L = self.limits
+        if rc == -signal.SIGXCPU:
+            return "cpu", f"CPU time limit ({L.cpu_seconds} s) exceeded"
+        if rc == EXIT_MEMORY:
+            return "memory", f"memory limit ({L.memory_mib} MiB) exceeded"
+        if rc == -signal.SIGXFSZ:
+            return "file", "file size limit exceeded (team code may not write files)"
+        if rc in (-signal.SIGSEGV, -signal.SIGABRT, -signal.SIGBUS):
+            return "memory", (f"memory limit ({L.memory_mib} MiB) exceeded (the sandbox crashed "
+                              f"with {signal.Signals(-rc).name})")
+        if rc == -signal.SIGKILL:
+            return "killed", "the sandbox was killed (CPU or memory limit of the system)"
+        if rc == EXIT_PROTOCOL:
+            return "protocol", "the sandbox received a malformed message"
+        if rc == EXIT_INTERNAL:
+            return "crash", "the sandbox failed internally"
+        return "exit", f"the sandbox exited (code {rc})"
+
+    def _near_memory_limit(self) -> bool:
+        """True if the child's address space is within 30% of its limit (Linux /proc)."""
+        if self.proc is None:
+            return False
+        try:
+            with open(f"/proc/{self.proc.pid}/status", "rb") as f:
+                for line in f:
+                    if line.startswith(b"VmPeak:"):
+                        kib = int(line.split()[1])
+                        return kib * 1024 >= 0.7 * self.limits.memory_mib * 1024 * 1024
+        except (OSError, ValueError, IndexError):
+            pass
+        return False
+
+    def _kill(self) -> None:
+        if self.proc is not None and self.proc.poll() is None:
+            try:
+                os.killpg(self.proc.pid, signal.SIGKILL)
+            except (ProcessLookupError, PermissionError):
+                try:
+                    self.proc.kill()
+                except ProcessLookupError:
+                    pass
+            try:
+                self.proc.wait(timeout=5.0)
+            except subprocess.TimeoutExpired:  # pragma: no cover
+                pass
+        if self.sock is not None:
+            try:
+                self.sock.close()
+            except OSError:
+                pass
+            self.sock = None
+
+    def _stop(self, reason: str, message: str, culprit: int | None = None,
+              already_dead: bool = False) -> None:
+        """Kill the child, fail its runs, and respawn it with the good modules."""
+        if not already_dead and self.proc is not None and self.proc.poll() is not None:
+            # it died by itself before we noticed (e.g. SIGXCPU): report that instead
+            reason, message = self._classify(self.proc.returncode)
+            culprit = None
+        elif reason == "wall" and self._near_memory_limit():
+            # team code swallowed its MemoryErrors and spun: name the real cause
+            reason = "memory"
+            message = f"memory limit ({self.limits.memory_mib} MiB) exceeded"
+            for r in self._runs.values():
+                if r.id == culprit and r.violation is None:
+                    r.violation = message
+        self._kill()
+        runs = sorted(self._runs.values(), key=lambda r: r.id)
+        self._runs.clear()
+        self._held = []
+        self._loads.clear()
+        self._throttled.clear()
+        self._calls.clear()
+        if culprit is None:
+            computing = [r for r in runs if r.deadline is not None and not r.calls]
+            if computing:
+                culprit = min(computing, key=lambda r: r.deadline or 0.0).id
+            elif runs:
+                culprit = runs[0].id
+        requeue: list[_Run] = []
+        for r in runs:
+            text = (r.violation or message) if r.id == culprit else \
+                f"sandbox restarted: {message}"
+            if r.kind == "task":
+                why = "limit" if r.id == culprit else "restart"
+                self._out.append(TaskFailed(r.id, r.tag, r.task, text, why))
+            elif r.id == culprit:
+                rule = "init" if "init" in r.limit_text and r.limit_text is text else "limit"
+                self._out.append(LoadFailed(r.id, r.file, contract.upload_error(r.file, rule, text)))
+                if r.replay:
+                    self._good = {k: v for k, v in self._good.items() if v[0] != r.file}
+            elif not r.replay:
+                requeue.append(r)  # an innocent upload waiting its turn: try it again
+        now = time.monotonic()
+        while self._respawns and now - self._respawns[0] > self.limits.respawn_window:
+            self._respawns.popleft()
+        respawn = not self.closed and len(self._respawns) < self.limits.max_respawns
+        self._out.append(SandboxStopped(reason, message, respawn))
+        if not respawn:
+            self.stopped_reason = message
+            self._spawn_deadline = None
+            for r in requeue:
+                self._out.append(LoadFailed(r.id, r.file, contract.upload_error(
+                    r.file, "limit", f"sandbox stopped: {message}")))
+            return
+        self._respawns.append(now)
+        self.start()
+        for file, source, _info in list(self._good.values()):
+            self._begin_load(file, source, replay=True)
+        for r in requeue:
+            r.held, r.deadline, r.calls = True, None, set()
+            self._runs[r.id] = r
+            self._loads.append(r.id)
+        self._next_load()
+
+    # ------------------------------------------------------------------ helpers
+    def _new_id(self) -> int:
+        rid = self._next_id
+        self._next_id += 1
+        return rid
+
+    def _require_running(self, error: type = UploadError) -> None:
+        if self.closed:
+            raise error(f"team {self.team}'s sandbox is closed")
+        if self.sock is None:
+            raise error(f"team {self.team}'s sandbox is stopped: {self.stopped_reason}")
+
+    def _wait(self, pred: Callable[[Record], bool], timeout: float) -> Record | None:
+        end = time.monotonic() + timeout
+        kept: list[Record] = []
+        found = None
+        while found is None:
+            left = end - time.monotonic()
+            if left <= 0:
+                break
+            for rec in self.poll(min(left, 0.5)):
+                if found is None and pred(rec):
+                    found = rec
+                else:
+                    kept.append(rec)
+        self._backlog.extend(kept)
+        return found
+
+
+def poll_many(sandboxes: Iterable[Sandbox], timeout: float = 0.0) -> list[tuple[Sandbox, Record]]:
+    """One iteration of a host loop over several sandboxes: wait up to ``timeout`` (bounded by
+    their deadlines) for any of them, then process all; returns ``(sandbox, record)`` pairs."""
+    boxes = list(sandboxes)
+    out: list[tuple[Sandbox, Record]] = []
+    for sb in boxes:
+        while sb._backlog:
+            out.append((sb, sb._backlog.popleft()))
+    if out:
+        timeout = 0.0
+    now = time.monotonic()
+    for sb in boxes:
+        d = sb.deadline()
+        if d is not None:
+            timeout = min(timeout, max(0.0, d - now))
+    rl = [sb for sb in boxes if sb.sock is not None]
+    wl = [sb for sb in rl if sb.wants_write()]
+    if rl:
+        try:
+            r, w, _ = select.select(rl, wl, [], timeout)
+        except (OSError, ValueError):
+            r, w = [], []
+    else:
+        r, w = [], []
+        if timeout:
+            time.sleep(timeout)
+    for sb in w:
+        out.extend((sb, rec) for rec in sb.handle_writable())
+    for sb in r:
+        out.extend((sb, rec) for rec in sb.handle_readable())
+    for sb in boxes:
+        out.extend((sb, rec) for rec in sb.check_timers())
+    return out

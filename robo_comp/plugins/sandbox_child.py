@@ -1,0 +1,719 @@
+"""The sandbox child process: runs one team's modules for one robot host, under limits.
+
+Started by :class:`robo_comp.plugins.sandbox.Sandbox` as::
+
+    python -I -B -c "...; from robo_comp.plugins.sandbox_child import main; main()" \
+        --fd N --limits <msgpack hex>
+
+Order of start-up (everything that needs files or new threads happens *before* the limits):
+import all we need → die-with-parent → drop root to ``nobody`` (if root) → start the worker
+threads → rlimits (CPU, address space, no new processes, no new files, no file writes, no core)
+→ send ``ready``. Then the main thread only reads messages from the parent and dispatches
+them; team code (module bodies, ``init``, tasks) runs in the worker threads, one run each.
+
+Wire format (both directions): 4-byte big-endian length + a msgpack map with key ``t``.
+This module also holds the framing helpers the parent uses.
+"""
+from __future__ import annotations
+
+import argparse
+import ast
+import math
+import os
+import queue
+import resource
+import signal
+import socket
+import struct
+import sys
+import threading
+import time
+import types
+from typing import Any, Callable
+
+import msgpack
+
+HEADER = struct.Struct(">I")
+EXIT_MEMORY = 75
+EXIT_PROTOCOL = 76
+EXIT_INTERNAL = 77
+MAX_TEXT = 2000
+
+
+# --------------------------------------------------------------------------- framing
+def _default(obj: Any) -> Any:
+    if type(obj) is tuple:
+        return list(obj)
+    raise TypeError(f"a {type(obj).__name__} object is not plain data "
+                    "(use None, bool, int, float, str, bytes, list, dict)")
+
+
+def pack(msg: dict) -> bytes:
+    """Encode one message (length prefix + msgpack); raises TypeError/ValueError if not plain."""
+    body = msgpack.packb(msg, use_bin_type=True, strict_types=True, default=_default)
+    return HEADER.pack(len(body)) + body
+
+
+class FrameError(Exception):
+    """A frame that breaks the size cap or is not a msgpack map."""
+
+
+class FrameReader:
+    """Accumulates bytes and yields decoded messages; refuses frames over ``cap`` bytes."""
+
+    def __init__(self, cap: int) -> None:
+        self.cap = cap
+        self.buf = bytearray()
+
+    def feed(self, data: bytes) -> list[dict]:
+        """Add received bytes; return the complete messages (raises :class:`FrameError`)."""
+        self.buf += data
+        out = []
+        while len(self.buf) >= 4:
+            (n,) = HEADER.unpack_from(self.buf)
+            if n > self.cap:
+                raise FrameError(f"message too large ({n} bytes > {self.cap} bytes)")
+            if len(self.buf) < 4 + n:
+                break
+            body = bytes(self.buf[4:4 + n])
+            del self.buf[:4 + n]
+            try:
+                msg = msgpack.unpackb(body, raw=False, strict_map_key=False, use_list=True)
+            except Exception as exc:
+                raise FrameError(f"undecodable message ({type(exc).__name__})") from None
+            if type(msg) is not dict or type(msg.get("t")) is not str:
+                raise FrameError("message is not a map with a type")
+            out.append(msg)
+        return out
+
+
+def _trim(text: str, n: int = MAX_TEXT) -> str:
+    return text if len(text) <= n else text[:n] + f"... ({len(text) - n} more characters)"
+
+
+# --------------------------------------------------------------------------- child state
+class _Run:
+    """One run (a task or a module load) executing in a worker."""
+
+    __slots__ = ("id", "tag", "file", "output", "violation", "cancelled")
+
+    def __init__(self, run_id: int, tag: Any, file: str) -> None:
+        self.id = run_id
+        self.tag = tag
+        self.file = file
+        self.output = 0
+        self.violation: str | None = None
+        self.cancelled = False
+
+
+class _Module:
+    __slots__ = ("name", "version", "kind", "file", "sha256", "tasks", "functions", "globals")
+
+
+class Child:
+    """The child's state and its message loop (one instance per process)."""
+
+    def __init__(self, sock: socket.socket, limits: dict) -> None:
+        from robo_comp.plugins import contract, restricted  # imported before the limits
+        self.contract = contract
+        self.restricted = restricted
+        self.sock = sock
+        self.limits = limits
+        self.send_lock = threading.Lock()
+        self.state_lock = threading.Lock()
+        self.modules: dict[str, _Module] = {}
+        self.task_index: dict[str, str] = {}
+        self.calls: dict[int, "_Worker"] = {}
+        self.runs: dict[int, _Worker] = {}
+        self.next_call = 1
+        self.local = threading.local()
+        self.policy = restricted.Policy(int(limits.get("seed", 0)), self._print_sink)
+        self.workers = [_Worker(self, i) for i in range(int(limits["workers"]))]
+        self.cpu_soft = -1
+        self.stderr_left = 16384
+
+    # ------------------------------------------------------------------ sending
+    def send(self, msg: dict) -> None:
+        """Send one message to the parent (thread-safe); oversize → :class:`LimitExceeded`."""
+        data = pack(msg)
+        if len(data) - 4 > self.limits["message_bytes"]:
+            raise self.restricted.LimitExceeded(
+                f"message too large ({len(data) - 4} bytes > {self.limits['message_bytes']} bytes)")
+        with self.send_lock:
+            self.sock.sendall(data)
+
+    def refresh_cpu(self) -> None:
+        """Give team code ``cpu_seconds`` more CPU from now (the rlimit is a backstop)."""
+        want = int(math.ceil(time.process_time())) + int(self.limits["cpu_seconds"])
+        if want != self.cpu_soft:
+            try:
+                resource.setrlimit(resource.RLIMIT_CPU, (want, resource.RLIM_INFINITY))
+                self.cpu_soft = want
+            except (ValueError, OSError):
+                pass
+
+    # ------------------------------------------------------------------ team output
+    def current_run(self) -> _Run | None:
+        return getattr(self.local, "run", None)
+
+    def violate(self, run: _Run, message: str) -> None:
+        if run.violation is None:
+            run.violation = message
+            try:
+                self.send({"t": "violation", "r": run.id, "message": message})
+            except Exception:
+                pass
+        raise self.restricted.LimitExceeded(message)
+
+    def _print_sink(self, text: str, stream: str = "print") -> None:
+        run = self.current_run()
+        if run is None:
+            return
+        if type(text) is not str:
+            text = str(text)
+        cap = self.limits["output_bytes"]
+        left = cap - run.output
+        if left <= 0 or len(text) > left:
+            if left > 0:
+                run.output = cap
+                self.send({"t": "log", "run": run.id, "tag": run.tag, "stream": stream,
+                           "text": text[:left]})
+            self.violate(run, f"output limit ({cap // 1024} KiB) exceeded")
+        run.output += len(text)
+        chunk = 8192
+        for i in range(0, len(text), chunk):
+            self.send({"t": "log", "run": run.id, "tag": run.tag, "stream": stream,
+                       "text": text[i:i + chunk]})
+
+    # ------------------------------------------------------------------ robot API
+    def rpc(self, tag: Any, name: str, args: list) -> Any:
+        """One robot-API call from team code: send it, block this worker until the answer."""
+        R = self.restricted
+        run = self.current_run()
+        worker: _Worker | None = getattr(self.local, "worker", None)
+        if run is None or worker is None:
+            raise R.RobotError("the robot API is only usable while a task or init runs")
+        if run.cancelled:
+            raise R.TaskCancelled("the task was cancelled")
+        if tag is None:
+            raise R.RobotError(f"{name}: no robot is attached (init without a robot)")
+        with self.state_lock:
+            call_id = self.next_call
+            self.next_call += 1
+            self.calls[call_id] = worker
+        try:
+            self.send({"t": "call", "c": call_id, "r": run.id, "g": tag, "n": name, "a": args})
+        except R.LimitExceeded as exc:
+            with self.state_lock:
+                self.calls.pop(call_id, None)
+            self.violate(run, str(exc))
+        except (TypeError, ValueError, OverflowError) as exc:
+            with self.state_lock:
+                self.calls.pop(call_id, None)
+            raise R.RobotError(f"{name}: arguments are not plain data: {_trim(str(exc), 200)}") from None
+        reply = worker.replies.get()
+        if reply.get("ok"):
+            return reply.get("v")
+        if reply.get("x"):
+            run.cancelled = True
+            raise R.TaskCancelled(str(reply.get("e", "cancelled")))
+        raise R.RobotError(f"{name}: {_trim(str(reply.get('e', 'refused')), 500)}")
+
+    def make_robot(self, tag: Any) -> Any:
+        """The ``robot`` object team functions get: read-only, plain functions only."""
+        rpc = self.rpc
+        sink = self._print_sink
+
+        def _num(v: Any, what: str) -> Any:
+            if type(v) not in (int, float):
+                raise TypeError(f"{what} must be a number")
+            return v
+
+        def move(cells):
+            """Drive forward ``cells`` cells (negative: backwards); returns when done."""
+            return rpc(tag, "move", [_num(cells, "cells")])
+
+        def turn(degrees):
+            """Turn on the spot by ``degrees`` (positive: counter-clockwise)."""
+            return rpc(tag, "turn", [_num(degrees, "degrees")])
+
+        def go_to(x, y):
+            """Go to cell (x, y) along a planned path; returns when there."""
+            return rpc(tag, "go_to", [_num(x, "x"), _num(y, "y")])
+
+        def sense():
+            """The range-sensor readings (plain data)."""
+            return rpc(tag, "sense", [])
+
+        def position():
+            """The robot's believed position and heading ``[x, y, heading]``."""
+            return rpc(tag, "position", [])
+
+        def map_piece(radius):
+            """The map around the robot, ``radius`` cells each way."""
+            return rpc(tag, "map_piece", [_num(radius, "radius")])
+
+        def plan(x, y):
+            """A planned path (list of points) from here to (x, y)."""
+            return rpc(tag, "plan", [_num(x, "x"), _num(y, "y")])
+
+        def report_find(x, y, kind, evidence=None):
+            """Report a find at (x, y) of ``kind`` with plain-data ``evidence``."""
+            return rpc(tag, "report_find", [_num(x, "x"), _num(y, "y"), kind, evidence])
+
+        def take_picture():
+            """Take a picture; returns its id."""
+            return rpc(tag, "take_picture", [])
+
+        def upload_picture(picture=None):
+            """Upload a picture (the last one if not given) to the environment."""
+            return rpc(tag, "upload_picture", [picture])
+
+        def radio(to, data):
+            """Send plain ``data`` to another robot of the team (tag ``to``)."""
+            return rpc(tag, "radio", [to, data])
+
+        def log(text):
+            """Write a line to the team's log (counts against the output limit)."""
+            sink(str(text) + "\n", "log")
+
+        funcs = (move, turn, go_to, sense, position, map_piece, plan, report_find, take_picture,
+                 upload_picture, radio, log)
+        items = {f.__name__: f for f in funcs}
+        items["tag"] = tag
+        return self.restricted.Namespace("robot", items)
+
+    # ------------------------------------------------------------------ message loop
+    def serve(self) -> None:
+        """Read and dispatch parent messages until the parent goes away."""
+        reader = FrameReader(max(self.limits["message_bytes"], 1 << 20))
+        recv = self.sock.recv
+        while True:
+            data = recv(1 << 18)
+            if not data:
+                os._exit(0)
+            for msg in reader.feed(data):
+                self.dispatch(msg)
+
+    def dispatch(self, msg: dict) -> None:
+        t = msg["t"]
+        if t == "reply":
+            with self.state_lock:
+                worker = self.calls.pop(msg.get("c"), None)
+            if worker is not None:
+                self.refresh_cpu()
+                worker.replies.put(msg)
+        elif t == "run":
+            self.refresh_cpu()
+            self._start(msg, "task")
+        elif t == "load":
+            self.refresh_cpu()
+            self._start(msg, "load")
+        elif t == "cancel":
+            self._cancel(msg.get("r"))
+        elif t == "unload":
+            name = msg.get("name")
+            with self.state_lock:
+                if self.modules.pop(name, None) is not None:
+                    self._reindex()
+            self.send({"t": "unloaded", "name": name})
+        else:
+            os._exit(EXIT_PROTOCOL)
+
+    def _start(self, msg: dict, kind: str) -> None:
+        for w in self.workers:
+            if w.run is None:
+                run = _Run(msg["r"], msg.get("g"), msg.get("file", ""))
+                with self.state_lock:
+                    w.run = run
+                    self.runs[run.id] = w
+                w.jobs.put((kind, run, msg))
+                return
+        self.send({"t": "failed", "r": msg["r"], "why": "error", "line": None,
+                   "m": "too many concurrent runs in this sandbox"})
+
+    def _cancel(self, run_id: Any) -> None:
+        with self.state_lock:
+            w = self.runs.get(run_id)
+            if w is None or w.run is None or w.run.id != run_id:
+                return
+            w.run.cancelled = True
+            if w.in_team and _async_exc is not None:
+                _async_exc(w.ident, self.restricted.TaskCancelled)
+
+    def _reindex(self) -> None:
+        self.task_index = {t: m.name for m in self.modules.values() for t in m.tasks}
+
+    # ------------------------------------------------------------------ helpers for runs
+    def describe(self, exc: BaseException, file: str) -> tuple[str, int | None]:
+        """``'file:line: Type: message'`` for an exception raised by team code."""
+        line = None
+        tb = exc.__traceback__
+        while tb is not None:
+            frame = tb.tb_frame
+            if frame.f_code.co_filename == file:
+                line = tb.tb_lineno
+            try:
+                frame.clear()  # drop team locals at once (a memory hog must be freed first)
+            except RuntimeError:
+                pass  # a frame still running (ours)
+            tb = tb.tb_next
+        exc.__traceback__ = None
+        exc.__context__ = None
+        try:
+            text = str(exc)
+        except BaseException:
+            text = ""
+        name = type(exc).__name__
+        if isinstance(exc, MemoryError):
+            return f"memory limit ({self.limits['memory_mib']} MiB) exceeded", line
+        if isinstance(exc, self.restricted.LimitExceeded):
+            return text, line
+        if isinstance(exc, RecursionError):
+            text = "maximum recursion depth exceeded (deep recursion)"
+        msg = f"{name}: {_trim(text, 500)}" if text else name
+        where = f"{file}:{line}: " if line else (f"{file}: " if file else "")
+        return where + msg, line
+
+
+_async_exc: Callable[[int, type], None] | None = None
+
+
+def _install_async_exc() -> None:
+    global _async_exc
+    try:
+        import ctypes
+        set_exc = ctypes.pythonapi.PyThreadState_SetAsyncExc
+        set_exc.argtypes = (ctypes.c_ulong, ctypes.py_object)
+
+        def raise_in(ident: int, exc: type) -> None:
+            set_exc(ident, exc)
+        _async_exc = raise_in
+    except Exception:  # pragma: no cover - ctypes missing
+        _async_exc = None
+
+
+class _Worker:
+    """A pre-started thread that runs one run at a time (threads cannot be made later)."""
+
+    def __init__(self, child: Child, index: int) -> None:
+        self.child = child
+        self.jobs: "queue.SimpleQueue[tuple]" = queue.SimpleQueue()
+        self.replies: "queue.SimpleQueue[dict]" = queue.SimpleQueue()
+        self.run: _Run | None = None
+        self.in_team = False
+        self.sent = False
+        self.thread = threading.Thread(target=self.loop, name=f"team-{index}", daemon=True)
+        self.thread.start()
+        self.ident = self.thread.ident
+
+    def finish(self, msg: dict) -> None:
+        """Send the final message of the run exactly once and free the worker."""
+        c = self.child
+        if self.sent:
+            return
+        self.sent = True
+        try:
+            c.send(msg)
+        except Exception:
+            c.send({"t": "failed", "r": msg.get("r"), "why": "error", "line": None,
+                    "m": "could not send the outcome"})
+
+    def loop(self) -> None:
+        c = self.child
+        while True:
+            try:
+                kind, run, msg = self.jobs.get()
+            except BaseException:
+                continue
+            self.sent = False
+            c.local.run = run
+            c.local.worker = self
+            try:
+                if kind == "task":
+                    self.run_task(run, msg)
+                else:
+                    self.run_load(run, msg)
+            except BaseException as exc:  # a late async cancel or a bug: still answer once
+                try:
+                    cancelled = isinstance(exc, c.restricted.TaskCancelled)
+                    self.finish({"t": "failed", "r": run.id,
+                                 "why": "cancelled" if cancelled else "error", "line": None,
+                                 "m": "cancelled" if cancelled else f"internal: {type(exc).__name__}"})
+                except BaseException:
+                    pass
+            finally:
+                self.in_team = False
+                for _attempt in range(100):
+                    try:
+                        with c.state_lock:
+                            self.run = None
+                            c.runs.pop(run.id, None)
+                            for k in [k for k, w in c.calls.items() if w is self]:
+                                del c.calls[k]
+                        while not self.replies.empty():
+                            self.replies.get_nowait()
+                        c.local.run = None
+                        break
+                    except BaseException:
+                        continue
+
+    def _team_call(self, fn: Callable, *args: Any) -> Any:
+        with self.child.state_lock:
+            self.in_team = True
+            cancelled = self.run is not None and self.run.cancelled
+        try:
+            if cancelled:
+                raise self.child.restricted.TaskCancelled("the task was cancelled")
+            return fn(*args)
+        finally:
+            with self.child.state_lock:
+                self.in_team = False
+
+    # -------------------------------------------------------------- a task
+    def run_task(self, run: _Run, msg: dict) -> None:
+        c = self.child
+        R = c.restricted
+        module = c.modules.get(msg.get("module")) or c.modules.get(c.task_index.get(msg["task"], ""))
+        if module is None or msg["task"] not in module.functions:
+            self.finish({"t": "failed", "r": run.id, "why": "error", "line": None,
+                         "m": f"no loaded module provides task {msg['task']!r}"})
+            return
+        run.file = module.file
+        fn = module.functions[msg["task"]]
+        robot = c.make_robot(run.tag)
+        try:
+            result = self._team_call(fn, robot, *msg.get("a", []))
+        except BaseException as exc:
+            why = "cancelled" if isinstance(exc, R.TaskCancelled) else "error"
+            if isinstance(exc, (MemoryError, R.LimitExceeded)):
+                why = "limit"
+            text, line = c.describe(exc, module.file)
+            del exc
+            if run.violation:
+                why, text = "limit", run.violation
+            elif run.cancelled and why == "error":
+                why = "cancelled"
+            self.finish({"t": "failed", "r": run.id, "why": why, "line": line, "m": text})
+            return
+        if run.violation:
+            self.finish({"t": "failed", "r": run.id, "why": "limit", "line": None,
+                         "m": run.violation})
+            return
+        if run.cancelled:
+            self.finish({"t": "failed", "r": run.id, "why": "cancelled", "line": None,
+                         "m": "cancelled"})
+            return
+        try:
+            data = pack({"t": "done", "r": run.id, "v": result})
+        except (TypeError, ValueError, OverflowError) as exc:
+            self.finish({"t": "failed", "r": run.id, "why": "error", "line": None,
+                         "m": f"{module.file}: the result is not plain data: {_trim(str(exc), 200)}"})
+            return
+        cap = c.limits["result_bytes"]
+        if len(data) - 4 > cap:
+            self.finish({"t": "failed", "r": run.id, "why": "limit", "line": None,
+                         "m": f"result too large ({len(data) - 4} bytes > {cap} bytes)"})
+            return
+        self.sent = True
+        with c.send_lock:
+            c.sock.sendall(data)
+
+    # -------------------------------------------------------------- a module load
+    def run_load(self, run: _Run, msg: dict) -> None:
+        c = self.child
+        C, R = c.contract, c.restricted
+        file = str(msg.get("file", "?"))[:80]
+
+        def fail(rule: str, detail: str, line: int | None = None) -> None:
+            self.finish({"t": "load_failed", "r": run.id, "rule": rule, "line": line,
+                         "m": _trim(detail, 1000), "file": file})
+
+        try:
+            C.check_filename(msg.get("file"))
+            source = C.check_source(msg.get("src"))
+            code = R.compile_team(source, file)
+            tree = ast.parse(source, file)
+            manifest = C.read_manifest(tree)
+            C.check_signatures(tree, manifest)
+        except C.ContractError as exc:
+            fail(exc.rule, exc.detail, exc.line)
+            return
+        except R.PolicyError as exc:
+            fail(exc.rule, exc.detail, exc.line)
+            return
+        except (SyntaxError, RecursionError, MemoryError, ValueError) as exc:
+            fail("syntax", f"{type(exc).__name__}: {exc}", getattr(exc, "lineno", None))
+            return
+        name = manifest["name"]
+        builtin = set(msg.get("builtin", ()))
+        for tname in manifest["tasks"]:
+            owner = c.task_index.get(tname)
+            if owner is not None and owner != name:
+                fail("conflict", f"task {tname!r} is already provided by module {owner!r} "
+                                 f"(unload it first)")
+                return
+            if manifest["kind"] == "extension" and tname in builtin:
+                fail("conflict", f"an extension may not replace built-in task {tname!r}; "
+                                 f"declare kind \"code\" to replace its behaviour")
+                return
+        glb = c.policy.make_globals(f"team.{name}")
+        run.file = file
+        try:
+            self._team_call(exec, code, glb)
+        except BaseException as exc:
+            text, line = c.describe(exc, file)
+            del exc
+            fail("limit" if run.violation else "module",
+                 run.violation or f"running the module body failed: {text}", line)
+            return
+        functions: dict[str, types.FunctionType] = {}
+        for tname, spec in manifest["tasks"].items():
+            fn = glb.get(tname)
+            want = ["robot"] + [a["name"] for a in spec["args"]]
+            if not _is_own_function(fn, file, want):
+                fail("signature", f"after running the module, {tname!r} is not the function "
+                                  f"def {tname}({', '.join(want)})")
+                return
+            functions[tname] = fn
+        init = glb.get("init")
+        if init is not None:
+            if not _is_own_function(init, file, ["robot"]):
+                fail("signature", "init must be a function def init(robot)")
+                return
+            c.send({"t": "phase", "r": run.id, "phase": "init"})
+            try:
+                self._team_call(init, c.make_robot(run.tag))
+            except BaseException as exc:
+                text, line = c.describe(exc, file)
+                del exc
+                fail("limit" if run.violation else "init",
+                     run.violation or f"init(robot) failed: {text}", line)
+                return
+        if run.cancelled:
+            fail("init", "the load was cancelled")
+            return
+        m = _Module()
+        m.name, m.version, m.kind, m.file = name, manifest["version"], manifest["kind"], file
+        m.sha256 = C.source_hash(source)
+        m.tasks, m.functions, m.globals = manifest["tasks"], functions, glb
+        with c.state_lock:
+            previous = c.modules.get(name)
+            c.modules[name] = m
+            c._reindex()
+        self.finish({"t": "loaded", "r": run.id, "name": name, "version": m.version,
+                     "kind": m.kind, "file": file, "sha256": m.sha256, "tasks": m.tasks,
+                     "description": manifest["description"],
+                     "previous": previous.version if previous else None})
+
+
+def _is_own_function(fn: Any, file: str, params: list[str]) -> bool:
+    if type(fn) is not types.FunctionType:
+        return False
+    code = fn.__code__
+    return (code.co_filename == file and code.co_argcount == len(params)
+            and list(code.co_varnames[:code.co_argcount]) == params
+            and not fn.__defaults__ and not (code.co_flags & 0x0C))
+
+
+# --------------------------------------------------------------------------- process set-up
+class _CappedStream:
+    """Replaces sys.stdout/stderr in the child: forwards to the parent, capped."""
+
+    def __init__(self, child: "Child | None", stream: str) -> None:
+        self.child = child
+        self.stream = stream
+
+    def write(self, text: str) -> int:
+        c = self.child
+        if c is None or c.stderr_left <= 0:
+            return len(text)
+        text = text[:c.stderr_left]
+        c.stderr_left -= len(text)
+        try:
+            c.send({"t": "log", "run": None, "tag": None, "stream": self.stream, "text": text})
+        except Exception:
+            pass
+        return len(text)
+
+    def flush(self) -> None:
+        pass
+
+
+def _die_with_parent() -> None:
+    try:
+        import ctypes
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, signal.SIGKILL, 0, 0, 0)  # PR_SET_PDEATHSIG
+        libc.prctl(38, 1, 0, 0, 0)  # PR_SET_NO_NEW_PRIVS
+    except Exception:
+        pass
+
+
+def _drop_root() -> None:
+    if os.geteuid() != 0:
+        return
+    try:
+        os.setgroups([])
+        os.setgid(65534)
+        os.setuid(65534)
+    except OSError:
+        pass
+
+
+def _set_limits(limits: dict, keep_fds: int) -> None:
+    mib = 1024 * 1024
+
+    def lim(which: int, soft: int, hard: int | None = None) -> None:
+        try:
+            resource.setrlimit(which, (soft, soft if hard is None else hard))
+        except (ValueError, OSError):
+            pass
+
+    lim(resource.RLIMIT_CORE, 0)
+    lim(resource.RLIMIT_FSIZE, 0)
+    lim(resource.RLIMIT_NPROC, 0)
+    lim(resource.RLIMIT_NOFILE, keep_fds)
+    lim(resource.RLIMIT_AS, int(limits["memory_mib"]) * mib)
+    lim(resource.RLIMIT_CPU, int(math.ceil(time.process_time())) + int(limits["cpu_seconds"]),
+        resource.RLIM_INFINITY)
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Child entry point (``python -m robo_comp.plugins.sandbox_child``)."""
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--fd", type=int, required=True)
+    ap.add_argument("--limits", required=True)
+    opts = ap.parse_args(argv)
+    limits = msgpack.unpackb(bytes.fromhex(opts.limits), raw=False)
+    sock = socket.socket(fileno=opts.fd)
+    sock.setblocking(True)
+    _die_with_parent()
+    try:
+        os.nice(int(limits.get("nice", 0)))
+    except OSError:
+        pass
+    _install_async_exc()
+    child = Child(sock, limits)  # imports the policy and starts the workers
+    sys.stdout = _CappedStream(child, "stdout")  # type: ignore[assignment]
+    sys.stderr = _CappedStream(child, "stderr")  # type: ignore[assignment]
+    _drop_root()
+    _set_limits(limits, keep_fds=opts.fd + 1)
+    child.cpu_soft = -1
+    child.refresh_cpu()
+    child.send({"t": "ready", "pid": os.getpid()})
+    try:
+        child.serve()
+    except MemoryError:
+        os._exit(EXIT_MEMORY)
+    except FrameError:
+        os._exit(EXIT_PROTOCOL)
+    except BaseException:
+        if limits.get("debug"):
+            import traceback
+            traceback.print_exc(file=sys.__stderr__)
+        os._exit(EXIT_INTERNAL)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,98 @@
+"""Robot drivers: what turns a task's steps into motion.
+
+:class:`ArenaDriver` drives a robot in the host's simulated arena (ground truth, collisions,
+zones); what the robot *believes* about its pose comes from the positioning system and dead
+reckoning (:class:`robo_comp.world.localization.Localization`), and that is what it reports.
+Other drivers (the ER1's) plug in through the ``robo_comp_driver`` hook.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+from robo_comp.robots.steps import Capture, Move, Step, Turn, Wait
+from robo_comp.world.arena import Arena
+from robo_comp.world.localization import Localization
+
+CAPTURE_SECONDS = 0.2
+
+
+class ArenaDriver:
+    """One robot of a simulated :class:`Arena`, commanded one step at a time."""
+
+    def __init__(self, arena: Arena, tag: str, localization: Localization) -> None:
+        self.arena = arena
+        self.tag = tag
+        self.loc = localization
+        self.step: Step | None = None
+        self.bump: dict[str, Any] | None = None
+        self._timer = 0.0
+
+    # what the robot believes (estimate) ------------------------------------
+    @property
+    def pose(self) -> tuple[float, float, float]:
+        """Estimated (x, y, heading): what the robot and its team see."""
+        return self.loc.estimate(self.tag)
+
+    @property
+    def x(self) -> float:
+        """Estimated x."""
+        return self.pose[0]
+
+    @property
+    def y(self) -> float:
+        """Estimated y."""
+        return self.pose[1]
+
+    @property
+    def heading(self) -> float:
+        """Estimated heading in degrees."""
+        return self.pose[2]
+
+    def cell(self) -> tuple[int, int]:
+        """The cell the robot believes it is in."""
+        x, y, _ = self.pose
+        return int(round(x)), int(round(y))
+
+    def truth(self) -> tuple[float, float, float]:
+        """The true pose (the arena's; for the camera and the referee, not for the team)."""
+        p = self.arena.pose(self.tag)
+        return p.x, p.y, p.heading
+
+    @property
+    def moving(self) -> bool:
+        """True while a step is in progress."""
+        return self.step is not None
+
+    # commands ----------------------------------------------------------------
+    def begin(self, step: Step) -> None:
+        """Start ``step``."""
+        self.step = step
+        self.bump = None
+        if isinstance(step, Move):
+            self.arena.command(self.tag, "goto", (step.x, step.y))
+        elif isinstance(step, Turn):
+            self.arena.command(self.tag, "turn", step.degrees)
+        elif isinstance(step, Capture):
+            self._timer = CAPTURE_SECONDS
+        elif isinstance(step, Wait):
+            self._timer = max(0.0, step.seconds)
+
+    def halt(self) -> None:
+        """Stop at once."""
+        self.arena.command(self.tag, "halt")
+        self.step = None
+
+    def update(self, dt: float) -> bool:
+        """After the arena stepped: True when the current step finished (or a bump ended it)."""
+        step = self.step
+        if step is None:
+            return False
+        if isinstance(step, (Move, Turn)):
+            if self.bump is None and self.arena.is_moving(self.tag):
+                return False
+        else:
+            self._timer -= dt
+            if self._timer > 0:
+                return False
+        self.step = None
+        return True

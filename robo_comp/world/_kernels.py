@@ -1,0 +1,431 @@
+"""Compiled (numba) kernels of the planner: A* over flat cell indices and grid labelling.
+
+Private module: :mod:`robo_comp.world.planner` imports it lazily so that importing the
+planner does not pay for numba. Cells are flat indices ``v = y * w + x``.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+SQRT2 = 1.4142135623730951
+
+# Direction tables: 0..3 orthogonal (E, S, W, N), 4..7 diagonal (SE, SW, NW, NE).
+DX = np.array([1, 0, -1, 0, 1, -1, -1, 1], dtype=np.int64)
+DY = np.array([0, 1, 0, -1, 1, 1, -1, -1], dtype=np.int64)
+# For diagonal d (index d-4) the two orthogonal directions that must be free.
+DIAG_A = np.array([0, 2, 2, 0], dtype=np.int64)
+DIAG_B = np.array([1, 1, 3, 3], dtype=np.int64)
+
+
+@njit(cache=True, inline="always")
+def _less(f1, h1, k1, f2, h2, k2):
+    # Order by f; ties go to smaller h (deeper nodes), then to the most recently pushed
+    # entry (k packs a decreasing push counter above the cell index): on plateaus of equal
+    # f this follows one branch to its end instead of widening the whole front.
+    return f1 < f2 or (f1 == f2 and (h1 < h2 or (h1 == h2 and k1 < k2)))
+
+
+@njit(cache=True)
+def _heuristic(x, y, tx, ty, diagonal, hmul):
+    dx = abs(x - tx)
+    dy = abs(y - ty)
+    if diagonal:
+        if dx < dy:
+            return hmul * (dy + (SQRT2 - 1.0) * dx)
+        return hmul * (dx + (SQRT2 - 1.0) * dy)
+    return hmul * (dx + dy)
+
+
+@njit(cache=True)
+def _astar_core(free, cost, w, h, t, diagonal, hmul, allow, bsize, bw, g, stamp, epoch, pdir,
+                reverse, budget, hf, hh, hv, size, seq, expanded):
+    """The A* loop, resumable: expands from the heap ``hf``/``hh``/``hv`` (``size`` entries)
+    towards ``t`` and returns (status, cost, size, seq, expanded) with status 0 done (cost,
+    or inf when there is no path), 1 heap full (grow it and call again), 2 ``budget`` (> 0)
+    expansions reached. Never rebinds its arrays: in numba, rebinding array variables
+    inside a hot loop costs several times the search itself.
+
+    ``free`` uint8 per cell (1 = passable); ``cost`` float64 per cell or empty for uniform
+    1; ``allow`` uint8 per block of ``bsize`` cells (``bw`` blocks a row) or empty for no
+    restriction. ``g``/``stamp``/``pdir`` are caller-owned work arrays reused across
+    queries: ``stamp[v] == 2*epoch`` marks v open with a valid ``g``, ``2*epoch+1``
+    closed; ``pdir[v]`` is the direction that led into v (see :func:`trace`). With
+    ``reverse`` the search runs from the goal side and a step u→v costs what the forward
+    step v→u costs (the cost of cell u).
+    """
+    use_cost = cost.shape[0] > 0
+    restrict = allow.shape[0] > 0
+    open_mark = 2 * epoch
+    closed_mark = open_mark + 1
+    tx = t % w
+    ty = t // w
+    cap = hf.shape[0]
+    ndir = 8 if diagonal else 4
+    while size > 0:
+        if size + 8 > cap:
+            return 1, 0.0, size, seq, expanded
+        if budget > 0 and expanded >= budget:
+            # checked before popping, so a resumed search loses nothing
+            return 2, -1.0, size, seq, expanded
+        # pop min
+        v = hv[0] & 0xFFFFFFFF
+        size -= 1
+        if size > 0:
+            lf = hf[size]
+            lh = hh[size]
+            lv = hv[size]
+            i = 0
+            while True:
+                c = 2 * i + 1
+                if c >= size:
+                    break
+                if c + 1 < size and _less(hf[c + 1], hh[c + 1], hv[c + 1], hf[c], hh[c], hv[c]):
+                    c += 1
+                if _less(hf[c], hh[c], hv[c], lf, lh, lv):
+                    hf[i] = hf[c]
+                    hh[i] = hh[c]
+                    hv[i] = hv[c]
+                    i = c
+                else:
+                    break
+            hf[i] = lf
+            hh[i] = lh
+            hv[i] = lv
+        if stamp[v] == closed_mark:
+            continue  # stale duplicate
+        gv = g[v]
+        stamp[v] = closed_mark
+        expanded += 1
+        if v == t:
+            return 0, gv, size, seq, expanded
+        y = v // w
+        x = v - y * w
+        for d in range(ndir):
+            nx = x + DX[d]
+            ny = y + DY[d]
+            if nx < 0 or ny < 0 or nx >= w or ny >= h:
+                continue
+            u = ny * w + nx
+            if free[u] == 0:
+                continue
+            if d >= 4:
+                a = DIAG_A[d - 4]
+                b = DIAG_B[d - 4]
+                if free[(y + DY[a]) * w + x + DX[a]] == 0 or free[(y + DY[b]) * w + x + DX[b]] == 0:
+                    continue
+            if restrict and allow[(ny // bsize) * bw + nx // bsize] == 0:
+                continue
+            su = stamp[u]
+            if su == closed_mark:
+                continue
+            step = SQRT2 if d >= 4 else 1.0
+            if use_cost:
+                step *= cost[v] if reverse else cost[u]
+            ng = gv + step
+            if su == open_mark and ng >= g[u]:
+                continue
+            g[u] = ng
+            stamp[u] = open_mark
+            pdir[u] = d
+            hu = _heuristic(nx, ny, tx, ty, diagonal, hmul)
+            fu = ng + hu
+            seq -= 1
+            ku = (seq << 32) | u
+            i = size
+            size += 1
+            while i > 0:
+                p = (i - 1) >> 1
+                if _less(fu, hu, ku, hf[p], hh[p], hv[p]):
+                    hf[i] = hf[p]
+                    hh[i] = hh[p]
+                    hv[i] = hv[p]
+                    i = p
+                else:
+                    break
+            hf[i] = fu
+            hh[i] = hu
+            hv[i] = ku
+    return 0, np.inf, size, seq, expanded
+
+
+@njit(cache=True)
+def trace(s, t, w, pdir):
+    """Flat cells of the path from ``s`` to ``t`` by following ``pdir`` backwards."""
+    n = 1
+    v = t
+    while v != s:
+        d = pdir[v]
+        v = v - DY[d] * w - DX[d]
+        n += 1
+    out = np.empty(n, dtype=np.int64)
+    v = t
+    i = n - 1
+    out[i] = v
+    while v != s:
+        d = pdir[v]
+        v = v - DY[d] * w - DX[d]
+        i -= 1
+        out[i] = v
+    return out
+
+
+@njit(cache=True)
+def label(free, w, h, bsize):
+    """Label 4-connected free regions, never crossing ``bsize`` block borders.
+
+    With ``bsize >= max(w, h)`` these are the map's connected components (also those of
+    8-connectivity without corner cutting, since every allowed diagonal step has a free
+    orthogonal detour). Returns (labels int32, -1 on walls; number of labels).
+    """
+    n = w * h
+    labels = np.full(n, -1, dtype=np.int32)
+    stack = np.empty(n, dtype=np.int32)
+    nlab = 0
+    for v0 in range(n):
+        if free[v0] == 0 or labels[v0] >= 0:
+            continue
+        labels[v0] = nlab
+        top = 0
+        stack[0] = v0
+        top = 1
+        while top > 0:
+            top -= 1
+            v = stack[top]
+            x = v % w
+            y = v // w
+            bx = x // bsize
+            by = y // bsize
+            for d in range(4):
+                nx = x + DX[d]
+                ny = y + DY[d]
+                if nx < 0 or ny < 0 or nx >= w or ny >= h:
+                    continue
+                if nx // bsize != bx or ny // bsize != by:
+                    continue
+                u = ny * w + nx
+                if free[u] != 0 and labels[u] < 0:
+                    labels[u] = nlab
+                    stack[top] = u
+                    top += 1
+        nlab += 1
+    return labels, nlab
+
+
+@njit(cache=True)
+def portal_search(indptr, indices, weights, px, py, src_d, tgt_d, direct, diagonal, hmul, tx, ty):
+    """Abstract search over portals (points on block borders) for the hierarchical mode.
+
+    Every portal p starts with g = ``src_d[p]`` (inf unless p borders the start's region)
+    and may finish at the goal at extra cost ``tgt_d[p]`` (inf unless it borders the
+    goal's region); ``direct`` is the start→goal cost when they share a region. Returns
+    the portal sequence of the cheapest route (empty for the direct route) and its cost
+    (inf when the goal is unreachable).
+    """
+    n = indptr.shape[0] - 1
+    g = src_d.copy()
+    parent = np.full(n, -1, dtype=np.int64)
+    closed = np.zeros(n, dtype=np.uint8)
+    # every push is a start portal or an edge relaxation: this never overflows, so the
+    # loop never rebinds its arrays (slow in numba)
+    cap = n + indices.shape[0] + 1
+    hk = np.empty(cap, dtype=np.float64)
+    hv = np.empty(cap, dtype=np.int64)
+    size = 0
+    best = direct
+    best_end = -1
+    for p in range(n):
+        if g[p] < np.inf:
+            f = g[p] + _heuristic(px[p], py[p], tx, ty, diagonal, hmul)
+            i = size
+            size += 1
+            while i > 0:
+                q = (i - 1) >> 1
+                if f < hk[q]:
+                    hk[i] = hk[q]
+                    hv[i] = hv[q]
+                    i = q
+                else:
+                    break
+            hk[i] = f
+            hv[i] = p
+    while size > 0:
+        v = hv[0]
+        vf = hk[0]
+        if vf >= best:
+            break
+        size -= 1
+        if size > 0:
+            lk = hk[size]
+            lv = hv[size]
+            i = 0
+            while True:
+                c = 2 * i + 1
+                if c >= size:
+                    break
+                if c + 1 < size and hk[c + 1] < hk[c]:
+                    c += 1
+                if hk[c] < lk:
+                    hk[i] = hk[c]
+                    hv[i] = hv[c]
+                    i = c
+                else:
+                    break
+            hk[i] = lk
+            hv[i] = lv
+        if closed[v]:
+            continue
+        closed[v] = 1
+        if g[v] + tgt_d[v] < best:
+            best = g[v] + tgt_d[v]
+            best_end = v
+        for j in range(indptr[v], indptr[v + 1]):
+            u = indices[j]
+            if closed[u]:
+                continue
+            ng = g[v] + weights[j]
+            if ng < g[u]:
+                g[u] = ng
+                parent[u] = v
+                f = ng + _heuristic(px[u], py[u], tx, ty, diagonal, hmul)
+                i = size
+                size += 1
+                while i > 0:
+                    q = (i - 1) >> 1
+                    if f < hk[q]:
+                        hk[i] = hk[q]
+                        hv[i] = hv[q]
+                        i = q
+                    else:
+                        break
+                hk[i] = f
+                hv[i] = u
+    if best_end < 0:
+        return np.empty(0, dtype=np.int64), best
+    m = 1
+    v = best_end
+    while parent[v] >= 0:
+        v = parent[v]
+        m += 1
+    out = np.empty(m, dtype=np.int64)
+    v = best_end
+    for i in range(m - 1, -1, -1):
+        out[i] = v
+        v = parent[v]
+    return out, best
+
+
+@njit(cache=True)
+def region_pair_edges(starts, members, px, py, diagonal, hmul):
+    """All ordered pairs of portals bordering the same region, with their distance.
+
+    ``members[starts[r]:starts[r+1]]`` are the portals of region r.
+    """
+    m = 0
+    for r in range(starts.shape[0] - 1):
+        k = starts[r + 1] - starts[r]
+        m += k * (k - 1)
+    src = np.empty(m, dtype=np.int64)
+    dst = np.empty(m, dtype=np.int64)
+    wt = np.empty(m, dtype=np.float64)
+    j = 0
+    for r in range(starts.shape[0] - 1):
+        for a in range(starts[r], starts[r + 1]):
+            pa = members[a]
+            for b in range(starts[r], starts[r + 1]):
+                if a == b:
+                    continue
+                pb = members[b]
+                src[j] = pa
+                dst[j] = pb
+                dx = abs(px[pa] - px[pb])
+                dy = abs(py[pa] - py[pb])
+                if diagonal:
+                    wt[j] = hmul * (max(dx, dy) + (SQRT2 - 1.0) * min(dx, dy))
+                else:
+                    wt[j] = hmul * (dx + dy)
+                j += 1
+    return src, dst, wt
+
+
+@njit(cache=True)
+def _heap_init(s, t, w, diagonal, hmul, g, stamp, epoch):
+    cap = 4096
+    hf = np.empty(cap, dtype=np.float64)
+    hh = np.empty(cap, dtype=np.float64)
+    hv = np.empty(cap, dtype=np.int64)
+    seq = np.int64(1) << 30
+    g[s] = 0.0
+    stamp[s] = 2 * epoch
+    hf[0] = _heuristic(s % w, s // w, t % w, t // w, diagonal, hmul)
+    hh[0] = hf[0]
+    hv[0] = (seq << 32) | s
+    return hf, hh, hv, seq
+
+
+@njit(cache=True)
+def _grow(a, size):
+    out = np.empty(a.shape[0] * 2, dtype=a.dtype)
+    out[:size] = a[:size]
+    return out
+
+
+@njit(cache=True)
+def astar_both(free, cost, w, h, s, t, diagonal, hmul, allow, bsize, bw,
+               g, stamp, pdir, g2, stamp2, pdir2, epoch, first_budget):
+    """Exact A* s→t that hedges against a bad search direction.
+
+    The forward search runs alone for ``first_budget`` expansions (enough for most
+    queries); if it has not finished, a reverse search (t→s, in ``g2``/``stamp2``/``pdir2``)
+    starts and both advance in turns, each resuming where it stopped, with a doubling
+    budget, until one finishes. Each search is exact, so either answer is optimal, and the
+    work is at most about twice that of the better direction (plus ``first_budget``).
+    Returns (cost or inf, total expanded, 1 if the reverse search answered else 0).
+    """
+    fhf, fhh, fhv, fseq = _heap_init(s, t, w, diagonal, hmul, g, stamp, epoch)
+    fsize = 1
+    fexp = 0
+    budget = first_budget
+    while True:
+        st, res, fsize, fseq, fexp = _astar_core(
+            free, cost, w, h, t, diagonal, hmul, allow, bsize, bw, g, stamp, epoch, pdir,
+            False, budget, fhf, fhh, fhv, fsize, fseq, fexp)
+        if st == 1:
+            fhf = _grow(fhf, fsize)
+            fhh = _grow(fhh, fsize)
+            fhv = _grow(fhv, fsize)
+            continue
+        if st == 0:
+            return res, fexp, 0
+        break
+    rhf, rhh, rhv, rseq = _heap_init(t, s, w, diagonal, hmul, g2, stamp2, epoch)
+    rsize = 1
+    rexp = 0
+    rbudget = 0
+    while True:
+        rbudget = max(rbudget * 2, fexp)
+        while True:
+            st, res, rsize, rseq, rexp = _astar_core(
+                free, cost, w, h, s, diagonal, hmul, allow, bsize, bw, g2, stamp2, epoch,
+                pdir2, True, rbudget, rhf, rhh, rhv, rsize, rseq, rexp)
+            if st == 1:
+                rhf = _grow(rhf, rsize)
+                rhh = _grow(rhh, rsize)
+                rhv = _grow(rhv, rsize)
+                continue
+            break
+        if st == 0:
+            return res, fexp + rexp, 1
+        budget = 2 * budget if budget >= rexp else rexp
+        while True:
+            st, res, fsize, fseq, fexp = _astar_core(
+                free, cost, w, h, t, diagonal, hmul, allow, bsize, bw, g, stamp, epoch, pdir,
+                False, budget, fhf, fhh, fhv, fsize, fseq, fexp)
+            if st == 1:
+                fhf = _grow(fhf, fsize)
+                fhh = _grow(fhh, fsize)
+                fhv = _grow(fhv, fsize)
+                continue
+            break
+        if st == 0:
+            return res, fexp + rexp, 0

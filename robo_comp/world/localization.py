@@ -1,0 +1,290 @@
+"""Localization: a simulated tracking positioning system, ``.xyz`` records and dead reckoning.
+
+The thesis planned a Hexamite HX5 ultrasonic system in *tracking* mode: tags on the
+robots, monitors in the roof, and a program (``xyz.exe``) writing each fix -- tag id,
+position and time -- to a ``.xyz`` file (sections 2.2.2, 3.6). It never worked, so the
+robots dead-reckoned ("walking blindfolded") and were given positions on request.
+
+Here :class:`PositioningSystem` produces periodic noisy fixes with dropouts from the
+arena's ground truth, :func:`format_xyz`/:func:`parse_xyz` write and read the line
+format, :class:`DeadReckoner` integrates a robot's odometry with drift and corrects on
+each fix, and :class:`Localization` runs both for every robot of an :class:`Arena`.
+Ground truth stays in the arena; robots and teams only see the estimates.
+
+``.xyz`` line format (one fix per line, whitespace separated, ``#`` starts a comment)::
+
+    <tag> <x> <y> <z> <time>
+    r1 12.431 8.102 0.000 15.250
+
+positions in map cells (cell centres at integers), time in seconds of match time.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import IO, Iterable, Sequence
+
+import numpy as np
+
+from robo_comp.errors import ScenarioError
+from robo_comp.world.scenario import Drift, Positioning
+
+__all__ = ["Fix", "format_xyz", "parse_xyz_line", "parse_xyz", "write_xyz", "read_xyz",
+           "PositioningSystem", "DeadReckoner", "Localization"]
+
+
+@dataclass(frozen=True)
+class Fix:
+    """One position fix of the positioning system: tag id, position (cells), time (s)."""
+
+    tag: str
+    x: float
+    y: float
+    z: float
+    time: float
+
+    def to_dict(self) -> dict[str, float | str]:
+        """Plain-data form."""
+        return {"tag": self.tag, "x": self.x, "y": self.y, "z": self.z, "time": self.time}
+
+
+# ------------------------------------------------------------------ .xyz records
+
+
+def format_xyz(fix: Fix, precision: int = 3) -> str:
+    """One ``.xyz`` line (without newline) for ``fix``."""
+    if not fix.tag or any(c.isspace() for c in fix.tag) or fix.tag.startswith("#"):
+        raise ValueError(f"tag {fix.tag!r} cannot be written to an .xyz line")
+    p = precision
+    return f"{fix.tag} {fix.x:.{p}f} {fix.y:.{p}f} {fix.z:.{p}f} {fix.time:.{p}f}"
+
+
+def parse_xyz_line(line: str, source: str = "<xyz>", lineno: int = 1) -> Fix | None:
+    """Parse one ``.xyz`` line; ``None`` for blank and comment lines. Raises
+    ScenarioError naming ``source`` and ``lineno`` for a malformed line."""
+    text = line.split("#", 1)[0].strip()
+    if not text:
+        return None
+    parts = text.split()
+    if len(parts) != 5:
+        raise ScenarioError(f"{source} line {lineno}: expected 'tag x y z time', got {len(parts)} fields")
+    try:
+        x, y, z, t = (float(p) for p in parts[1:])
+    except ValueError:
+        raise ScenarioError(f"{source} line {lineno}: x, y, z and time must be numbers") from None
+    if not all(map(math.isfinite, (x, y, z, t))):
+        raise ScenarioError(f"{source} line {lineno}: x, y, z and time must be finite")
+    return Fix(parts[0], x, y, z, t)
+
+
+def parse_xyz(text: str, source: str = "<xyz>") -> list[Fix]:
+    """All fixes in ``.xyz`` text, in file order."""
+    out = []
+    for no, line in enumerate(text.splitlines(), start=1):
+        f = parse_xyz_line(line, source, no)
+        if f is not None:
+            out.append(f)
+    return out
+
+
+def write_xyz(fixes: Iterable[Fix], fp: IO[str], precision: int = 3) -> int:
+    """Append ``fixes`` to text file ``fp`` as ``.xyz`` lines; returns how many."""
+    n = 0
+    for f in fixes:
+        fp.write(format_xyz(f, precision) + "\n")
+        n += 1
+    return n
+
+
+def read_xyz(path: str) -> list[Fix]:
+    """Read an ``.xyz`` file (ScenarioError if unreadable or malformed)."""
+    try:
+        with open(path, encoding="utf-8") as fp:
+            text = fp.read()
+    except (OSError, UnicodeDecodeError) as e:
+        raise ScenarioError(f"{path}: cannot read .xyz file: {e}") from None
+    return parse_xyz(text, str(path))
+
+
+# ------------------------------------------------------------ positioning system
+
+
+class PositioningSystem:
+    """Simulated HX5-style tracking: every robot gets a fix every ``1/rate`` s (phase
+    staggered per tag) with Gaussian noise of σ ``noise`` cells per axis; each due fix is
+    lost with probability ``dropout``."""
+
+    def __init__(self, cfg: Positioning | None = None, rng: np.random.Generator | None = None,
+                 *, z: float = 0.0) -> None:
+        self.cfg = cfg or Positioning()
+        self.rng = rng if rng is not None else np.random.default_rng(0)
+        self.z = z
+        self.period = 1.0 / self.cfg.rate
+        self._due: dict[str, float] = {}
+        self.sent = 0
+        self.dropped = 0
+
+    def forget(self, tag: str) -> None:
+        """Stop tracking ``tag`` (the robot left)."""
+        self._due.pop(tag, None)
+
+    def poll(self, now: float, tags: Sequence[str], x: Sequence[float] | np.ndarray,
+             y: Sequence[float] | np.ndarray) -> list[Fix]:
+        """Fixes due at time ``now`` for robots ``tags`` at true positions ``x``, ``y``."""
+        n = len(tags)
+        if n == 0:
+            return []
+        due = np.empty(n)
+        for i, t in enumerate(tags):
+            d = self._due.get(t)
+            if d is None:
+                d = now + float(self.rng.uniform(0.0, self.period))
+                self._due[t] = d
+            due[i] = d
+        ready = np.flatnonzero(due <= now + 1e-12)
+        if ready.size == 0:
+            return []
+        lost = self.rng.random(ready.size) < self.cfg.dropout
+        noise = self.rng.normal(0.0, self.cfg.noise, (ready.size, 2)) if self.cfg.noise > 0 else np.zeros((ready.size, 2))
+        xa = np.asarray(x, dtype=np.float64)
+        ya = np.asarray(y, dtype=np.float64)
+        out: list[Fix] = []
+        for k, i in enumerate(ready.tolist()):
+            t = tags[i]
+            nxt = due[i] + self.period
+            self._due[t] = nxt if nxt > now else now + self.period
+            if lost[k]:
+                self.dropped += 1
+                continue
+            self.sent += 1
+            out.append(Fix(t, float(xa[i] + noise[k, 0]), float(ya[i] + noise[k, 1]), self.z, float(now)))
+        return out
+
+
+# ------------------------------------------------------------------ dead reckoning
+
+
+class DeadReckoner:
+    """A robot's own pose estimate: odometry with drift between fixes, corrected on a fix.
+
+    :meth:`advance` integrates a measured turn and distance; the estimate deviates from
+    the truth by the ``drift`` errors (distance scale error, heading error per turn and
+    per cell). :meth:`correct` blends a fix in with a scalar Kalman gain from the
+    estimate's variance and the fix noise ``fix_noise`` (σ, cells): with exact fixes the
+    estimate jumps to the fix.
+    """
+
+    def __init__(self, x: float, y: float, heading: float, drift: Drift | None = None,
+                 rng: np.random.Generator | None = None, *, fix_noise: float = 0.25,
+                 time: float = 0.0) -> None:
+        self.x, self.y, self.heading = float(x), float(y), float(heading) % 360.0
+        self.drift = drift or Drift()
+        self.rng = rng if rng is not None else np.random.default_rng(0)
+        self.fix_noise = float(fix_noise)
+        self.var = 0.0                  # position variance (cells²) of the estimate
+        self.last_fix: float | None = None
+        self.time = time
+
+    def pose(self) -> tuple[float, float, float]:
+        """The estimated (x, y, heading)."""
+        return self.x, self.y, self.heading
+
+    @property
+    def sigma(self) -> float:
+        """Estimated position uncertainty σ in cells."""
+        return math.sqrt(self.var)
+
+    def advance(self, distance: float, turn: float = 0.0) -> None:
+        """Apply a measured turn (degrees, first) then a straight move (cells, signed)."""
+        d = self.drift
+        if turn:
+            self.heading += turn + self.rng.normal(0.0, d.heading * abs(turn) / 90.0) if d.heading else turn
+        if distance:
+            if d.heading_per_cell:
+                self.heading += self.rng.normal(0.0, d.heading_per_cell * math.sqrt(abs(distance)))
+            scale = 1.0 + (self.rng.normal(0.0, d.distance) if d.distance else 0.0)
+            dist = distance * scale
+            hr = math.radians(self.heading)
+            self.x += dist * math.cos(hr)
+            self.y += dist * math.sin(hr)
+            lateral = abs(distance) * math.radians(d.heading_per_cell + d.heading)
+            self.var += (d.distance * distance) ** 2 + lateral ** 2
+        self.heading %= 360.0
+
+    def correct(self, fix: Fix, gain: float | None = None) -> None:
+        """Move the estimate toward ``fix``: by ``gain`` (0..1) if given, else by the
+        Kalman gain ``var / (var + fix_noise²)``."""
+        r2 = self.fix_noise ** 2
+        if gain is None:
+            gain = 1.0 if r2 == 0 else self.var / (self.var + r2)
+        g = min(max(float(gain), 0.0), 1.0)
+        self.x += g * (fix.x - self.x)
+        self.y += g * (fix.y - self.y)
+        # Posterior variance of a blend with weight g: (1-g)² var + g² r².
+        self.var = (1.0 - g) ** 2 * self.var + g * g * r2
+        self.last_fix = fix.time
+
+    def reset(self, x: float, y: float, heading: float | None = None) -> None:
+        """Set the estimate to a known pose (e.g. given by the referee)."""
+        self.x, self.y = float(x), float(y)
+        if heading is not None:
+            self.heading = float(heading) % 360.0
+        self.var = 0.0
+
+
+class Localization:
+    """Runs the positioning system over an arena and keeps every robot's estimate.
+
+    Call :meth:`update` after each :meth:`Arena.step`: it feeds each robot's odometry
+    to its :class:`DeadReckoner`, polls the positioning system and corrects the
+    estimates with the fixes it returns (write those to the ``.xyz`` log with
+    :func:`write_xyz` and report the estimates to the map service).
+    """
+
+    def __init__(self, arena: "Arena", positioning: Positioning | None = None,  # noqa: F821
+                 drift: Drift | None = None, rng: np.random.Generator | None = None) -> None:
+        self.arena = arena
+        sc = arena.scenario
+        self.positioning_cfg = positioning or sc.positioning
+        self.drift = drift or sc.drift
+        self.rng = rng if rng is not None else np.random.default_rng([sc.seed, 0x10C])
+        self.system = PositioningSystem(self.positioning_cfg, self.rng)
+        self.reckoners: dict[str, DeadReckoner] = {}
+
+    def _reckoner(self, tag: str) -> DeadReckoner:
+        r = self.reckoners.get(tag)
+        if r is None:
+            p = self.arena.pose(tag)
+            self.arena.odometry(tag, reset=True)
+            r = DeadReckoner(p.x, p.y, p.heading, self.drift, self.rng,
+                             fix_noise=self.positioning_cfg.noise, time=self.arena.time)
+            self.reckoners[tag] = r
+        return r
+
+    def update(self) -> list[Fix]:
+        """Advance every estimate by odometry, then correct with the fixes now due."""
+        tags = self.arena.tags
+        for gone in set(self.reckoners) - set(tags):
+            del self.reckoners[gone]
+            self.system.forget(gone)
+        xs = np.empty(len(tags))
+        ys = np.empty(len(tags))
+        for i, t in enumerate(tags):
+            r = self._reckoner(t)
+            dist, turn = self.arena.odometry(t, reset=True)
+            r.advance(dist, turn)
+            r.time = self.arena.time
+            p = self.arena.pose(t)
+            xs[i], ys[i] = p.x, p.y
+        fixes = self.system.poll(self.arena.time, tags, xs, ys)
+        for f in fixes:
+            self.reckoners[f.tag].correct(f)
+        return fixes
+
+    def estimate(self, tag: str) -> tuple[float, float, float]:
+        """The estimated (x, y, heading) of ``tag`` -- what its team sees."""
+        return self._reckoner(tag).pose()
+
+    def estimates(self) -> dict[str, tuple[float, float, float]]:
+        """Estimated poses of all robots by tag."""
+        return {t: self._reckoner(t).pose() for t in self.arena.tags}
