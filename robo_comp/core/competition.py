@@ -247,6 +247,8 @@ class Competition:
         record = dict(find, id=fid, verdict=verdict, t=self.clock.elapsed(time.monotonic()))
         self.finds.append(record)
         state = "confirmed" if verdict["valid"] else ("duplicate" if verdict.get("duplicate") else "rejected")
+        if state != "duplicate":
+            self.core.maps.discovery(r.tag, r.team, find["x"], find["y"], find["kind"], evidence)
         self.core.emit("find.reported", r.team, {"id": fid, "team": r.team, "tag": r.tag, "x": find["x"],
                                                  "y": find["y"], "kind": find["kind"], "state": state,
                                                  "evidence": evidence, "message": verdict["reason"]})

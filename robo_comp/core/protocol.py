@@ -13,6 +13,7 @@ See ``docs/protocol.md`` for every type and field.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -72,6 +73,8 @@ REQUESTS: dict[str, dict[str, tuple[str, bool]]] = {
     "find": {"tag": (_INT, True), "x": (_NUM, True), "y": (_NUM, True), "kind": (_STR, False),
              "evidence": (_LIST, False)},
     "picture.get": {"id": (_INT, True)},
+    "map": {"tag": (_OPT_INT, False), "radius": (_INT, False)},
+    "map.delta": {"since": (_INT, True)},
     # robot hosts
     "register": {
         "token": (_STR, True), "robot_id": (_STR, True), "tasks": (_LIST, False),
@@ -100,7 +103,7 @@ REQUESTS: dict[str, dict[str, tuple[str, bool]]] = {
 NOTIFICATIONS = frozenset({"report", "heartbeat", "bump"})
 
 #: Messages the core sends to robot hosts (requests expect a ``reply``).
-CORE_TO_HOST = ("heartbeat", "task.start", "task.interrupt", "stop", "radio", "hold", "event")
+CORE_TO_HOST = ("heartbeat", "task.start", "task.interrupt", "stop", "radio", "hold", "map.delta", "event")
 
 #: Event topics; the PUB socket uses them as the first frame.
 TOPICS = (
@@ -154,6 +157,10 @@ def event_frames(topic: str, payload: dict[str, Any]) -> list[bytes]:
 
 
 _NONE = type(None)
+
+
+def _finite(value: Any) -> bool:
+    return type(value) is not float or math.isfinite(value)
 #: The Python types each field kind admits (None = anything). bool is not an int here.
 _ALLOWED: dict[str, tuple[type, ...] | None] = {
     _ANY: None, _INT: (int,), _OPT_INT: (int, _NONE), _NUM: (int, float), _STR: (str,),
@@ -228,5 +235,7 @@ def validate(raw: dict[str, Any], id_: int) -> Message:
         elif allowed is not None and type(body[name]) not in allowed:
             raise FieldError(
                 f"field {name!r} of {type_!r} must be {kind}, got {_describe(body[name])}")
+        elif kind == _NUM and not _finite(body[name]):
+            raise FieldError(f"field {name!r} of {type_!r} must be a finite number, got {body[name]!r}")
     return Message(type_, id_, body)
 

@@ -25,6 +25,7 @@ import zmq
 
 from robo_comp.core import protocol as P
 from robo_comp.core.competition import EVERYONE, Competition
+from robo_comp.core.mapdesk import MapDesk
 from robo_comp.core.eventlog import EventLog
 from robo_comp.core.recovery import RecoveryReport, recover
 from robo_comp.core.registry import RobotRecord, Registry
@@ -50,7 +51,7 @@ log = logging.getLogger("robo_comp.core")
 
 #: Keys left out of the PUB (public) view of an event: they stay with the owner and referee.
 PRIVATE_KEYS = frozenset({"status", "result", "data", "args", "message", "cancelled", "code", "robot_id",
-                          "tasks"})
+                          "tasks", "evidence"})
 #: How long a console session may stay silent before it is forgotten (watchers heartbeat).
 SESSION_IDLE = 300.0
 STOP_TIMEOUT = 2.0
@@ -123,6 +124,8 @@ class Core:
         self.pm = plugins or get_plugin_manager()
         self.competition = Competition(self, scoring or ScoringConfig(), practice)
         self._handlers.update(self.competition.handlers())
+        self.maps = MapDesk(self)
+        self._handlers.update(self.maps.handlers())
         log_path = self.state_dir / "events.log"
         self.recovered: RecoveryReport | None = None
         if log_path.exists() and log_path.stat().st_size > 0:
@@ -408,13 +411,15 @@ class Core:
             return
         rows = [self.registry.robots[t] for t in sorted(self._moved)]
         self._moved.clear()
+        self.maps.positions(rows)
         self.events.append("robot.positions", None, {
             "tags": [r.tag for r in rows], "x": [r.x for r in rows], "y": [r.y for r in rows],
             "heading": [r.heading for r in rows]})
 
     def _tick(self, now: float) -> None:
-        """Heartbeats out, lost detection, idle sessions forgotten, the match clock."""
+        """Heartbeats out, lost detection, idle sessions forgotten, the match clock, map deltas."""
         self._log_positions()
+        self.maps.push()
         self.competition.tick(now)
         hb = P.request("heartbeat", 0, {"t": time.time(), "core_id": self.core_id})
         limit = 3 * self.heartbeat

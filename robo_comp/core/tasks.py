@@ -10,6 +10,7 @@ runs it before queueing a task and the robot runs it again before starting one.
 """
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -22,7 +23,7 @@ MAX_ARGS = 16
 
 
 def _is_num(v: Any) -> bool:
-    return type(v) in (int, float)
+    return type(v) is int or (type(v) is float and math.isfinite(v))
 
 
 def _is_point(v: Any) -> bool:

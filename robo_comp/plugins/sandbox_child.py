@@ -144,7 +144,7 @@ class Child:
 
     def refresh_cpu(self) -> None:
         """Give team code ``cpu_seconds`` more CPU from now (the rlimit is a backstop)."""
-        want = int(math.ceil(time.process_time())) + int(self.limits["cpu_seconds"])
+        want = int(math.ceil(time.process_time() + float(self.limits["cpu_seconds"])))
         if want != self.cpu_soft:
             try:
                 resource.setrlimit(resource.RLIMIT_CPU, (want, resource.RLIM_INFINITY))
@@ -437,9 +437,14 @@ class _Worker:
             except BaseException as exc:  # a late async cancel or a bug: still answer once
                 try:
                     cancelled = isinstance(exc, c.restricted.TaskCancelled)
-                    self.finish({"t": "failed", "r": run.id,
-                                 "why": "cancelled" if cancelled else "error", "line": None,
-                                 "m": "cancelled" if cancelled else f"internal: {type(exc).__name__}"})
+                    text = "cancelled" if cancelled else \
+                        f"internal error in the sandbox: {type(exc).__name__}: {_trim(str(exc), 200)}"
+                    if kind == "load":
+                        self.finish({"t": "load_failed", "r": run.id, "rule": "internal",
+                                     "line": None, "m": text, "file": str(msg.get("file"))[:80]})
+                    else:
+                        self.finish({"t": "failed", "r": run.id, "line": None, "m": text,
+                                     "why": "cancelled" if cancelled else "error"})
                 except BaseException:
                     pass
             finally:
@@ -640,6 +645,40 @@ class _CappedStream:
         pass
 
 
+_WARM_UP = '''
+MANIFEST = {"name": "warm", "version": "1", "kind": "code", "tasks": {"t": {"args": []}}}
+import math, random, heapq
+class \uff23ounter:
+    def __init__(self):
+        self.n = 0
+def t(robot):
+    a, (b, c) = 1, [2, "\\d"]
+    print(f"{a!r:>{3}} {b:.2f} %s" % c, [x for x in range(3)], {1: 2}, {3})
+    try:
+        raise ValueError("x")
+    except ValueError as e:
+        return str(e)
+'''
+
+
+def _warm_up(child: "Child") -> None:
+    """Trigger every lazy import of the compile/check/run path before the file limit."""
+    import encodings.idna  # noqa: F401
+    import linecache  # noqa: F401
+    import unicodedata  # noqa: F401  (NFKC normalisation of non-ASCII identifiers)
+    import warnings  # noqa: F401  (SyntaxWarning while compiling)
+    import ast as _ast
+    C, R = child.contract, child.restricted
+    code = R.compile_team(_WARM_UP, "warm.py")
+    tree = _ast.parse(_WARM_UP)
+    C.check_signatures(tree, C.read_manifest(tree))
+    glb = R.Policy(0, lambda text: None).make_globals("team.warm")
+    exec(code, glb)
+    glb["t"](None)
+    child.describe(ValueError("warm"), "warm.py")
+    pack({"t": "warm", "v": [1, 2.0, "x", b"y", None, True, {"k": (1, 2)}]})
+
+
 def _die_with_parent() -> None:
     try:
         import ctypes
@@ -675,7 +714,7 @@ def _set_limits(limits: dict, keep_fds: int) -> None:
     lim(resource.RLIMIT_NPROC, 0)
     lim(resource.RLIMIT_NOFILE, keep_fds)
     lim(resource.RLIMIT_AS, int(limits["memory_mib"]) * mib)
-    lim(resource.RLIMIT_CPU, int(math.ceil(time.process_time())) + int(limits["cpu_seconds"]),
+    lim(resource.RLIMIT_CPU, int(math.ceil(time.process_time() + float(limits["cpu_seconds"]))),
         resource.RLIM_INFINITY)
 
 
@@ -686,7 +725,14 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--limits", required=True)
     opts = ap.parse_args(argv)
     limits = msgpack.unpackb(bytes.fromhex(opts.limits), raw=False)
-    sock = socket.socket(fileno=opts.fd)
+    fd = opts.fd
+    low = os.dup(fd)  # the lowest free descriptor: keeps RLIMIT_NOFILE small whatever the parent had open
+    if low < fd:
+        os.close(fd)
+        fd = low
+    else:
+        os.close(low)
+    sock = socket.socket(fileno=fd)
     sock.setblocking(True)
     _die_with_parent()
     try:
@@ -695,10 +741,11 @@ def main(argv: list[str] | None = None) -> None:
         pass
     _install_async_exc()
     child = Child(sock, limits)  # imports the policy and starts the workers
+    _warm_up(child)
     sys.stdout = _CappedStream(child, "stdout")  # type: ignore[assignment]
     sys.stderr = _CappedStream(child, "stderr")  # type: ignore[assignment]
     _drop_root()
-    _set_limits(limits, keep_fds=opts.fd + 1)
+    _set_limits(limits, keep_fds=fd + 1)
     child.cpu_soft = -1
     child.refresh_cpu()
     child.send({"t": "ready", "pid": os.getpid()})

@@ -28,6 +28,7 @@ from robo_comp.robots.drivers import ArenaDriver
 from robo_comp.robots.steps import Capture, Step, TaskFailed, TaskSpec
 from robo_comp.world.arena import Arena
 from robo_comp.world.localization import Localization
+from robo_comp.world.mapservice import MapView
 from robo_comp.world.planner import find_path, warm_up
 from robo_comp.world.public import scenario_from_payload
 from robo_comp.world.scenario import Scenario
@@ -126,6 +127,8 @@ class RobotHost:
         self.core_id: str | None = None
         self.world: Arena | None = None
         self.loc: Localization | None = None
+        #: The team's map as the map service shares it, kept current by pushed deltas.
+        self.map = MapView()
 
     # ------------------------------------------------------------------ sending
     def _send(self, type_: str, body: dict[str, Any], on_reply: Reply | None = None) -> None:
@@ -286,6 +289,13 @@ class RobotHost:
             return
         if type_ == "hold":  # the match is paused or over: robots hold still, tasks wait
             self.holding = bool(body.get("on"))
+            return
+        if type_ == "map.delta":
+            try:
+                self.map.apply(body)
+            except Exception as e:  # a delta that does not fit our version: ask for all again
+                log.warning("map delta not applied (%s); fetching the whole map", e)
+                self._send("map.delta", {"since": 0}, lambda ok, b: ok and self.map.apply(b))
             return
         r = self.by_tag.get(body.get("tag", -1))
         if type_ == "stop":

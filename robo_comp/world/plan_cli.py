@@ -17,6 +17,9 @@ from typing import Any
 from robo_comp.errors import ScenarioError
 
 
+DESCRIPTION = "Plan a path on a map file, or check a Moving AI scenario file."
+
+
 class _UsageError(Exception):
     pass
 
@@ -24,7 +27,7 @@ class _UsageError(Exception):
 def add_parser(subparsers: Any) -> None:
     """Add the ``plan`` subcommand to an argparse subparsers object (sets ``func=run``)."""
     p = subparsers.add_parser("plan", help="plan a path on a map file (A*)",
-                              description=__doc__.splitlines()[0])
+                              description=DESCRIPTION)
     _configure(p)
 
 
@@ -150,7 +153,7 @@ def cost_matches(cost: float | None, optimal: float) -> bool:
 
 def main(argv: list[str] | None = None) -> int:
     """Stand-alone entry point: ``python -m robo_comp.world.plan_cli``."""
-    p = argparse.ArgumentParser(prog="robo-comp plan", description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(prog="robo-comp plan", description=DESCRIPTION)
     _configure(p)
     args = p.parse_args(argv)
     return args.func(args)

@@ -107,9 +107,9 @@ class Planner:
     Safe to share between threads (queries on one planner run one at a time).
     ``find`` is optimal A*; ``reachable`` answers from connected components (O(1) once
     prepared); ``set_cell`` edits the map incrementally. With ``hierarchical=True``,
-    ``find`` first searches an abstract graph of ``block``×``block`` regions and then runs
-    exact A* restricted to the corridor of blocks it found (near-optimal, much faster on
-    big maps); ``find_optimal`` is always available.
+    ``find`` first searches a graph of portals between the regions of ``block``×``block``
+    blocks and then runs exact A* restricted to the blocks of that route (near-optimal,
+    much faster on big maps; see ``_hier``); ``find_optimal`` is always exact.
     """
 
     def __init__(self, walls: np.ndarray, costs: np.ndarray | None = None,
@@ -151,12 +151,13 @@ class Planner:
     def prepare(self) -> Planner:
         """Build connected components (and the hierarchy in hierarchical mode) now rather
         than on the first query. Returns self."""
-        self._components()
-        if self.hierarchical:
-            self._hierarchy()
-        # Fault the work arrays in now so the first query does not pay for it.
-        for arr in (self._g, self._stamp, self._pdir, *self._reverse_arrays()):
-            arr.fill(0)
+        with self._lock:
+            self._components()
+            if self.hierarchical:
+                self._hierarchy()
+            # Fault the work arrays in now so the first query does not pay for it.
+            for arr in (self._g, self._stamp, self._pdir, *self._reverse_arrays()):
+                arr.fill(0)
         return self
 
     def _components(self) -> np.ndarray:

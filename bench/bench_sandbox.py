@@ -1,0 +1,170 @@
+"""Benchmarks of the team-code sandbox (see docs/perf-sandbox.md).
+
+    .venv/bin/python bench/bench_sandbox.py [--quick]
+
+1. upload → checked → available: spawn a sandbox and load ``square.py`` (spawn + compile +
+   contract + init), and a warm re-upload (new version into a running child).
+2. robot-API round trip from sandboxed team code, with a handler that answers at once:
+   the interval between successive calls of ``robot.sense()`` in a loop, seen by the host.
+3. isolation: 4 teams on one host loop; two run RPC loops, one spins forever (killed and
+   restarted over and over), one allocates without bound. The RPC rate of the two well-behaved
+   teams is compared with an undisturbed run.
+"""
+from __future__ import annotations
+
+import argparse
+import pathlib
+import select
+import statistics
+import sys
+import time
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent.parent))
+
+from robo_comp.plugins.sandbox import (  # noqa: E402
+    Limits, Sandbox, SandboxStopped, TaskDone, TaskFailed, poll_many,
+)
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+SQUARE = (ROOT / "team_templates" / "extensions" / "square.py").read_text()
+
+
+def module(name: str, body: str, tasks: str) -> str:
+    return (f'MANIFEST = {{"name": "{name}", "version": "1", "kind": "extension", '
+            f'"tasks": {{{tasks}}}}}\n\n{body}\n')
+
+
+PINGER = module("pinger", "def ping(robot, n):\n    for i in range(n):\n        robot.sense()\n"
+                          "    return n", '"ping": {"args": [{"name": "n", "type": "int"}]}')
+SPINNER = module("spinner", "def spin(robot):\n    while True:\n        pass",
+                 '"spin": {"args": []}')
+HOG = module("hog", "def hog(robot):\n    keep = []\n    while True:\n"
+                    "        keep.append(bytes(1000000))", '"hog": {"args": []}')
+
+
+def pct(xs: list[float], p: float) -> float:
+    xs = sorted(xs)
+    return xs[min(len(xs) - 1, int(round(p / 100 * (len(xs) - 1))))]
+
+
+def bench_upload(n: int) -> None:
+    cold, warm = [], []
+    for i in range(n):
+        t0 = time.perf_counter()
+        sb = Sandbox("bench", [1], lambda *a: True)
+        sb.load("square.py", SQUARE)
+        cold.append(time.perf_counter() - t0)
+        src2 = SQUARE.replace('"version": "1.0"', f'"version": "2.{i}"')
+        t0 = time.perf_counter()
+        sb.load("square.py", src2)
+        warm.append(time.perf_counter() - t0)
+        sb.close()
+    print(f"upload -> checked -> available, cold (spawn + compile + contract + init), n={n}: "
+          f"median {statistics.median(cold) * 1e3:.1f} ms, p99 {pct(cold, 99) * 1e3:.1f} ms "
+          f"(target < 300 ms)")
+    print(f"upload -> checked -> available, warm (new version into a running sandbox), n={n}: "
+          f"median {statistics.median(warm) * 1e3:.1f} ms, p99 {pct(warm, 99) * 1e3:.1f} ms")
+
+
+def bench_rpc(calls: int) -> None:
+    stamps: list[float] = []
+
+    def handler(tag, name, args):
+        stamps.append(time.perf_counter())
+        return [1.0, 2.0, 3.0]
+
+    sb = Sandbox("bench", [1], handler, Limits(rpc_per_second=0))  # measure the path, not the limiter
+    sb.load("pinger.py", PINGER)
+    sb.run_task(1, "ping", [200])  # warm-up
+    stamps.clear()
+    rid = sb.start_task(1, "ping", [calls])
+    t0 = time.perf_counter()
+    done = None
+    fd = sb.fileno()
+    while done is None:  # a plain host loop: wait on the fd (until the deadline), handle it
+        d = sb.deadline()
+        r, _, _ = select.select([fd], [], [], 1.0 if d is None else max(0.0, d - time.monotonic()))
+        recs = sb.handle_readable() if r else []
+        for rec in recs + sb.check_timers():
+            if isinstance(rec, (TaskDone, TaskFailed)) and rec.run_id == rid:
+                done = rec
+    total = time.perf_counter() - t0
+    sb.close()
+    gaps = [b - a for a, b in zip(stamps, stamps[1:])]
+    print(f"robot-API round trip (team code -> host handler -> team code), {len(gaps)} calls: "
+          f"median {statistics.median(gaps) * 1e6:.0f} us, p99 {pct(gaps, 99) * 1e6:.0f} us, "
+          f"mean {total / calls * 1e6:.0f} us, {calls / total:,.0f} calls/s (target median < 200 us)")
+
+
+def rpc_rate(seconds: float, disturb: bool, rate: float) -> tuple[list[float], dict[str, int]]:
+    """Calls/s of two pinging teams over ``seconds``, with or without two hostile teams."""
+    counts = {"a": 0, "b": 0}
+    limits = Limits(cpu_seconds=2, wall_seconds=1.0, memory_mib=256, rpc_per_second=rate,
+                    max_respawns=100)
+
+    def counter(key):
+        def handler(tag, name, args):
+            counts[key] += 1
+            return [1.0]
+        return handler
+
+    good = {"a": Sandbox("a", [1], counter("a"), limits), "b": Sandbox("b", [2], counter("b"), limits)}
+    good["a"].load("pinger.py", PINGER)
+    good["b"].load("pinger.py", PINGER)
+    bad: dict[str, Sandbox] = {}
+    if disturb:
+        bad["spin"] = Sandbox("c", [3], lambda *a: True, limits)
+        bad["spin"].load("spinner.py", SPINNER)
+        bad["hog"] = Sandbox("d", [4], lambda *a: True, limits)
+        bad["hog"].load("hog.py", HOG)
+    boxes = list(good.values()) + list(bad.values())
+    tags = {"a": 1, "b": 2, "spin": 3, "hog": 4}
+    tasks = {"spin": "spin", "hog": "hog"}
+    runs = {}
+    for k, sb in good.items():  # run ids are per sandbox: key by (sandbox, run id)
+        runs[sb, sb.start_task(tags[k], "ping", [10**6])] = k
+    for k, sb in bad.items():
+        runs[sb, sb.start_task(tags[k], tasks[k], [])] = k
+    stats = {"failed": 0, "kills": 0}
+    time.sleep(0.3)
+    for k in counts:
+        counts[k] = 0
+    t0 = time.perf_counter()
+    while time.perf_counter() - t0 < seconds:
+        for sb, rec in poll_many(boxes, 0.05):
+            if isinstance(rec, SandboxStopped):
+                stats["kills"] += 1
+            if isinstance(rec, TaskFailed) and runs.get((sb, rec.run_id)) in bad:
+                k = runs.pop((sb, rec.run_id))
+                stats["failed"] += 1
+                if bad[k].sock is not None:  # keep disturbing (until it gives up respawning)
+                    runs[sb, bad[k].start_task(tags[k], tasks[k], [])] = k
+    elapsed = time.perf_counter() - t0
+    rates = [counts["a"] / elapsed, counts["b"] / elapsed]
+    for sb in boxes:
+        sb.close()
+    return rates, stats
+
+
+def bench_isolation(seconds: float) -> None:
+    for rate in (0.0, Limits().rpc_per_second):
+        base, _ = rpc_rate(seconds, disturb=False, rate=rate)
+        hit, stats = rpc_rate(seconds, disturb=True, rate=rate)
+        worst = min(h / b for h, b in zip(hit, base))
+        print(f"isolation, {seconds:g} s each, rpc limit {rate or 'off'}: undisturbed "
+              f"{base[0]:,.0f} / {base[1]:,.0f} calls/s; with a spinning and a hogging team "
+              f"{hit[0]:,.0f} / {hit[1]:,.0f} calls/s (worst {worst * 100:.0f}% of undisturbed; "
+              f"hostile runs failed {stats['failed']} times, child killed {stats['kills']} times)")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="fewer repetitions")
+    opts = ap.parse_args()
+    bench_upload(5 if opts.quick else 20)
+    bench_rpc(2000 if opts.quick else 20000)
+    bench_isolation(2.0 if opts.quick else 6.0)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,349 @@
+"""Load and soak (issue 9, part 3): 1,000 robots of 4 teams, team consoles, two walls.
+
+    .venv/bin/python bench/bench_soak.py                 # 10 minutes (the default)
+    .venv/bin/python bench/bench_soak.py --minutes 4     # shorter
+    .venv/bin/python bench/bench_soak.py --minutes 1 --robots 100 --json out.json
+
+What runs (real processes, TCP on loopback):
+
+* the core: ``robo-comp core --teams a,b,c,d`` (practice mode: the match is always running);
+* one ``robo-comp robots`` process per team (``--robots`` / 4 robots each, 250 by default);
+* one *walls* process (this script, ``--walls-role``) with two SUB consumers of the PUB feed:
+  a fast one that reads everything, and a slow one that sleeps between reads and is only
+  attached for the second half of the measured time;
+* in this process: four team consoles (threads, one :class:`Client` each, watching their
+  team's events) giving ``goTo`` tasks now or queued and stopping robots, timing every
+  round trip; a referee client sampling ``stats`` and the core's RSS.
+
+Timeline: warm-up (20 % of the run, at most 60 s) → phase ``fast-wall-only`` → phase
+``slow-wall-attached``. Reported: message rates from ``stats`` (received, events, dropped),
+p50/p99 give/stop latency per phase, core RSS over time and its growth after warm-up, and
+the acknowledged-give check (every acknowledged give must be found in the robot's tasks
+afterwards, and must have been pushed as a ``task.given`` event to the watching console).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import random
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import zmq
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from robo_comp.client import Client, pub_url  # noqa: E402
+from robo_comp.core import protocol as P  # noqa: E402
+from robo_comp.errors import RoboCompError  # noqa: E402
+from robo_comp.launch import start_core, start_robots, stop_all  # noqa: E402
+
+TEAMS = ("a", "b", "c", "d")
+SLOW_WALL_SLEEP = 0.05  # seconds the slow wall sleeps between two reads (≤ 20 events/s)
+
+
+# ---------------------------------------------------------------------------- helpers
+def rss_kib(pid: int) -> int:
+    """Resident set size of process ``pid`` in KiB (``VmRSS`` of /proc/PID/status)."""
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1])
+    return 0
+
+
+def percentile(values: list[float], q: float) -> float:
+    """The ``q`` percentile (0–100) of ``values`` (nan when empty)."""
+    if not values:
+        return float("nan")
+    return float(np.percentile(np.asarray(values), q))
+
+
+def free_cells(arena: dict[str, Any]) -> list[tuple[int, int]]:
+    """Every free cell of an arena payload."""
+    walls = P.unpack_walls(arena)
+    ys, xs = np.nonzero(~walls)
+    return list(zip(xs.tolist(), ys.tolist()))
+
+
+# ---------------------------------------------------------------------------- walls process
+def walls_role(router: str, pub_port: int, seconds: float, slow_after: float, out: Path) -> None:
+    """Run the two wall consumers for ``seconds``; write their counts to ``out`` as JSON."""
+    ctx = zmq.Context.instance()
+    url = pub_url(router, pub_port)
+    stop_at = time.monotonic() + seconds
+    results: dict[str, Any] = {}
+
+    def consume(name: str, delay: float, start_after: float) -> None:
+        time.sleep(start_after)
+        sub = ctx.socket(zmq.SUB)
+        sub.setsockopt(zmq.LINGER, 0)
+        sub.setsockopt(zmq.SUBSCRIBE, b"")
+        sub.connect(url)
+        n = 0
+        topics: dict[str, int] = {}
+        t0 = time.monotonic()
+        while time.monotonic() < stop_at:
+            if not sub.poll(200):
+                continue
+            topic, payload = sub.recv_multipart()
+            P.unpack(payload)
+            n += 1
+            key = topic.decode()
+            topics[key] = topics.get(key, 0) + 1
+            if delay:
+                time.sleep(delay)
+        sub.close(0)
+        elapsed = time.monotonic() - t0
+        results[name] = {"events": n, "seconds": round(elapsed, 1), "rate": round(n / max(elapsed, 1e-9), 1),
+                         "topics": topics}
+
+    threads = [threading.Thread(target=consume, args=("fast", 0.0, 0.0)),
+               threading.Thread(target=consume, args=("slow", SLOW_WALL_SLEEP, slow_after))]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    out.write_text(json.dumps(results))
+
+
+# ---------------------------------------------------------------------------- consoles
+@dataclass
+class Console:
+    """One team console: gives tasks, stops robots, watches its team's events."""
+
+    team: str
+    client: Client
+    tags: list[int]
+    cells: list[tuple[int, int]]
+    rate: float
+    rng: random.Random
+    latency: dict[str, dict[str, list[float]]] = field(default_factory=dict)
+    acked: dict[int, list[int]] = field(default_factory=dict)  # tag -> acknowledged task ids
+    given_events: set[int] = field(default_factory=set)
+    all_acked: set[int] = field(default_factory=set)
+    errors: dict[str, int] = field(default_factory=dict)
+    missing: list[tuple[int, int]] = field(default_factory=list)  # (tag, task id) not found
+    checked: int = 0
+
+    def _drain_events(self) -> None:
+        ev = self.client.events
+        while ev:
+            e = ev.popleft()
+            if e.get("topic") == "task.given":
+                self.given_events.add(e["data"]["task_id"])
+
+    def _timed(self, phase: str, kind: str, fn: Any, *args: Any, **kw: Any) -> Any:
+        t0 = time.perf_counter()
+        try:
+            return fn(*args, **kw)
+        except RoboCompError as e:
+            self.errors[e.code] = self.errors.get(e.code, 0) + 1
+            return None
+        finally:
+            self.latency.setdefault(phase, {}).setdefault(kind, []).append((time.perf_counter() - t0) * 1000)
+            self._drain_events()
+
+    def verify(self, tag: int) -> None:
+        """Check that every acknowledged give to ``tag`` is among its tasks now."""
+        ids = self.acked.pop(tag, [])
+        if not ids:
+            return
+        t = self.client.tasks(tag)
+        known = {x["task_id"] for x in [t["current"], t["pending"], *t["queued"], *t["done"]] if x}
+        self.checked += len(ids)
+        self.missing += [(tag, i) for i in ids if i not in known]
+        self._drain_events()
+
+    def one_command(self, phase: str) -> None:
+        """Give now (70 %), give queued (15 %) or stop (15 %) a random robot of the team."""
+        tag = self.rng.choice(self.tags)
+        op = self.rng.random()
+        if op < 0.85:
+            x, y = self.rng.choice(self.cells)
+            rep = self._timed(phase, "give", self.client.give, tag, "goTo", [x, y], queue=op >= 0.70)
+            if rep is not None:
+                self.acked.setdefault(tag, []).append(rep["task_id"])
+                self.all_acked.add(rep["task_id"])
+        else:
+            self._timed(phase, "stop", self.client.stop, tag)
+        if self.rng.random() < 0.1:  # now and then, check a robot's tasks (the rest at the end)
+            self.verify(self.rng.choice(self.tags))
+
+    def run(self, phase_of: Any, stop_at: float) -> None:
+        """Issue commands at ``rate`` per second until ``stop_at`` (monotonic)."""
+        period = 1.0 / self.rate
+        nxt = time.monotonic()
+        while time.monotonic() < stop_at:
+            self.one_command(phase_of())
+            nxt += period
+            time.sleep(max(0.0, nxt - time.monotonic()))
+        for tag in list(self.acked):
+            self.verify(tag)
+        t_end = time.monotonic() + 2.0  # late task.given pushes
+        while time.monotonic() < t_end and self.client.next_event(0.2) is not None:
+            self._drain_events()
+
+
+# ---------------------------------------------------------------------------- the run
+def wait_registered(ref: Client, n: int, timeout: float) -> float:
+    """Wait until the referee sees ``n`` connected robots; return the seconds it took."""
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < timeout:
+        st = ref.request("stats")
+        if st["robots"].get("connected", 0) >= n:
+            return time.monotonic() - t0
+        time.sleep(0.5)
+    raise SystemExit(f"only {ref.request('stats')['robots']} robots after {timeout:.0f} s")
+
+
+def summarize_latency(consoles: list[Console]) -> dict[str, dict[str, dict[str, float]]]:
+    """p50/p99/max and counts of give and stop round trips per phase."""
+    out: dict[str, dict[str, dict[str, float]]] = {}
+    for phase in ("fast-wall-only", "slow-wall-attached"):
+        for kind in ("give", "stop"):
+            v = [x for c in consoles for x in c.latency.get(phase, {}).get(kind, [])]
+            out.setdefault(phase, {})[kind] = {"n": len(v), "p50_ms": round(percentile(v, 50), 2),
+                                               "p99_ms": round(percentile(v, 99), 2),
+                                               "max_ms": round(max(v), 2) if v else float("nan")}
+    return out
+
+
+def run(args: argparse.Namespace) -> dict[str, Any]:
+    """The whole soak; returns the figures."""
+    total = args.minutes * 60.0
+    warm = min(60.0, 0.2 * total)
+    half = (total - warm) / 2
+    state = Path(tempfile.mkdtemp(prefix="rc-soak-"))
+    procs: list[subprocess.Popen[bytes]] = []
+    core = start_core(state, "--teams", ",".join(TEAMS), "--heartbeat", str(args.heartbeat))
+    procs.append(core)
+    try:
+        per = args.robots // len(TEAMS)
+        for team in TEAMS:
+            procs.append(start_robots(state, team, per, "--report-hz", str(args.report_hz)))
+        ref = Client(str(state), (state / "referee.token").read_text().strip(), client="soak-referee",
+                     timeout=10.0)
+        reg_s = wait_registered(ref, per * len(TEAMS), 180.0)
+        print(f"{per * len(TEAMS)} robots registered in {reg_s:.1f} s", flush=True)
+        walls_out = state / "walls.json"
+        procs.append(subprocess.Popen(
+            [sys.executable, __file__, "--walls-role", ref.url, str(ref.info["pub_port"]), str(total),
+             str(warm + half), str(walls_out)], stdin=subprocess.DEVNULL))
+        t0 = time.monotonic()
+        stop_at = t0 + total
+
+        def phase_of() -> str:
+            e = time.monotonic() - t0
+            return "warm-up" if e < warm else ("fast-wall-only" if e < warm + half else "slow-wall-attached")
+
+        consoles = []
+        for i, team in enumerate(TEAMS):
+            c = Client(str(state), (state / "teams" / f"{team}.token").read_text().strip(),
+                       client=f"console-{team}", timeout=10.0)
+            c.watch()
+            tags = [r["tag"] for r in c.robots()]
+            consoles.append(Console(team, c, tags, free_cells(c.arena()), args.rate, random.Random(i)))
+        threads = [threading.Thread(target=c.run, args=(phase_of, stop_at), daemon=True) for c in consoles]
+        for t in threads:
+            t.start()
+        samples = sample_loop(ref, core.pid, t0, stop_at, args.sample, phase_of)
+        for t in threads:
+            t.join(timeout=120)
+        procs[-1].wait(timeout=60)
+        walls = json.loads(walls_out.read_text()) if walls_out.exists() else {}
+        final = ref.request("stats")
+        for c in consoles:
+            c.client.close()
+        ref.close()
+        return report(args, reg_s, warm, half, samples, consoles, walls, final)
+    finally:
+        stop_all(procs)
+
+
+def sample_loop(ref: Client, pid: int, t0: float, stop_at: float, every: float, phase_of: Any) -> list[dict[str, Any]]:
+    """Sample ``stats`` and the core's RSS every ``every`` seconds until ``stop_at``."""
+    samples = []
+    while True:
+        now = time.monotonic()
+        st = ref.request("stats")
+        samples.append({"t": round(now - t0, 1), "phase": phase_of(), "rss_kib": rss_kib(pid),
+                        "received": st["received"], "events": st["events"], "dropped": st["dropped"],
+                        "errors": st["errors"], "connected": st["robots"].get("connected", 0)})
+        s = samples[-1]
+        print(f"t={s['t']:6.1f}s {s['phase']:<18} rss={s['rss_kib'] / 1024:6.1f} MiB "
+              f"received={s['received']} events={s['events']} dropped={s['dropped']} "
+              f"connected={s['connected']}", flush=True)
+        if now >= stop_at:
+            return samples
+        time.sleep(max(0.0, min(every, stop_at - time.monotonic())))
+
+
+def report(args: argparse.Namespace, reg_s: float, warm: float, half: float, samples: list[dict[str, Any]],
+           consoles: list[Console], walls: dict[str, Any], final: dict[str, Any]) -> dict[str, Any]:
+    """Turn the samples into the figures of docs/perf-soak.md."""
+    first = next(s for s in samples if s["t"] >= warm)
+    last = samples[-1]
+    dt = last["t"] - first["t"]
+    rates = {k: round((last[k] - first[k]) / dt, 1) for k in ("received", "events", "dropped", "errors")}
+    rss_after = [s["rss_kib"] for s in samples if s["t"] >= warm]
+    mid = [s["rss_kib"] for s in samples if s["phase"] == "fast-wall-only"]
+    growth = 100.0 * (rss_after[-1] - rss_after[0]) / rss_after[0]
+    growth_a = 100.0 * (mid[-1] - mid[0]) / mid[0] if len(mid) > 1 else float("nan")
+    acked = sum(c.checked for c in consoles)
+    missing = [m for c in consoles for m in c.missing]
+    # every acknowledged give must also have been pushed to the watching console as task.given
+    not_pushed = sum(len(c.all_acked - c.given_events) for c in consoles)
+    errors: dict[str, int] = {}
+    for c in consoles:
+        for k, v in c.errors.items():
+            errors[k] = errors.get(k, 0) + v
+    return {
+        "command": " ".join(sys.argv), "minutes": args.minutes, "robots": args.robots, "teams": list(TEAMS),
+        "report_hz": args.report_hz, "console_rate": args.rate, "warmup_s": warm, "phase_s": half,
+        "registration_s": round(reg_s, 1), "rates_per_s": rates, "final_stats": final,
+        "rss_mib": {"start_after_warmup": round(rss_after[0] / 1024, 1), "end": round(rss_after[-1] / 1024, 1),
+                    "max": round(max(rss_after) / 1024, 1), "growth_pct": round(growth, 2),
+                    "growth_pct_fast_only_phase": round(growth_a, 2)},
+        "rss_series": [(s["t"], round(s["rss_kib"] / 1024, 1)) for s in samples],
+        "latency": summarize_latency(consoles), "command_errors": errors,
+        "acked_gives_checked": acked, "acked_gives_missing": missing,
+        "acked_gives_not_pushed": not_pushed, "walls": walls,
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Parse options and run the soak (or, internally, the walls process)."""
+    argv = sys.argv[1:] if argv is None else argv
+    if argv and argv[0] == "--walls-role":
+        router, port, seconds, slow_after, out = argv[1:6]
+        walls_role(router, int(port), float(seconds), float(slow_after), Path(out))
+        return 0
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--minutes", type=float, default=10.0, help="length of the run (default 10)")
+    p.add_argument("--robots", type=int, default=1000, help="robots in all, split over 4 teams (default 1000)")
+    p.add_argument("--report-hz", type=float, default=10.0, help="position reports per second of a moving robot")
+    p.add_argument("--rate", type=float, default=5.0, help="commands per second per team console")
+    p.add_argument("--heartbeat", type=float, default=1.0, help="the core's heartbeat (s)")
+    p.add_argument("--sample", type=float, default=10.0, help="seconds between stats/RSS samples")
+    p.add_argument("--json", help="also write the figures to this file")
+    args = p.parse_args(argv)
+    res = run(args)
+    text = json.dumps(res, indent=2)
+    print(text)
+    if args.json:
+        Path(args.json).write_text(text)
+    missing = res["acked_gives_missing"]
+    return 1 if missing else 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

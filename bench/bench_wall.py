@@ -1,0 +1,126 @@
+"""Display-wall frame rate (issue 7): 1,000 robots moving, headless (SDL dummy driver).
+
+    .venv/bin/python bench/bench_wall.py [--robots 1000] [--frames 120] [--no-trails]
+
+Feeds the wall's model directly with a synthetic ``robot.position`` event per robot per
+frame (all robots move every frame, the worst case: the core sends 10 per second), then
+times drawing and ``display.flip`` (incremental frames, as the wall's window does; ``--full``
+redraws everything each frame, as screenshots do). Configurations: the whole 7168×3072 Tromsø wall in one
+process, one 1024×768 tile of that wall as a 7×4 grid (the middle tile (3,1)), and one
+1024×768 window showing the whole arena. Exit status 1 if the tile stays under 30 fps.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import statistics
+import sys
+import time
+from pathlib import Path
+
+os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
+os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import numpy as np  # noqa: E402
+import pygame  # noqa: E402
+
+from robo_comp.wall.model import WallModel  # noqa: E402
+from robo_comp.wall.render import Renderer  # noqa: E402
+from robo_comp.wall.view import TileSpec, ViewState  # noqa: E402
+
+TEAMS = [("red", "#d03030"), ("blue", "#3060d0"), ("green", "#30a040"), ("orange", "#e08020")]
+
+
+def arena(w: int = 240, h: int = 100) -> dict:
+    """Rooms of 20×20 cells with doors: a busy static map."""
+    walls = np.zeros((h, w), bool)
+    walls[0, :] = walls[-1, :] = walls[:, 0] = walls[:, -1] = True
+    for x in range(20, w, 20):
+        walls[:, x] = True
+        walls[5:8, x] = walls[h // 2 + 5:h // 2 + 8, x] = False
+    for y in range(20, h, 20):
+        walls[y, :] = True
+        for x in range(10, w, 20):
+            walls[y, x - 1:x + 2] = False
+    return {"name": "bench", "width": w, "height": h, "cell_cm": 25.0,
+            "walls": np.packbits(walls, axis=None).tobytes(),
+            "zones": [{"kind": "rubble", "x": 30, "y": 30, "w": 8, "h": 6},
+                      {"kind": "water", "x": 100, "y": 60, "w": 12, "h": 9}],
+            "objects": [], "teams": [{"name": n, "colour": c, "start": None} for n, c in TEAMS]}
+
+
+def run(tile: TileSpec, robots: int, frames: int, trails: bool, incremental: bool = True) -> dict[str, float]:
+    """Frames per second for one configuration."""
+    pygame.display.init()
+    pygame.font.init()
+    screen = pygame.display.set_mode(tile.size)
+    a = arena()
+    model = WallModel()
+    model.load_snapshot({"arena": a, "robots": [], "match": {"phase": "running", "elapsed": 0.0, "remaining": 600.0},
+                         "score": [{"team": n, "score": 0, "victims": 0, "penalties": 0, "rank": i + 1}
+                                   for i, (n, _) in enumerate(TEAMS)]})
+    rng = np.random.default_rng(7)
+    x = rng.uniform(1, a["width"] - 2, robots)
+    y = rng.uniform(1, a["height"] - 2, robots)
+    head = rng.uniform(0, 360, robots)
+    tags = list(range(101, 101 + robots))
+    for i, tag in enumerate(tags):
+        if i % 50 == 0:
+            model.apply("robot.lost", {"tag": tag, "team": TEAMS[i % 4][0], "x": x[i], "y": y[i]})
+    renderer = Renderer(model, tile, ViewState(), trails=trails)
+    renderer.draw(screen, 0.0)  # the static map for this zoom level is built once, outside the timing
+    feed, draw = [], []
+    for f in range(frames + 5):
+        head += rng.uniform(-20, 20, robots)
+        rad = np.radians(head)
+        x = np.clip(x + np.cos(rad) * 0.15, 1, a["width"] - 2)
+        y = np.clip(y + np.sin(rad) * 0.15, 1, a["height"] - 2)
+        t0 = time.perf_counter()
+        apply = model.apply
+        for i, tag in enumerate(tags):
+            apply("robot.position", {"tag": tag, "team": TEAMS[i % 4][0], "x": float(x[i]), "y": float(y[i]),
+                                     "heading": float(head[i]), "moving": True})
+        t1 = time.perf_counter()
+        renderer.draw(screen, f / 30, incremental=incremental)
+        pygame.display.flip()
+        t2 = time.perf_counter()
+        if f >= 5:  # the first frames fill the trail caches
+            feed.append(t1 - t0)
+            draw.append(t2 - t1)
+    pygame.display.quit()
+    d = statistics.median(draw)
+    return {"fps_draw": 1 / d, "fps_total": 1 / statistics.median([a + b for a, b in zip(feed, draw)]),
+            "draw_ms": d * 1000, "feed_ms": statistics.median(feed) * 1000,
+            "p95_draw_ms": sorted(draw)[math.ceil(len(draw) * 0.95) - 1] * 1000}
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--robots", type=int, default=1000)
+    ap.add_argument("--frames", type=int, default=120)
+    ap.add_argument("--no-trails", action="store_true")
+    ap.add_argument("--full", action="store_true", help="redraw every frame whole (the wall restores only what changed)")
+    args = ap.parse_args()
+    configs = [("7168x3072 wall, one process", TileSpec(1, 1, 0, 0, 7168, 3072), max(20, args.frames // 4)),
+               ("1024x768 tile (3,1) of a 7x4 wall", TileSpec(7, 4, 3, 1, 1024, 768), args.frames),
+               ("1024x768 window, whole arena", TileSpec(1, 1, 0, 0, 1024, 768), args.frames)]
+    print(f"{args.robots} robots moving every frame, trails {'off' if args.no_trails else 'on'}, "
+          f"{'full' if args.full else 'incremental'} redraws, SDL dummy driver")
+    print(f"{'configuration':<36} {'fps (draw+flip)':>16} {'draw ms':>8} {'p95 ms':>7} {'feed ms':>8} "
+          f"{'fps incl. feed':>15}")
+    tile_fps = 0.0
+    for name, tile, frames in configs:
+        r = run(tile, args.robots, frames, not args.no_trails, not args.full)
+        print(f"{name:<36} {r['fps_draw']:>16.1f} {r['draw_ms']:>8.2f} {r['p95_draw_ms']:>7.2f} "
+              f"{r['feed_ms']:>8.2f} {r['fps_total']:>15.1f}", flush=True)
+        if "tile" in name:
+            tile_fps = r["fps_draw"]
+    ok = tile_fps >= 30
+    print(f"one 1024x768 tile: {tile_fps:.1f} fps ({'meets' if ok else 'MISSES'} the 30 fps target)")
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

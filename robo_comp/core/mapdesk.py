@@ -1,0 +1,78 @@
+"""The map service behind the protocol: whole map, pieces around robots, pushed deltas.
+
+Robot positions reach the map once per heartbeat (the moved robots), discoveries when a
+team reports a find. Every heartbeat each robot host gets a ``map.delta`` push with what
+changed since the version it has, as its team may see it; a host that is new, or whose
+version the service no longer knows, gets a full snapshot (``type: "full"``).
+"""
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+from robo_comp.core import protocol as P
+from robo_comp.errors import FieldError
+from robo_comp.world.mapservice import MapService
+
+if TYPE_CHECKING:
+    from robo_comp.core.server import Core
+
+MAX_PIECE_RADIUS = 100
+
+
+class MapDesk:
+    """The core's map service and who has which version of it."""
+
+    def __init__(self, core: Core) -> None:
+        self.core = core
+        self.service = MapService.from_scenario(core.scenario)
+        self.pushed: dict[bytes, int] = {}  # host routing id -> map version it has
+
+    def handlers(self) -> dict[str, Callable[[bytes, P.Message], dict[str, Any] | None]]:
+        """Request handlers this module adds to the core."""
+        return {"map": self._on_map, "map.delta": self._on_delta}
+
+    def _team(self, ident: bytes) -> str | None:
+        who = self.core._session(ident).who
+        return None if who.role == "referee" else who.team
+
+    def _on_map(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
+        team = self._team(ident)
+        tag = msg.body.get("tag")
+        if tag is None:
+            return self.service.snapshot(team)
+        r = self.core._robot_for(ident, tag)
+        radius = msg.body.get("radius", 5)
+        if not 0 <= radius <= MAX_PIECE_RADIUS:
+            raise FieldError(f"'radius' must be 0..{MAX_PIECE_RADIUS} cells")
+        if ("robot", str(r.tag)) not in self.service._ent:
+            self.service.report_position(str(r.tag), r.team, r.x, r.y, r.heading, time.time())
+        return self.service.piece(str(r.tag), radius, team)
+
+    def _on_delta(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
+        return self.service.delta_since(msg.body["since"], self._team(ident))
+
+    def positions(self, rows: list[Any]) -> None:
+        """Put the robots that moved on the map."""
+        now = time.time()
+        for r in rows:
+            self.service.report_position(str(r.tag), r.team, r.x, r.y, r.heading, now)
+
+    def discovery(self, tag: int, team: str, x: float, y: float, kind: str, evidence: list[int]) -> dict[str, Any]:
+        """Record a reported find on the map (the team's, unless the scenario shares finds)."""
+        return self.service.add_discovery(str(tag), team, x, y, time.time(), kind=kind or "victim",
+                                          evidence=[str(e) for e in evidence])
+
+    def push(self) -> None:
+        """Send every robot host the changes since the version it has."""
+        for ident in self.core.host_sessions():
+            sess = self.core.sessions[ident]
+            have = self.pushed.get(ident, 0)
+            if have == self.service.version:
+                continue
+            delta = self.service.delta_since(have, sess.who.team)
+            self.pushed[ident] = delta["version"]
+            self.core._send(ident, P.request("map.delta", 0, delta))
+        for gone in set(self.pushed) - set(self.core.sessions):
+            del self.pushed[gone]

@@ -1,0 +1,77 @@
+"""``robo-comp team`` and ``robo-comp referee``: start the consoles.
+
+The lead wires them into ``robo_comp.cli`` with ``tui.cli.add_parsers(sub)``.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+
+def _connection(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--core", required=True, help="ROUTER URL (tcp://HOST:PORT) or the core's state folder")
+    tok = p.add_mutually_exclusive_group(required=True)
+    tok.add_argument("--token", help="team token (referee token for 'referee')")
+    tok.add_argument("--token-file", help="file holding the token")
+
+
+def _check(args: argparse.Namespace, role: str) -> tuple[str, str]:
+    from robo_comp.client import read_token, resolve_core
+
+    token = read_token(args.token, args.token_file)
+    resolve_core(args.core)  # a clear message now for a wrong --core, before the screen opens
+    if not sys.stdout.isatty():
+        print(f"robo-comp {role}: the console needs a terminal (over SSH use 'ssh -t')", file=sys.stderr)
+    return args.core, token
+
+
+def run_team(args: argparse.Namespace) -> int:
+    """Run the team console until the user quits (ctrl+q)."""
+    from robo_comp.tui.team_app import TeamApp
+
+    core, token = _check(args, "team")
+    TeamApp(core, token, upload_dir=Path(args.upload_dir) if args.upload_dir else None).run()
+    return 0
+
+
+def run_referee(args: argparse.Namespace) -> int:
+    """Run the referee console until the user quits (ctrl+q)."""
+    from robo_comp.tui.referee_app import RefereeApp
+
+    core, token = _check(args, "referee")
+    RefereeApp(core, token).run()
+    return 0
+
+
+def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    """Add the ``team`` and ``referee`` subcommands (each sets ``func``)."""
+    t = sub.add_parser("team", help="the team console (Textual): robots, tasks, uploads, STOP",
+                       description="A live console for one team: robots table, monitor, map, events, "
+                                   "a give-task form, uploads, STOP on ctrl+s. Works from 80x24, also over SSH.")
+    _connection(t)
+    t.add_argument("--upload-dir", help="folder the upload file picker opens in (default: the current one)")
+    t.set_defaults(func=run_team)
+    r = sub.add_parser("referee", help="the referee console (Textual): phases, scores, penalties",
+                       description="The whole match: phase control with confirmations, scores, every robot, "
+                                   "penalties, disqualification, broadcasts, upload approval, filtered events.")
+    _connection(r)
+    r.set_defaults(func=run_referee)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Stand-alone entry (``python -m robo_comp.tui.cli team --core … --token …``) until the lead wires it."""
+    from robo_comp.errors import RoboCompError
+
+    parser = argparse.ArgumentParser(prog="robo-comp")
+    add_parsers(parser.add_subparsers(dest="command", required=True))
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except RoboCompError as e:
+        print(f"robo-comp {args.command}: {e.message}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""Widgets of the team and referee consoles."""

@@ -1,0 +1,335 @@
+"""The wall's picture of the match as plain data: fed by a snapshot, then by events.
+
+No pygame here: the same model serves the live wall, replays, tests and the benchmark.
+Every topic the core publishes (or will publish) is applied by :meth:`WallModel.apply`;
+unknown topics are ignored, so the wall keeps working when the core learns new events.
+"""
+from __future__ import annotations
+
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from robo_comp.core.protocol import unpack_walls
+
+#: Trail points kept per robot (the last N positions at least ``TRAIL_STEP`` cells apart).
+TRAIL_LEN = 48
+TRAIL_STEP = 0.5
+#: Messages kept for the message bar.
+MESSAGES_KEPT = 6
+#: Seconds a message stays on the wall.
+MESSAGE_SECONDS = 12.0
+GREY = "#808080"
+
+
+@dataclass
+class Arena:
+    """The static map: size in cells, walls ``[y, x]``, zones, known objects and teams."""
+
+    name: str
+    width: int
+    height: int
+    cell_cm: float
+    walls: np.ndarray
+    zones: list[dict[str, Any]] = field(default_factory=list)
+    objects: list[dict[str, Any]] = field(default_factory=list)
+    teams: list[dict[str, Any]] = field(default_factory=list)
+    costs: np.ndarray | None = None  # cell costs [y, x] from the map service, when it sent them
+
+    @classmethod
+    def from_payload(cls, a: dict[str, Any]) -> Arena:
+        """Build from the core's ``arena`` payload (walls np.packbits, row-major)."""
+        return cls(str(a.get("name", "")), int(a["width"]), int(a["height"]), float(a.get("cell_cm", 25.0)),
+                   unpack_walls(a), list(a.get("zones") or []), list(a.get("objects") or []),
+                   list(a.get("teams") or []))
+
+    def colour(self, team: str | None) -> str:
+        """The team's ``#rrggbb`` display colour (grey for unknown teams)."""
+        for t in self.teams:
+            if t.get("name") == team:
+                return str(t.get("colour") or GREY)
+        return GREY
+
+
+@dataclass(slots=True)
+class Robot:
+    """One robot as the wall knows it."""
+
+    tag: int
+    team: str | None
+    x: float = 0.0
+    y: float = 0.0
+    heading: float = 0.0
+    status: str = "connected"  # connected, lost, left, disqualified
+    moving: bool = False
+    robot_id: str = ""
+    trail: deque[tuple[float, float]] = field(default_factory=lambda: deque(maxlen=TRAIL_LEN))
+    trail_n: int = 0  # points ever appended (renderers convert only the new ones)
+
+    def move(self, x: float, y: float, heading: float) -> None:
+        """New position; extends the trail when the robot moved far enough."""
+        if not self.trail or abs(self.trail[-1][0] - x) + abs(self.trail[-1][1] - y) >= TRAIL_STEP:
+            self.trail.append((x, y))
+            self.trail_n += 1
+        self.x, self.y, self.heading = x, y, heading
+
+
+@dataclass(slots=True)
+class Thing:
+    """Something on the map a user can click: a find, a discovery, a known object or a picture."""
+
+    kind: str  # "find", "discovery", "object", "picture"
+    id: Any
+    x: float
+    y: float
+    team: str | None = None
+    state: str = ""
+    info: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def key(self) -> str:
+        """A stable identifier such as ``find:3``."""
+        return f"{self.kind}:{self.id}"
+
+    def pictures(self) -> list[int]:
+        """Picture ids that belong to this thing (evidence of a find, or the picture itself)."""
+        if self.kind == "picture":
+            return [int(self.id)]
+        return [int(p) for p in self.info.get("evidence") or [] if isinstance(p, int)]
+
+
+@dataclass(slots=True)
+class Message:
+    """A line on the wall's message bar (``level``: info, error, broadcast)."""
+
+    text: str
+    level: str
+    t: float
+
+
+@dataclass
+class MatchState:
+    """Phase and clock as last heard, with the local monotonic time it was heard."""
+
+    phase: str = ""
+    elapsed: float = 0.0
+    remaining: float | None = None
+    heard_at: float | None = None
+
+    def now(self, at: float | None) -> tuple[float, float | None]:
+        """(elapsed, remaining) extrapolated to ``at`` while running (``at`` None: as heard)."""
+        if at is None or self.heard_at is None or self.phase != "running":
+            return self.elapsed, self.remaining
+        d = max(0.0, at - self.heard_at)
+        return self.elapsed + d, None if self.remaining is None else max(0.0, self.remaining - d)
+
+
+class WallModel:
+    """Everything the wall draws. ``version`` changes whenever something visible changes."""
+
+    def __init__(self, clock: Any = time.monotonic) -> None:
+        self.clock = clock
+        self.arena: Arena | None = None
+        self.arena_version = 0
+        self.robots: dict[int, Robot] = {}
+        self.things: dict[str, Thing] = {}
+        self.match = MatchState()
+        self.score: list[dict[str, Any]] = []
+        self.messages: deque[Message] = deque(maxlen=MESSAGES_KEPT)
+        self.version = 0
+        self.panel_version = 0  # changes with everything but positions (the panel redraws on it)
+        self.events = 0
+        self.replay = False  # set by a replay source: the clock line then shows the recording's time
+
+    # ------------------------------------------------------------------ feeding
+    def set_arena(self, payload: dict[str, Any]) -> None:
+        """Replace the static map."""
+        self.arena = Arena.from_payload(payload)
+        self.arena_version += 1
+        self.things = {k: t for k, t in self.things.items() if t.kind != "object"}
+        for o in self.arena.objects:
+            t = Thing("object", o.get("id"), float(o.get("x", 0)), float(o.get("y", 0)), info=dict(o))
+            self.things[t.key] = t
+        self.version += 1
+        self.panel_version += 1
+
+    def set_costs(self, costs: np.ndarray) -> None:
+        """Cell costs from the map service (shaded on the map); ignored if the shape differs."""
+        if self.arena is not None and costs.shape == self.arena.walls.shape:
+            self.arena.costs = costs
+            self.arena_version += 1
+            self.version += 1
+
+    def merge_find(self, record: dict[str, Any]) -> None:
+        """Add what this token may know beyond the public event (evidence, verdict) to a find."""
+        self._find(record)
+        self.version += 1
+        self.panel_version += 1
+
+    def load_snapshot(self, snap: dict[str, Any]) -> None:
+        """Start from a ``snapshot`` reply (arena, robots and, when present, match, score, finds)."""
+        self.set_arena(snap["arena"])
+        self.robots.clear()
+        for row in snap.get("robots") or []:
+            r = self._robot(row["tag"], row.get("team"))
+            r.status = row.get("status", "connected")
+            r.robot_id = row.get("robot_id", "")
+            r.moving = bool(row.get("moving", False))
+            r.move(float(row.get("x", 0)), float(row.get("y", 0)), float(row.get("heading", 0)))
+        if snap.get("match"):
+            self._match(snap["match"])
+        if snap.get("score") is not None:
+            self.score = list(snap["score"])
+        for f in snap.get("finds") or []:
+            self._find(f)
+        self.version += 1
+        self.panel_version += 1
+
+    def apply(self, topic: str, d: dict[str, Any]) -> None:
+        """Apply one event (public or full view); unknown topics are ignored."""
+        self.events += 1
+        handler = _HANDLERS.get(topic)
+        if handler is not None:
+            handler(self, d)
+            self.version += 1
+            if topic != "robot.position":
+                self.panel_version += 1
+
+    def note(self, text: str, level: str = "info") -> None:
+        """Put a line on the message bar (refusals use ``level="error"``)."""
+        self.messages.append(Message(text, level, self.clock()))
+        self.version += 1
+
+    def visible_messages(self, at: float | None) -> list[Message]:
+        """Messages still on the bar at ``at`` (all kept ones when ``at`` is None)."""
+        return [m for m in self.messages if at is None or at - m.t < MESSAGE_SECONDS]
+
+    # ------------------------------------------------------------------ helpers
+    def colour(self, team: str | None) -> str:
+        """A team's display colour."""
+        return self.arena.colour(team) if self.arena else GREY
+
+    def teams(self) -> list[str]:
+        """Team names in arena order."""
+        return [t["name"] for t in self.arena.teams] if self.arena else []
+
+    def _robot(self, tag: int, team: str | None = None) -> Robot:
+        r = self.robots.get(tag)
+        if r is None:
+            r = self.robots[tag] = Robot(tag, team)
+        elif team is not None and r.team is None:
+            r.team = team
+        return r
+
+    def _match(self, m: dict[str, Any]) -> None:
+        if m.get("phase"):
+            self.match.phase = str(m["phase"])
+        if m.get("elapsed") is not None:
+            self.match.elapsed = float(m["elapsed"])
+        if "remaining" in m:
+            self.match.remaining = None if m["remaining"] is None else float(m["remaining"])
+        self.match.heard_at = self.clock()
+
+    def _find(self, f: dict[str, Any]) -> None:
+        state = f.get("state")
+        if not state:
+            verdict = f.get("verdict") or {}
+            state = "confirmed" if verdict.get("valid") else ("duplicate" if verdict.get("duplicate")
+                                                              else ("rejected" if verdict else "reported"))
+        t = Thing("find", f.get("id"), float(f.get("x", 0)), float(f.get("y", 0)), f.get("team"), str(state),
+                  {k: v for k, v in f.items() if k != "verdict"})
+        if isinstance(f.get("verdict"), dict) and "message" not in t.info:
+            t.info["message"] = f["verdict"].get("reason", "")
+        self.things[t.key] = t
+
+
+def _on_position(m: WallModel, d: dict[str, Any]) -> None:
+    r = m._robot(d["tag"], d.get("team"))
+    r.move(float(d["x"]), float(d["y"]), float(d.get("heading", r.heading)))
+    r.moving = bool(d.get("moving", False))
+    if r.status in ("lost", "left"):
+        r.status = "connected"
+
+
+def _on_registered(m: WallModel, d: dict[str, Any]) -> None:
+    r = m._robot(d["tag"], d.get("team"))
+    r.status = "connected"
+    r.robot_id = d.get("robot_id", r.robot_id)
+    r.move(float(d.get("x", r.x)), float(d.get("y", r.y)), float(d.get("heading", r.heading)))
+
+
+def _status(status: str) -> Any:
+    def apply(m: WallModel, d: dict[str, Any]) -> None:
+        r = m._robot(d["tag"], d.get("team"))
+        r.status = status
+        r.moving = False
+        if "x" in d and "y" in d:
+            r.move(float(d["x"]), float(d["y"]), r.heading)
+    return apply
+
+
+def _on_disqualified(m: WallModel, d: dict[str, Any]) -> None:
+    for tag in d.get("tags") or []:
+        m._robot(tag).status = "disqualified"
+    who = d.get("team") or ", ".join(str(t) for t in d.get("tags") or [])
+    m.note(f"disqualified {who}: {d.get('reason', '')}", "error")
+
+
+def _on_stopped(m: WallModel, d: dict[str, Any]) -> None:
+    r = m._robot(d["tag"], d.get("team"))
+    r.moving = False
+    if "x" in d and "y" in d:
+        r.move(float(d["x"]), float(d["y"]), r.heading)
+
+
+def _on_core_started(m: WallModel, d: dict[str, Any]) -> None:
+    if d.get("arena"):
+        m.set_arena(d["arena"])
+
+
+def _on_score(m: WallModel, d: dict[str, Any]) -> None:
+    if d.get("teams") is not None:
+        m.score = list(d["teams"])
+    if d.get("phase"):
+        m._match(d)
+
+
+def _on_discovery(m: WallModel, d: dict[str, Any]) -> None:
+    t = Thing("discovery", d.get("id"), float(d.get("x", 0)), float(d.get("y", 0)), d.get("team"),
+              str(d.get("state", "discovered")), dict(d))
+    m.things[t.key] = t
+
+
+def _on_picture(m: WallModel, d: dict[str, Any]) -> None:
+    t = Thing("picture", d.get("id"), float(d.get("x", 0)), float(d.get("y", 0)), d.get("team"), "", dict(d))
+    m.things[t.key] = t
+
+
+def _on_broadcast(m: WallModel, d: dict[str, Any]) -> None:
+    m.note(str(d.get("message", "")), "broadcast")
+
+
+def _on_penalty(m: WallModel, d: dict[str, Any]) -> None:
+    m.note(f"penalty {d.get('team')}: {d.get('points')} ({d.get('reason', '')})", "error")
+
+
+_HANDLERS: dict[str, Any] = {
+    "robot.position": _on_position,
+    "robot.registered": _on_registered,
+    "robot.returned": _status("connected"),
+    "robot.lost": _status("lost"),
+    "robot.left": _status("left"),
+    "robot.stopped": _on_stopped,
+    "disqualified": _on_disqualified,
+    "core.started": _on_core_started,
+    "match.phase": lambda m, d: m._match(d),
+    "score": _on_score,
+    "find.reported": lambda m, d: m._find(d),
+    "map.discovery": _on_discovery,
+    "picture": _on_picture,
+    "broadcast": _on_broadcast,
+    "penalty": _on_penalty,
+}

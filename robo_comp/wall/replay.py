@@ -1,0 +1,83 @@
+"""Play a recorded match from the core's event log into a :class:`WallModel`, at any speed.
+
+The log starts with ``core.started`` (which carries the arena), so a replay needs nothing but
+the log; pictures are read from the ``pictures/`` folder beside it when it is there.
+Positions are logged once a second per robot, so replayed robots move in 1 s steps.
+"""
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from robo_comp.core.eventlog import LogRecord, read_log
+from robo_comp.errors import FieldError
+from robo_comp.wall.model import WallModel
+
+
+class ReplaySource:
+    """Feeds a model with a log's events as replay time passes (``speed`` × real time)."""
+
+    def __init__(self, path: str | Path, speed: float = 1.0, *, clock: Callable[[], float] = time.monotonic) -> None:
+        self.path = Path(path)
+        if not self.path.is_file():
+            raise FieldError(f"--replay {path}: no such event log (it is STATE/events.log of a core)")
+        try:
+            self.records: list[LogRecord] = list(read_log(self.path, strict=False))
+        except OSError as e:
+            raise FieldError(f"cannot read the event log {path}: {e.strerror}") from None
+        if speed <= 0:
+            raise FieldError("--speed must be above 0")
+        self.speed = speed
+        self.clock = clock
+        self.t0 = self.records[0].t if self.records else 0.0
+        self.next = 0
+        self.started: float | None = None
+        self.offset = 0.0
+
+    @property
+    def duration(self) -> float:
+        """Seconds from the first to the last record."""
+        return self.records[-1].t - self.t0 if self.records else 0.0
+
+    @property
+    def done(self) -> bool:
+        """True once every record was applied."""
+        return self.next >= len(self.records)
+
+    def replay_time(self) -> float:
+        """Seconds of the recording shown so far (the model's clock during a replay)."""
+        if self.started is None:
+            return self.offset
+        return self.offset + (self.clock() - self.started) * self.speed
+
+    def attach(self, model: WallModel) -> None:
+        """Make the model's clock the replay's (so the match timer runs at replay speed)."""
+        model.clock = self.replay_time
+        model.replay = True
+
+    def advance(self, model: WallModel) -> int:
+        """Apply the records that are due; return how many."""
+        if self.started is None:
+            self.started = self.clock()
+        return self.seek(model, self.replay_time())
+
+    def seek(self, model: WallModel, at: float) -> int:
+        """Apply every record up to ``at`` seconds into the recording (forward only)."""
+        n = 0
+        recs = self.records
+        while self.next < len(recs) and recs[self.next].t - self.t0 <= at:
+            rec = recs[self.next]
+            model.apply(rec.topic, rec.data)
+            self.next += 1
+            n += 1
+        if self.started is None:
+            self.offset = at
+        return n
+
+    def picture(self, pid: int) -> bytes:
+        """A picture from the ``pictures/`` folder beside the log."""
+        p = self.path.parent / "pictures" / f"{int(pid)}.png"
+        if not p.is_file():
+            raise FieldError(f"picture {pid} is not beside this log")
+        return p.read_bytes()

@@ -1,0 +1,15 @@
+"""Return a 100000-deep nested list."""
+# expect: run
+# match: (not plain data|recursion)
+MANIFEST = {
+    "name": "hostile",
+    "version": "1.0",
+    "kind": "extension",
+    "tasks": {"attack": {"description": "hostile", "args": []}},
+}
+
+def attack(robot):
+    x = []
+    for i in range(100000):
+        x = [x]
+    return x

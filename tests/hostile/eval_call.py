@@ -1,0 +1,12 @@
+"""eval() of a string."""
+# expect: upload
+# match: policy: .*Eval calls are not allowed
+MANIFEST = {
+    "name": "hostile",
+    "version": "1.0",
+    "kind": "extension",
+    "tasks": {"attack": {"description": "hostile", "args": []}},
+}
+
+def attack(robot):
+    return eval('1 + 1')

@@ -1,0 +1,12 @@
+"""exec() of a string."""
+# expect: upload
+# match: policy: .*Exec calls are not allowed
+MANIFEST = {
+    "name": "hostile",
+    "version": "1.0",
+    "kind": "extension",
+    "tasks": {"attack": {"description": "hostile", "args": []}},
+}
+
+def attack(robot):
+    exec('x = 1')

@@ -1,0 +1,15 @@
+"""import os at module level."""
+# expect: upload
+# match: module: .*import of 'os' is not allowed
+MANIFEST = {
+    "name": "hostile",
+    "version": "1.0",
+    "kind": "extension",
+    "tasks": {"attack": {"description": "hostile", "args": []}},
+}
+
+import os
+
+
+def attack(robot):
+    return 1

@@ -1,0 +1,13 @@
+"""Write a file with open()."""
+# expect: run
+# match: NameError: name 'open' is not defined
+MANIFEST = {
+    "name": "hostile",
+    "version": "1.0",
+    "kind": "extension",
+    "tasks": {"attack": {"description": "hostile", "args": []}},
+}
+
+def attack(robot):
+    with open('/tmp/robo_comp_pwned', 'w') as f:
+        f.write('x')
