@@ -23,7 +23,7 @@ def _core(args: argparse.Namespace) -> int:
         pm = load_rules(args.rules)
     core = Core(Path(args.state), scenario, teams, host=args.host, port=args.port,
                 heartbeat=args.heartbeat, fsync=args.fsync, plugins=pm,
-                practice=args.practice or not args.scenario)
+                practice=args.practice or not args.scenario, approve_uploads=args.approve_uploads)
     core.bind()
     print(f"core: serving {scenario.name!r} for teams {', '.join(core.tokens.teams)} on "
           f"tcp://{args.host}:{core.port} (events on port {core.pub_port}); state in {args.state}",
@@ -77,6 +77,8 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--fsync", action="store_true", help="fsync the event log every loop turn")
     c.add_argument("--practice", action="store_true",
                    help="no match phases: running at once, no time limit (the default without --scenario)")
+    c.add_argument("--approve-uploads", action="store_true",
+                   help="a team's upload during a running match waits for the referee's approval")
     c.add_argument("--rules", metavar="MODULE:OBJECT",
                    help="scoring rules plugin to use instead of the default search-and-rescue rules")
     c.set_defaults(func=_core)
@@ -104,6 +106,11 @@ def build_parser() -> argparse.ArgumentParser:
     d.set_defaults(func=_demo)
 
     plan_cli.add_parser(sub)
+    from robo_comp.tui import cli as tui_cli
+    from robo_comp.wall import cli as wall_cli
+
+    tui_cli.add_parsers(sub)
+    wall_cli.add_parser(sub)
     return parser
 
 

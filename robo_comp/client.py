@@ -140,7 +140,8 @@ class Client:
                 if msg.get("ok"):
                     return msg.get("body") or {}
                 err = msg.get("error") or {}
-                raise error_from_code(err.get("code", "E_INTERNAL"), err.get("message", "unknown error"))
+                raise error_from_code(err.get("code", "E_INTERNAL"), err.get("message", "unknown error"),
+                                      err.get("details"))
             self._keep(msg)
 
     def _keep(self, msg: dict[str, Any]) -> None:
@@ -166,6 +167,30 @@ class Client:
     def stop(self, tag: int) -> dict[str, Any]:
         """Halt robot ``tag`` at once; its current and queued tasks are cancelled; it stays usable."""
         return self.request("stop", tag=tag)
+
+    def upload(self, tags: list[int], filename: str, source: str, run: bool = False) -> dict[str, Any]:
+        """Send a module to robots ``tags``: checked and loaded there (``results`` per robot), or an
+        ``UploadError`` naming file, line and rule when every robot refused it."""
+        return self.request("upload", tags=list(tags), filename=filename, source=source, run=run)
+
+    def extensions(self, tag: int) -> list[dict[str, Any]]:
+        """The uploaded modules robot ``tag`` has (name, version, kind, file, sha256, tasks)."""
+        return self.request("extensions", tag=tag)["modules"]
+
+    def unload(self, tags: list[int], name: str) -> dict[str, Any]:
+        """Take the module ``name`` away from robots ``tags``."""
+        return self.request("unload", tags=list(tags), name=name)
+
+    def match(self, action: str, seconds: float | None = None) -> dict[str, Any]:
+        """Referee: ``start``, ``pause``, ``resume``, ``finish`` or ``extend`` (by ``seconds``)."""
+        body: dict[str, Any] = {"action": action}
+        if seconds is not None:
+            body["seconds"] = seconds
+        return self.request("match", **body)
+
+    def score(self) -> dict[str, Any]:
+        """The scoreboard, the phase and the clock; the score lines this client may see."""
+        return self.request("score")
 
     def snapshot(self) -> dict[str, Any]:
         """Arena, teams and visible robots in one reply (walls and consoles start from this)."""

@@ -5,6 +5,7 @@ import argparse
 import json
 import sys
 import time
+from pathlib import Path
 from typing import Any
 
 from robo_comp.client import Client, read_token, recv_event, resolve_core
@@ -30,6 +31,21 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     g.add_argument("task", help="task name as the robot advertises it (see 'tasks TAG')")
     g.add_argument("args", nargs="?", default="[]", help="arguments as a JSON list, e.g. '[3, 4]'")
     g.add_argument("--queue", action="store_true", help="queue the task instead of interrupting")
+    u = cmds.add_parser("upload", help="upload an extension or code module to robots",
+                        description="Example: upload 101,102 square.py. The module is checked on each robot "
+                                    "(docs/sandbox.md); a refusal names the file, line and rule.")
+    u.add_argument("tags", help="robot tag, or several separated by commas")
+    u.add_argument("file", help="the module (.py)")
+    u.add_argument("--run", action="store_true", help="run the module's first task now (code that runs now)")
+    x = cmds.add_parser("extensions", help="the modules uploaded to a robot")
+    x.add_argument("tag", type=int)
+    un = cmds.add_parser("unload", help="take an uploaded module away from robots")
+    un.add_argument("tags", help="robot tag, or several separated by commas")
+    un.add_argument("name", help="the module's MANIFEST name")
+    m = cmds.add_parser("match", help="referee: start, pause, resume, finish or extend the match")
+    m.add_argument("action", choices=("start", "pause", "resume", "finish", "extend"))
+    m.add_argument("--seconds", type=float, help="for extend: seconds to add")
+    cmds.add_parser("score", help="the scoreboard, phase and clock")
     e = cmds.add_parser("events", help="print events as they happen")
     e.add_argument("--count", type=int, default=0, help="stop after N events (0 = never)")
     e.add_argument("--timeout", type=float, default=0.0, help="stop after S seconds (0 = never)")
@@ -76,7 +92,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"error: {e.message}", file=sys.stderr)
         return 2
     try:
-        with Client(url, token, client="ctl") as c:
+        timeout = 30.0 if args.cmd in ("upload", "unload", "extensions") else 5.0  # a sandbox may start first
+        with Client(url, token, client="ctl", timeout=timeout) as c:
             return _run(c, args)
     except RoboCompError as e:
         print(f"error {e.code}: {e.message}", file=sys.stderr)
@@ -116,6 +133,49 @@ def _run(c: Client, args: argparse.Namespace) -> int:
         if not args.json:
             print(f"robot {out['tag']} halted at ({out['x']:.2f}, {out['y']:.2f}) in {out['ms']:.1f} ms; "
                   f"cancelled tasks: {out['cancelled'] or 'none'}")
+    elif args.cmd in ("upload", "unload"):
+        try:
+            tags = [int(t) for t in args.tags.split(",") if t.strip()]
+        except ValueError:
+            print(f"error: tags must be numbers separated by commas, got {args.tags!r}", file=sys.stderr)
+            return 2
+        if args.cmd == "unload":
+            out = c.unload(tags, args.name)
+            if not args.json:
+                print(f"{args.name} unloaded from robots {', '.join(map(str, out['tags']))}")
+        else:
+            path = Path(args.file)
+            try:
+                source = path.read_text(encoding="utf-8")
+            except (OSError, UnicodeDecodeError) as e:
+                print(f"error: cannot read {path}: {e}", file=sys.stderr)
+                return 2
+            out = c.upload(tags, path.name, source, run=args.run)
+            if not args.json:
+                if out.get("pending"):
+                    print(out.get("message"))
+                for row in out.get("results", []):
+                    print(f"robot {row.get('tag')}: {'ok' if row.get('ok') else 'REFUSED'} {row.get('message', '')}")
+            if out.get("results") and not out.get("ok", True):
+                if args.json:
+                    print(json.dumps(out, default=_jsonable))
+                return 1
+    elif args.cmd == "extensions":
+        out = c.extensions(args.tag)
+        if not args.json:
+            if not out:
+                print(f"robot {args.tag} has no uploaded modules")
+            for mod in out:
+                print(f"{mod['name']} {mod['version']} ({mod['kind']}, {mod['file']}, sha256 {mod['sha256'][:12]}): "
+                      f"{', '.join(mod['tasks'])}")
+    elif args.cmd == "match":
+        out = c.match(args.action, args.seconds)
+        if not args.json:
+            print(_clock(out))
+    elif args.cmd == "score":
+        out = c.score()
+        if not args.json:
+            _print_score(out)
     elif args.cmd == "events":
         return _events(c, args)
     else:  # pragma: no cover - argparse prevents it
@@ -123,6 +183,20 @@ def _run(c: Client, args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(out, default=_jsonable))
     return 0
+
+
+def _clock(s: dict[str, Any]) -> str:
+    rem = s.get("remaining")
+    return f"match {s.get('phase', '?')}; " + (f"{rem:.0f} s left" if rem is not None else "no time limit")
+
+
+def _print_score(s: dict[str, Any]) -> None:
+    print(_clock(s))
+    print(f"{'rank':>4} {'team':<10} {'score':>8} {'victims':>7} {'penalties':>9}")
+    for row in s.get("teams", []):
+        dq = "  disqualified" if row.get("disqualified") else ""
+        print(f"{row.get('rank', 0):>4} {row['team']:<10} {row['score']:>8g} {row['victims']:>7} "
+              f"{row['penalties']:>9g}{dq}")
 
 
 def _jsonable(o: Any) -> Any:

@@ -128,9 +128,10 @@ ALL_ERRORS: tuple[type[RoboCompError], ...] = (
 _BY_CODE = {cls.code: cls for cls in ALL_ERRORS}
 
 
-def error_from_code(code: str, message: str) -> RoboCompError:
-    """Build the exception that matches a protocol error ``code`` (base class if unknown)."""
+def error_from_code(code: str, message: str, details: object = None) -> RoboCompError:
+    """Build the exception that matches a protocol error ``code`` (base class if unknown);
+    ``details`` (a map, e.g. an upload's file, line and rule) becomes ``err.details``."""
     cls = _BY_CODE.get(code, RoboCompError)
-    err = cls(message)
+    err = cls(message, **(details if isinstance(details, dict) else {}))
     err.code = code
     return err

@@ -22,9 +22,8 @@ fixtures without a ``conftest.py``:
 
 Helpers: :func:`wait_for`, :func:`wait_robots`, :func:`next_event_where`.
 
-The robot host does not run uploaded modules yet (and the core has no ``upload`` request), so
-team modules can only be exercised on the bench for now; the bench's answers to the robot API
-follow ``docs/sandbox.md`` and are described on :class:`Bench`.
+In a real match, upload a module with ``client.upload(tags, filename, source)`` and give its
+tasks like any other; on the bench the same module runs without a core.
 """
 from __future__ import annotations
 
@@ -50,6 +49,9 @@ if TYPE_CHECKING:  # heavy imports (numpy, numba, the sandbox) only when a fixtu
 
 DEFAULT_SCENARIO = "demo_room"
 HEARTBEAT = 0.2
+#: What the robot host allows (robo_comp/robots/teamcode.py): map_piece radius, evidence ids.
+MAX_PIECE_RADIUS = 20
+MAX_EVIDENCE = 16
 
 
 # ---------------------------------------------------------------------- waiting helpers
@@ -254,21 +256,23 @@ class Bench:
     What the robot API answers on the bench (``docs/sandbox.md`` lists the calls):
 
     ===================  =================================================================
-    ``move(cells)``      drive forward; returns the believed ``[x, y, heading]``
-    ``turn(degrees)``    positive = clockwise on screen (the arena's convention); pose
-    ``go_to(x, y)``      planned path cell by cell; pose; RobotError if a wall/no path
+    ``move(cells)``      cell by cell along the heading; RobotError at a wall; the believed pose
+    ``turn(degrees)``    positive = clockwise on screen (the arena's convention); the pose
+    ``go_to(x, y)``      the planned path cell by cell; the pose; RobotError for a wall/no path
     ``position()``       believed ``[x, y, heading]`` (positioning noise and drift included)
     ``sense()``          ``{front, left, right, down (cm or None), bump, moving, zone, time}``
-    ``plan(x, y)``       ``[[x, y], ...]`` from the robot's cell, or ``None`` if unreachable
-    ``map_piece(r)``     ``{"x", "y", "rows"}``: the rows of ``.``/``#`` around the robot
-    ``take_picture()``   a picture id (the core's judge sees what the camera saw)
-    ``report_find(...)`` judged by the installed scoring rules, as the core's ``find``:
-                         ``{"id", "state": confirmed|rejected|duplicate, "message"}``
+    ``plan(x, y)``       ``[[x, y], ...]`` from the robot's cell; RobotError for a wall/no path
+    ``map_piece(r)``     ``{"x0", "y0", "walls"}``: rows of 1 (blocked) / 0, r from 0 to 20
+    ``take_picture()``   a picture id (the judge knows what the camera saw)
+    ``report_find(...)`` the first 16 evidence ids, judged by the installed scoring rules as
+                         the core's ``find``: ``{"id", "state", "message"}``, state
+                         ``confirmed``/``rejected``/``duplicate``
     ``radio``, ``upload_picture``  refused (RobotError): no core on the bench
     ===================  =================================================================
 
-    The robot host does not run uploaded modules yet; when it does, its answers are the
-    reference and this bench follows them.
+    These follow the robot host's answers (``robo_comp/robots/teamcode.py``), which are the
+    reference: the bench is for fast, repeatable tests, a real match (:class:`Match`) for the
+    final word.
     """
 
     def __init__(self, scenario: str | os.PathLike[str] | Scenario | None = DEFAULT_SCENARIO,
@@ -401,7 +405,18 @@ class Bench:
                                    f"({bump['x']:.1f}, {bump['y']:.1f}) and stopped")
 
     def _api_move(self, t: str, cells: float) -> list[float]:
-        self._drive(t, "forward", cells)
+        rad = math.radians(self.loc.estimate(t)[2])
+        dx, dy = round(math.cos(rad)), round(math.sin(rad))
+        if dx and dy:  # between two axes: along the nearer one (as the host does)
+            dx, dy = (dx, 0) if abs(math.cos(rad)) >= abs(math.sin(rad)) else (0, dy)
+        sign = 1 if cells >= 0 else -1
+        h, w = self.arena.walls.shape
+        for _ in range(abs(int(cells))):
+            x, y = self._cell(t)
+            nx, ny = x + sign * dx, y + sign * dy
+            if not (0 <= nx < w and 0 <= ny < h) or self.arena.walls[ny, nx]:
+                raise BadTaskError(f"({nx}, {ny}) is a wall or outside the arena; stopped at ({x}, {y})")
+            self._drive(t, "goto", (nx, ny))
         return self._pose(t)
 
     def _api_turn(self, t: str, degrees: float) -> list[float]:
@@ -419,17 +434,23 @@ class Bench:
         sx, sy = min(max(sx, 0), w - 1), min(max(sy, 0), h - 1)
         return find_path(self.arena.walls, (sx, sy), (gx, gy))
 
-    def _api_go_to(self, t: str, x: float, y: float) -> list[float]:
-        path = self._path(t, x, y)
+    def _checked_path(self, t: str, x: float, y: float) -> list[tuple[int, int]]:
+        gx, gy = int(x), int(y)
+        h, w = self.arena.walls.shape
+        if not (0 <= gx < w and 0 <= gy < h) or self.arena.walls[gy, gx]:
+            raise BadTaskError(f"({gx}, {gy}) is a wall or outside the arena")
+        path = self._path(t, gx, gy)
         if path is None:
-            raise BadTaskError(f"no path from {self._cell(t)} to ({int(round(x))}, {int(round(y))})")
-        for cx, cy in path[1:]:
+            raise BadTaskError(f"no path to ({gx}, {gy})")
+        return path
+
+    def _api_go_to(self, t: str, x: float, y: float) -> list[float]:
+        for cx, cy in self._checked_path(t, x, y)[1:]:
             self._drive(t, "goto", (cx, cy))
         return self._pose(t)
 
-    def _api_plan(self, t: str, x: float, y: float) -> list[list[int]] | None:
-        path = self._path(t, x, y)
-        return None if path is None else [[int(cx), int(cy)] for cx, cy in path]
+    def _api_plan(self, t: str, x: float, y: float) -> list[list[int]]:
+        return [[int(cx), int(cy)] for cx, cy in self._checked_path(t, x, y)]
 
     def _api_position(self, t: str) -> list[float]:
         return self._pose(t)
@@ -438,12 +459,15 @@ class Bench:
         return {k: _plain(v) for k, v in self.arena.sense(t).items()}
 
     def _api_map_piece(self, t: str, radius: float) -> dict[str, Any]:
-        r = max(0, min(int(radius), 50))
-        cx, cy = self._cell(t)
-        h, w = self.arena.walls.shape
-        x0, y0, x1, y1 = max(0, cx - r), max(0, cy - r), min(w, cx + r + 1), min(h, cy + r + 1)
-        rows = ["".join("#" if b else "." for b in row) for row in self.arena.walls[y0:y1, x0:x1].tolist()]
-        return {"x": x0, "y": y0, "rows": rows}
+        r = int(radius)
+        if not 0 <= r <= MAX_PIECE_RADIUS:
+            raise FieldError(f"radius must be between 0 and {MAX_PIECE_RADIUS}")
+        x, y = self._cell(t)
+        walls = self.arena.walls
+        h, w = walls.shape
+        rows = [[1 if not (0 <= yy < h and 0 <= xx < w) or walls[yy, xx] else 0
+                 for xx in range(x - r, x + r + 1)] for yy in range(y - r, y + r + 1)]
+        return {"x0": x - r, "y0": y - r, "walls": rows}
 
     def _api_take_picture(self, t: str) -> int:
         from robo_comp.world.visibility import in_view
@@ -460,13 +484,11 @@ class Bench:
         return pid
 
     def _api_report_find(self, t: str, x: float, y: float, kind: Any, evidence: Any) -> dict[str, Any]:
-        ev = [] if evidence is None else evidence
-        if type(ev) is not list or not all(type(e) is int for e in ev) or len(ev) > 32:
-            raise FieldError("evidence must be a list of at most 32 picture ids")
+        ev = [int(e) for e in (evidence or [])][:MAX_EVIDENCE]  # as the host passes it on
         for pid in ev:
             if pid not in self.pictures:
                 raise FieldError(f"picture {pid} is not one of team {self.team}'s pictures")
-        find = {"team": self.team, "tag": int(t), "x": float(x), "y": float(y), "kind": str(kind or "")[:32],
+        find = {"team": self.team, "tag": int(t), "x": float(x), "y": float(y), "kind": str(kind or "victim")[:32],
                 "evidence": ev}
         victims = [{"id": v.id, "x": v.x, "y": v.y, "kind": v.kind, "points": v.points} for v in self.arena.victims]
         verdict = self.board.judge(find, {"victims": victims, "examined": self.examined})

@@ -75,6 +75,12 @@ REQUESTS: dict[str, dict[str, tuple[str, bool]]] = {
     "picture.get": {"id": (_INT, True)},
     "map": {"tag": (_OPT_INT, False), "radius": (_INT, False)},
     "map.delta": {"since": (_INT, True)},
+    # team code (see robo_comp/core/uploads.py)
+    "upload": {"tags": (_LIST, True), "filename": (_STR, True), "source": (_ANY, True), "kind": (_STR, False),
+               "run": (_BOOL, False)},
+    "unload": {"tags": (_LIST, True), "name": (_STR, True)},
+    "extensions": {"tag": (_INT, True)},
+    "approve": {"upload_id": (_INT, True), "ok": (_BOOL, False)},
     # robot hosts
     "register": {
         "token": (_STR, True), "robot_id": (_STR, True), "tasks": (_LIST, False),
@@ -95,22 +101,26 @@ REQUESTS: dict[str, dict[str, tuple[str, bool]]] = {
     "picture": {"tag": (_INT, True), "x": (_NUM, True), "y": (_NUM, True), "heading": (_NUM, True),
                 "png": (_BIN, True), "label": (_STR, False)},
     "bump": {"tag": (_INT, True), "x": (_NUM, True), "y": (_NUM, True), "with": (_OPT_INT, False)},
-    # replies from a robot host to a core-initiated request (stop)
+    "advertise": {"tag": (_INT, True), "tasks": (_LIST, True)},
+    "log": {"tag": (_OPT_INT, False), "stream": (_STR, True), "text": (_STR, True)},
+    # replies from a robot host to a core-initiated request (stop, upload, unload, extensions)
     "reply": {},
 }
 
 #: Types a sender may use without a reply on success.
-NOTIFICATIONS = frozenset({"report", "heartbeat", "bump"})
+NOTIFICATIONS = frozenset({"report", "heartbeat", "bump", "log"})
 
 #: Messages the core sends to robot hosts (requests expect a ``reply``).
-CORE_TO_HOST = ("heartbeat", "task.start", "task.interrupt", "stop", "radio", "hold", "map.delta", "event")
+CORE_TO_HOST = ("heartbeat", "task.start", "task.interrupt", "stop", "radio", "hold", "map.delta", "event",
+                "upload", "unload", "extensions")
 
 #: Event topics; the PUB socket uses them as the first frame.
 TOPICS = (
     "robot.registered", "robot.position", "robot.lost", "robot.returned", "robot.left",
     "task.given", "task.started", "task.done", "robot.stopped", "radio", "refused", "core.started",
     "match.phase", "score", "score.change", "penalty", "disqualified", "broadcast", "find.reported",
-    "picture", "robot.bump",
+    "picture", "robot.bump", "robot.tasks", "robot.log", "upload.pending", "upload.sent", "upload.done",
+    "upload.unloaded",
 )
 
 
@@ -145,10 +155,10 @@ def ok_reply(id_: int, body: dict[str, Any] | None = None) -> bytes:
 
 def error_reply(id_: int, err: RoboCompError) -> bytes:
     """Encode an error reply carrying the error's stable code and its sentence."""
-    return pack({
-        "v": PROTOCOL_VERSION, "type": "reply", "id": id_, "ok": False,
-        "error": {"code": err.code, "message": err.message},
-    })
+    error: dict[str, Any] = {"code": err.code, "message": err.message}
+    if err.details:  # e.g. an upload's file, line and rule
+        error["details"] = err.details
+    return pack({"v": PROTOCOL_VERSION, "type": "reply", "id": id_, "ok": False, "error": error})
 
 
 def event_frames(topic: str, payload: dict[str, Any]) -> list[bytes]:

@@ -26,6 +26,7 @@ import zmq
 from robo_comp.core import protocol as P
 from robo_comp.core.competition import EVERYONE, Competition
 from robo_comp.core.mapdesk import MapDesk
+from robo_comp.core.uploads import UploadDesk
 from robo_comp.core.eventlog import EventLog
 from robo_comp.core.recovery import RecoveryReport, recover
 from robo_comp.core.registry import RobotRecord, Registry
@@ -87,7 +88,8 @@ class Core:
     def __init__(self, state_dir: Path, scenario: Scenario, teams: list[str] | None = None, *,
                  host: str = "127.0.0.1",
                  port: int = 5555, pub_port: int = 0, heartbeat: float = 1.0, fsync: bool = False,
-                 practice: bool = False, scoring: ScoringConfig | None = None, plugins: Any = None) -> None:
+                 practice: bool = False, scoring: ScoringConfig | None = None, plugins: Any = None,
+                 approve_uploads: bool = False) -> None:
         self.state_dir = Path(state_dir)
         self.state_dir.mkdir(parents=True, exist_ok=True)
         self.scenario = scenario
@@ -126,6 +128,8 @@ class Core:
         self._handlers.update(self.competition.handlers())
         self.maps = MapDesk(self)
         self._handlers.update(self.maps.handlers())
+        self.uploads = UploadDesk(self, approve_uploads)
+        self._handlers.update(self.uploads.handlers())
         log_path = self.state_dir / "events.log"
         self.recovered: RecoveryReport | None = None
         if log_path.exists() and log_path.stat().st_size > 0:
@@ -189,13 +193,15 @@ class Core:
         try:
             while self._running:
                 timeout = max(0.0, next_tick - time.monotonic())
-                if self.pending_stops:
+                if self.pending_stops or self.uploads.busy:
                     timeout = min(timeout, 0.05)
                 if poller.poll(timeout * 1000):
                     self._drain()
                 now = time.monotonic()
                 if self.pending_stops:
                     self._expire_stops(now)
+                if self.uploads.busy:
+                    self.uploads.expire(now)
                 if now >= next_tick:
                     self._tick(now)
                     next_tick = now + self.heartbeat
@@ -524,19 +530,23 @@ class Core:
     def _on_give(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
         s = self._session(ident)
         r = self._robot_for(ident, msg.body["tag"])
+        return self.give_task(r, msg.body["task"], msg.body.get("args", []), bool(msg.body.get("queue", False)),
+                              s.who.name)
+
+    def give_task(self, r: RobotRecord, name: str, args: list[Any], queue: bool, by: str) -> dict[str, Any]:
+        """Give robot ``r`` a task now (interrupting) or queued; ownership is the caller's check."""
         self.competition.check_robot(r.tag)
         self.competition.check_phase("give")
-        spec = find_spec(r.tasks, msg.body["task"], r.tag)
-        args = check_args(spec, msg.body.get("args", []))
-        queue = bool(msg.body.get("queue", False))
+        spec = find_spec(r.tasks, name, r.tag)
+        args = check_args(spec, args)
         if r.status == "left":
             raise UnavailableError(f"robot {r.tag} has left the arena; it takes no tasks until it returns")
         if not queue and r.status != "connected":
             raise UnavailableError(
                 f"robot {r.tag} is {r.status} and cannot start a task now; queue it (--queue) for when it returns")
-        t = self._new_task(r, spec["name"], args, "queue" if queue else "now", s.who.name)
+        t = self._new_task(r, spec["name"], args, "queue" if queue else "now", by)
         self.emit("task.given", r.team, {"tag": r.tag, "task_id": t.id, "name": t.name, "args": args,
-                                          "mode": t.mode, "by": s.who.name})
+                                          "mode": t.mode, "by": by})
         if queue:
             r.queue.append(t)
             if r.current is None and r.pending is None and r.status == "connected":
@@ -698,7 +708,8 @@ class Core:
         raw = msg.body
         p = self.pending_stops.pop(msg.id, None)
         if p is None:
-            return None  # a late answer to a stop that already timed out
+            self.uploads.host_reply(msg.id, raw)
+            return None  # an upload's answer, or a late answer to a stop that already timed out
         r = self.registry.robots[p.tag]
         if not raw.get("ok"):
             err = raw.get("error") or {}

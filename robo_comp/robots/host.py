@@ -9,6 +9,7 @@ reconnects on its own; the robots resume where they were once registered again.
 from __future__ import annotations
 
 import logging
+import math
 import random
 import signal
 import time
@@ -26,6 +27,7 @@ from robo_comp.errors import RoboCompError
 from robo_comp.plugins.manager import get_plugin_manager
 from robo_comp.robots.drivers import ArenaDriver
 from robo_comp.robots.steps import Capture, Step, TaskFailed, TaskSpec
+from robo_comp.robots.teamcode import TeamCode
 from robo_comp.world.arena import Arena
 from robo_comp.world.localization import Localization
 from robo_comp.world.mapservice import MapView
@@ -72,9 +74,19 @@ class SimRobot:
         walls = self.host.walls
         return 0 <= y < walls.shape[0] and 0 <= x < walls.shape[1] and not walls[y, x]
 
+    def free_cell(self) -> tuple[int, int]:
+        """The free cell the robot believes it is in (a noisy estimate may round into a wall)."""
+        x, y, _ = self.driver.pose
+        cell = (int(round(x)), int(round(y)))
+        if self.in_bounds(*cell):
+            return cell
+        near = [(int(math.floor(x)) + dx, int(math.floor(y)) + dy) for dx in (0, 1) for dy in (0, 1)]
+        free = [c for c in near if self.in_bounds(*c)]
+        return min(free, key=lambda c: (c[0] - x) ** 2 + (c[1] - y) ** 2) if free else cell
+
     def plan_to(self, goal: tuple[int, int]) -> list[tuple[int, int]] | None:
-        """A 4-connected path from the current cell to ``goal``."""
-        return find_path(self.host.walls, self.cell(), goal)
+        """A 4-connected path from the (free) cell the robot believes it is in to ``goal``."""
+        return find_path(self.host.walls, self.free_cell(), goal)
 
 
 def collect_tasks(pm: Any) -> dict[str, TaskSpec]:
@@ -107,6 +119,7 @@ class RobotHost:
         self.tasks = collect_tasks(self.pm)
         self.ctx = ctx or zmq.Context.instance()
         self.rng = random.Random(seed)
+        self.seed = seed
         self.sock: zmq.Socket | None = None
         self.poller = zmq.Poller()
         self.robots: dict[str, SimRobot] = {}
@@ -129,6 +142,9 @@ class RobotHost:
         self.loc: Localization | None = None
         #: The team's map as the map service shares it, kept current by pushed deltas.
         self.map = MapView()
+        #: Uploaded team code: the sandbox, its modules per robot, the runs of its tasks.
+        self.code = TeamCode(self)
+        self._code_fd: int | None = None
 
     # ------------------------------------------------------------------ sending
     def _send(self, type_: str, body: dict[str, Any], on_reply: Reply | None = None) -> None:
@@ -182,14 +198,67 @@ class RobotHost:
         if not self.robots:
             self._create_robots(body)
         self._set_state("registering")
-        adverts = [t.advert() for t in self.tasks.values()]
         self._waiting = len(self.robots)  # replies still to come before we are "up"
         for r in self.robots.values():
             b = r.driver
-            self._send("register", {"token": self.token, "robot_id": r.robot_id, "tasks": adverts,
+            self._send("register", {"token": self.token, "robot_id": r.robot_id, "tasks": self.adverts(r.tag),
                                     "x": b.x, "y": b.y, "heading": b.heading,
                                     "task_id": r.task.id if r.task else None},
                        lambda ok, body, r=r: self._on_registered(r, ok, body))
+
+    def adverts(self, tag: int) -> list[dict[str, Any]]:
+        """What robot ``tag`` advertises: the plugins' tasks, then its uploaded code's (which win)."""
+        tasks = {name: t.advert() for name, t in self.tasks.items()}
+        if tag:
+            tasks.update(self.code.adverts(tag))
+        return list(tasks.values())
+
+    def _spec(self, tag: int, name: str) -> TaskSpec | None:
+        """The task ``name`` as robot ``tag`` runs it: uploaded code first (it may replace a built-in)."""
+        return self.code.task_spec(tag, name) or self.tasks.get(name)
+
+    # ------------------------------------------------------------------ team code (teamcode.py calls these)
+    def upload_answered(self, rid: int, results: list[dict[str, Any]]) -> None:
+        """Answer the core's ``upload`` request ``rid`` with a verdict per robot."""
+        self._answer(rid, {"results": results})
+
+    def tasks_changed(self, tags: list[int]) -> None:
+        """Tell the core what these robots advertise now (after a load or an unload)."""
+        for tag in tags:
+            if tag in self.by_tag:
+                self._send("advertise", {"tag": tag, "tasks": self.adverts(tag)},
+                           lambda ok, body: ok or log.warning("advertise refused: %s", body.get("message")))
+
+    def team_log(self, tag: int | None, stream: str, text: str) -> None:
+        """Forward a line team code printed (or a sandbox notice) to the team's consoles."""
+        if self.state == "up" and self.sock is not None:
+            self.sock.send(P.request("log", 0, {"tag": tag if tag in self.by_tag else None,
+                                                "stream": stream, "text": text[:2000]}))
+
+    def code_request(self, type_: str, body: dict[str, Any], on_reply: Reply) -> None:
+        """A request to the core on behalf of team code (a find, the radio)."""
+        self._send(type_, body, on_reply)
+
+    def code_picture(self, r: SimRobot, on_reply: Reply) -> None:
+        """Take and upload a picture for team code; ``on_reply`` gets the picture's id."""
+        assert self.world is not None
+        png = self.world.camera(r.robot_id)
+        x, y, heading = r.driver.truth()
+        self._send("picture", {"tag": r.tag, "x": x, "y": y, "heading": heading, "png": png,
+                               "label": "team code"}, on_reply)
+
+    def _on_code_request(self, type_: str, rid: int, body: dict[str, Any]) -> None:
+        """``upload``, ``unload`` and ``extensions`` from the core."""
+        tags = [t for t in body.get("tags") or [] if t in self.by_tag]
+        if type_ == "upload":
+            self.code.upload(rid, tags, str(body.get("filename")), body.get("source") or "")
+        elif type_ == "unload":
+            done = self.code.unload(tags, str(body.get("name")))
+            self._answer(rid, {"unloaded": done})
+            self.tasks_changed(done)
+        else:
+            self._answer(rid, {"tag": tags[0] if tags else None,
+                               "modules": self.code.modules(tags[0]) if tags else []})
 
     def _build_world(self, arena: dict[str, Any]) -> None:
         """The simulated arena: the organiser's scenario (with victims) or the public one."""
@@ -297,6 +366,9 @@ class RobotHost:
                 log.warning("map delta not applied (%s); fetching the whole map", e)
                 self._send("map.delta", {"since": 0}, lambda ok, b: ok and self.map.apply(b))
             return
+        if type_ in ("upload", "unload", "extensions"):
+            self._on_code_request(type_, rid, body)
+            return
         r = self.by_tag.get(body.get("tag", -1))
         if type_ == "stop":
             if r is None:
@@ -326,7 +398,7 @@ class RobotHost:
     def _start(self, r: SimRobot, task: dict[str, Any]) -> None:
         """Begin ``task`` on ``r`` (validated again here, as the robot must)."""
         r.pending = None
-        spec = self.tasks.get(task["name"])
+        spec = self._spec(r.tag, task["name"])
         try:
             if spec is None:
                 raise TaskFailed(f"this robot has no task {task['name']!r}")
@@ -376,6 +448,7 @@ class RobotHost:
         if t.pictures and (result is None or isinstance(result, dict)):
             result = dict(result or {}, pictures=list(t.pictures))
         r.task = None
+        t.gen.close()  # team code still running is cancelled here
         r.driver.halt()
         self._report_one(r, time.monotonic())  # the owner sees the final pose with the result
         self._send("task.done", {"tag": r.tag, "task_id": t.id, "ok": ok, "status": status,
@@ -389,6 +462,8 @@ class RobotHost:
     def _halt(self, r: SimRobot) -> None:
         """Stop at once: no movement, no task, nothing pending (the core cancels them)."""
         r.driver.halt()
+        if r.task is not None:
+            r.task.gen.close()
         r.task = None
         r.pending = None
 
@@ -457,13 +532,22 @@ class RobotHost:
         next_tick = last + self.tick
         next_report = last
         while self._running and (t_end is None or time.monotonic() < t_end):
-            for sock, _ in self.poller.poll(max(0.0, next_tick - time.monotonic()) * 1000):
+            self._watch_code()
+            wake = next_tick
+            code_deadline = self.code.deadline()
+            if code_deadline is not None:
+                wake = min(wake, code_deadline)
+            for sock, _ in self.poller.poll(max(0.0, wake - time.monotonic()) * 1000):
                 while sock is self.sock:  # a reconnect replaces the socket mid-loop
                     try:
                         frame = sock.recv(zmq.NOBLOCK)
                     except zmq.Again:
                         break
                     self._dispatch(frame)
+            try:
+                self.code.pump()
+            except Exception:  # a bug on the team-code path must not take the robots down
+                log.exception("team code: unexpected error while serving the sandbox")
             now = time.monotonic()
             if now >= next_tick:
                 if self.state == "up" and not self.holding:
@@ -482,5 +566,20 @@ class RobotHost:
             for r in self.by_tag.values():
                 self._send("leave", {"tag": r.tag})
             time.sleep(0.05)
+        self.code.close()
         if self.sock is not None:
             self.sock.close(0)
+
+    def _watch_code(self) -> None:
+        """Keep the sandbox's descriptor in the poller (a respawned sandbox has a new one)."""
+        fd = self.code.fileno()
+        flags = zmq.POLLIN | (zmq.POLLOUT if self.code.wants_write() else 0)
+        if fd != self._code_fd:
+            if self._code_fd is not None:
+                try:
+                    self.poller.unregister(self._code_fd)
+                except KeyError:
+                    pass
+            self._code_fd = fd
+        if fd is not None:
+            self.poller.register(fd, flags)  # registering again updates the flags

@@ -1,6 +1,6 @@
 """``robo-comp team`` and ``robo-comp referee``: start the consoles.
 
-The lead wires them into ``robo_comp.cli`` with ``tui.cli.add_parsers(sub)``.
+``robo_comp.cli`` adds both with ``tui.cli.add_parsers(sub)``.
 """
 from __future__ import annotations
 

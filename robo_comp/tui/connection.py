@@ -310,7 +310,7 @@ class CoreLink:
             if fut is not None and not fut.done():
                 fut.set_result(msg.get("body") or {})
             return
-        exc = error_from_code(err.get("code", "E_INTERNAL"), err.get("message", "unknown error"))
+        exc = error_from_code(err.get("code", "E_INTERNAL"), err.get("message", "unknown error"), err.get("details"))
         if fut is not None and not fut.done():
             fut.set_exception(exc)
         if exc.code == "E_AUTH":  # the core forgot us (it restarted): hello again

@@ -5,7 +5,7 @@
     robo-comp wall --replay STATE/events.log --speed 4
     robo-comp wall --core ... --token-file ... --screenshot wall.png                   # headless
 
-Until the lead wires it into ``robo-comp``, run it as ``python -m robo_comp.wall.cli``.
+Run it as ``robo-comp wall`` (or ``python -m robo_comp.wall.cli``).
 """
 from __future__ import annotations
 

@@ -45,7 +45,7 @@ def test_explore_then_report_scores_a_victim(demo):
 
 
 def test_unreachable_points_are_skipped(demo):
-    out = demo.run("explore", [[0, 0], [3, 3]])  # (0, 0) is the outer wall
+    out = demo.run("explore", [[0, 0], [3, 3]])  # (0, 0) is the outer wall: plan() refuses it
     assert out["skipped"] == [[0, 0]] and out["visited"] == [[3, 3]]
     assert "cannot be reached" in demo.log_text()
 

@@ -1,0 +1,308 @@
+"""Uploads of team code through the core: ownership, phase, approval, forwarding, verdicts.
+
+A team (or the referee) sends ``upload`` with the robots' tags, a file name and the module's
+source. The core checks that every robot is the sender's and connected and that the phase
+allows uploads, keeps a copy of the source under ``STATE/uploads/<team>/``, logs it (with the
+source's SHA-256: the event log says which code ran when) and forwards it to each robot's host,
+where the module is checked and loaded in the team's sandbox (``robo_comp/robots/teamcode.py``).
+The reply comes when every host has answered: per robot ``ok`` or the checked error (file,
+line, rule). With ``approve_uploads`` a team's upload during a running match waits for the
+referee's ``approve``; its verdict then reaches the team as an ``upload.done`` event.
+
+``unload`` takes a module away from robots; ``extensions`` lists a robot's modules.
+"""
+from __future__ import annotations
+
+import hashlib
+import re
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+from robo_comp.core import protocol as P
+from robo_comp.errors import (
+    FieldError, ForbiddenError, NotYoursError, RoboCompError, TooLargeError, UnavailableError, UploadError,
+)
+
+if TYPE_CHECKING:  # pragma: no cover
+    from robo_comp.core.registry import RobotRecord
+    from robo_comp.core.server import Core, Session
+
+#: The largest module source accepted (the sandbox's contract says the same).
+MAX_SOURCE = 60_000
+#: Most robots one upload may go to.
+MAX_TAGS = 64
+#: How long the core waits for the robots' hosts to answer an upload.
+HOST_TIMEOUT = 20.0
+_FILENAME = re.compile(r"[A-Za-z0-9_.-]{1,64}\.py")
+
+
+@dataclass(slots=True)
+class HostAsk:
+    """A request forwarded to one or more robot hosts; ``done`` runs once all have answered."""
+
+    waiting: set[int]
+    deadline: float
+    results: list[dict[str, Any]]
+    tags_by_cid: dict[int, list[int]]
+    done: Callable[[list[dict[str, Any]]], None]
+
+
+@dataclass(slots=True)
+class PendingUpload:
+    """An upload waiting for the referee's approval."""
+
+    upload_id: int
+    team: str
+    by: str
+    tags: list[int]
+    body: dict[str, Any]
+    t: float = field(default_factory=time.time)
+
+
+class UploadDesk:
+    """The core's upload service: handlers, the forwarding to hosts and their answers."""
+
+    def __init__(self, core: Core, approve_uploads: bool = False) -> None:
+        self.core = core
+        self.approve_uploads = approve_uploads
+        self.asks: dict[int, HostAsk] = {}
+        self.pending: dict[int, PendingUpload] = {}
+        self.next_upload = 1
+        self.folder = core.state_dir / "uploads"
+
+    def handlers(self) -> dict[str, Callable[[bytes, P.Message], dict[str, Any] | None]]:
+        """Request handlers this module adds to the core."""
+        return {"upload": self._on_upload, "unload": self._on_unload, "extensions": self._on_extensions,
+                "approve": self._on_approve, "advertise": self._on_advertise, "log": self._on_log}
+
+    # ------------------------------------------------------------------ checks
+    def _robots(self, ident: bytes, tags: Any) -> list[RobotRecord]:
+        if not tags or not all(type(t) is int for t in tags):
+            raise FieldError("'tags' must be a non-empty list of robot tags, e.g. [101, 102]")
+        if len(tags) > MAX_TAGS:
+            raise FieldError(f"one upload may go to at most {MAX_TAGS} robots")
+        robots = [self.core._robot_for(ident, t) for t in dict.fromkeys(tags)]
+        for r in robots:
+            if r.status != "connected" or r.session is None:
+                raise UnavailableError(f"robot {r.tag} is {r.status}; uploads reach connected robots only")
+        return robots
+
+    @staticmethod
+    def _source(body: dict[str, Any]) -> tuple[str, str]:
+        filename, source = body["filename"], body["source"]
+        if not _FILENAME.fullmatch(filename):
+            raise FieldError(f"{filename!r} is not a module file name: use letters, digits, '_', '.', '-' "
+                             "and end in .py")
+        if isinstance(source, bytes):
+            try:
+                source = source.decode("utf-8")
+            except UnicodeDecodeError:
+                raise FieldError(f"{filename}: the source must be UTF-8 text") from None
+        if not isinstance(source, str):
+            raise FieldError("'source' must be the module's text")
+        if len(source.encode("utf-8", "surrogatepass")) > MAX_SOURCE:
+            raise TooLargeError(f"{filename}: a module may be at most {MAX_SOURCE} bytes")
+        return filename, source
+
+    # ------------------------------------------------------------------ requests
+    def _on_upload(self, ident: bytes, msg: P.Message) -> dict[str, Any] | None:
+        s = self.core._session(ident)
+        robots = self._robots(ident, msg.body["tags"])
+        self.core.competition.check_phase("upload")
+        filename, source = self._source(msg.body)
+        sha = hashlib.sha256(source.encode("utf-8", "surrogatepass")).hexdigest()
+        team = robots[0].team
+        if any(r.team != team for r in robots):
+            raise FieldError("one upload goes to robots of one team; send one per team")
+        self._keep(team, filename, sha, source)
+        body = {"filename": filename, "source": source, "sha256": sha, "run": bool(msg.body.get("run"))}
+        tags = [r.tag for r in robots]
+        if (self.approve_uploads and s.who.role == "team"
+                and self.core.competition.phase == "running"):
+            uid = self.next_upload
+            self.next_upload += 1
+            self.pending[uid] = PendingUpload(uid, team, s.who.name, tags, body)
+            self.core.emit("upload.pending", team, {"upload_id": uid, "team": team, "tags": tags,
+                                                    "filename": filename, "sha256": sha, "by": s.who.name}, public=False)
+            return {"pending": uid, "results": [],
+                    "message": f"{filename} waits for the referee's approval (upload {uid})"}
+        self._forward(robots, body, s.who.name, lambda results: self._reply(ident, msg.id, filename, results))
+        return None  # the reply goes out when the hosts have answered
+
+    def _on_approve(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
+        s = self.core._session(ident)
+        if s.who.role != "referee":
+            raise ForbiddenError("only the referee approves or blocks uploads")
+        uid = msg.body["upload_id"]
+        p = self.pending.pop(uid, None)
+        if p is None:
+            raise FieldError(f"no upload {uid} waits for approval")
+        ok = bool(msg.body.get("ok", True))
+        if not ok:
+            self.core.emit("upload.done", p.team, {"upload_id": uid, "team": p.team, "tags": p.tags,
+                                                   "filename": p.body["filename"], "ok": False,
+                                                   "message": f"{p.body['filename']}: blocked by the referee"}, public=False)
+            return {"upload_id": uid, "ok": False}
+        robots = [self.core.registry.robots[t] for t in p.tags if t in self.core.registry.robots]
+        robots = [r for r in robots if r.status == "connected" and r.session is not None]
+        if not robots:
+            raise UnavailableError(f"none of upload {uid}'s robots is connected now")
+        self._forward(robots, p.body, p.by, lambda results: None, upload_id=uid)
+        return {"upload_id": uid, "ok": True}
+
+    def _on_unload(self, ident: bytes, msg: P.Message) -> dict[str, Any] | None:
+        robots = self._robots(ident, msg.body["tags"])
+        name = msg.body["name"]
+        self._ask(robots, "unload", {"name": name}, lambda results: self._unloaded(ident, msg.id, name, results))
+        return None
+
+    def _on_extensions(self, ident: bytes, msg: P.Message) -> dict[str, Any] | None:
+        robots = self._robots(ident, [msg.body["tag"]])
+
+        def done(results: list[dict[str, Any]]) -> None:
+            row = results[0] if results else {"ok": False, "message": "no answer"}
+            if row.get("ok"):
+                self.core._send(ident, P.ok_reply(msg.id, {"tag": robots[0].tag, "modules": row.get("modules", [])}))
+            else:
+                self.core._send(ident, P.error_reply(msg.id, UnavailableError(str(row.get("message")))))
+        self._ask(robots, "extensions", {}, done)
+        return None
+
+    # ------------------------------------------------------------------ from robot hosts
+    def _on_advertise(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
+        from robo_comp.core.tasks import check_specs
+
+        r = self.core._hosted(ident, msg.body["tag"])
+        r.tasks = check_specs(msg.body["tasks"])
+        self.core.emit("robot.tasks", r.team, {"tag": r.tag, "tasks": list(r.tasks.values())})
+        return {}
+
+    def _on_log(self, ident: bytes, msg: P.Message) -> None:
+        tag = msg.body.get("tag")
+        s = self.core._session(ident)
+        if tag is not None:
+            self.core._hosted(ident, tag)
+        self.core.emit("robot.log", s.who.team, {"tag": tag, "stream": msg.body["stream"][:16],
+                                                 "text": msg.body["text"][:2000]}, public=False)
+        return None
+
+    def host_reply(self, cid: int, raw: dict[str, Any]) -> bool:
+        """A host answered request ``cid``; True when it was one of ours."""
+        for ask_id, ask in list(self.asks.items()):
+            if cid in ask.waiting:
+                ask.waiting.discard(cid)
+                if raw.get("ok"):
+                    rows = (raw.get("body") or {}).get("results")
+                    if isinstance(rows, list):
+                        ask.results.extend(r for r in rows if isinstance(r, dict))
+                    else:
+                        ask.results.append(dict(raw.get("body") or {}, ok=True))
+                else:
+                    err = raw.get("error") or {}
+                    ask.results.extend({"tag": t, "ok": False, "message": str(err.get("message"))}
+                                       for t in ask.tags_by_cid.get(cid, []))
+                if not ask.waiting:
+                    del self.asks[ask_id]
+                    ask.done(ask.results)
+                return True
+        return False
+
+    def expire(self, now: float) -> None:
+        """Answer for hosts that did not answer in time."""
+        for ask_id, ask in list(self.asks.items()):
+            if now >= ask.deadline:
+                del self.asks[ask_id]
+                for cid in ask.waiting:
+                    ask.results.extend({"tag": t, "ok": False,
+                                        "message": f"robot {t}'s host did not answer within {HOST_TIMEOUT:.0f} s"}
+                                       for t in ask.tags_by_cid.get(cid, []))
+                ask.done(ask.results)
+
+    @property
+    def busy(self) -> bool:
+        """True while an answer from a host is awaited (the core polls more often)."""
+        return bool(self.asks)
+
+    # ------------------------------------------------------------------ internals
+    def _ask(self, robots: list[RobotRecord], type_: str, body: dict[str, Any],
+             done: Callable[[list[dict[str, Any]]], None]) -> None:
+        by_host: dict[bytes, list[int]] = {}
+        for r in robots:
+            by_host.setdefault(r.session, []).append(r.tag)  # type: ignore[arg-type]
+        ask = HostAsk(set(), time.monotonic() + HOST_TIMEOUT, [], {}, done)
+        first = self.core.next_core_req
+        for host, tags in by_host.items():
+            cid = self.core.next_core_req
+            self.core.next_core_req += 1
+            ask.waiting.add(cid)
+            ask.tags_by_cid[cid] = tags
+            self.core._send(host, P.request(type_, cid, dict(body, tags=tags)))
+        self.asks[first] = ask
+
+    def _forward(self, robots: list[RobotRecord], body: dict[str, Any], by: str,
+                 reply: Callable[[list[dict[str, Any]]], None], upload_id: int | None = None) -> None:
+        team = robots[0].team
+        self.core.emit("upload.sent", team, {"tags": [r.tag for r in robots], "filename": body["filename"],
+                                             "sha256": body["sha256"], "by": by, "upload_id": upload_id},
+                       public=False)
+
+        def done(results: list[dict[str, Any]]) -> None:
+            results.sort(key=lambda row: row.get("tag", 0))
+            ok = bool(results) and all(row.get("ok") for row in results)
+            first_error = next((row for row in results if not row.get("ok")), None)
+            good = [row for row in results if row.get("ok")]
+            self.core.emit("upload.done", team, {
+                "upload_id": upload_id, "team": team, "tags": [row.get("tag") for row in results],
+                "filename": body["filename"], "sha256": body["sha256"], "ok": ok, "by": by,
+                "module": good[0].get("name") if good else None, "version": good[0].get("version") if good else None,
+                "message": (first_error or {}).get("message") or f"{body['filename']} loaded on "
+                                                                 f"{len(good)} robot(s)"}, public=False)
+            if body.get("run"):
+                self._run_now(good, by)
+            reply(results)
+        self._ask(robots, "upload", {"filename": body["filename"], "source": body["source"]}, done)
+
+    def _run_now(self, rows: list[dict[str, Any]], by: str) -> None:
+        """``run``: give each robot the module's first task now (code that "runs now")."""
+        for row in rows:
+            tasks = row.get("tasks") or []
+            r = self.core.registry.robots.get(row.get("tag", -1))
+            if not tasks or r is None:
+                continue
+            try:
+                self.core.give_task(r, tasks[0], [], queue=False, by=by)
+            except RoboCompError as e:
+                self.core.emit("refused", r.team, {"by": by, "type": "upload", "code": e.code,
+                                                   "message": f"could not run {tasks[0]} on robot {r.tag}: "
+                                                              f"{e.message}"}, public=False)
+
+    def _reply(self, ident: bytes, req_id: int, filename: str, results: list[dict[str, Any]]) -> None:
+        bad = [row for row in results if not row.get("ok")]
+        if bad and len(bad) == len(results):
+            first = bad[0]
+            err = UploadError(str(first.get("message") or f"{filename}: refused"),
+                              file=first.get("file", filename), line=first.get("line"),
+                              rule=first.get("rule") or "upload", results=results)
+            self.core._send(ident, P.error_reply(req_id, err))
+            return
+        self.core._send(ident, P.ok_reply(req_id, {"results": results, "ok": not bad}))
+
+    def _unloaded(self, ident: bytes, req_id: int, name: str, results: list[dict[str, Any]]) -> None:
+        tags = sorted(t for row in results if row.get("ok") for t in row.get("unloaded", []))
+        if not tags:
+            self.core._send(ident, P.error_reply(req_id, NotYoursError(
+                f"no robot of these has a module called {name!r} (see 'extensions TAG')")))
+            return
+        self.core.emit("upload.unloaded", self.core.registry.robots[tags[0]].team, {"tags": tags, "name": name},
+                       public=False)
+        self.core._send(ident, P.ok_reply(req_id, {"name": name, "tags": tags}))
+
+    def _keep(self, team: str, filename: str, sha: str, source: str) -> None:
+        """A copy of every uploaded source, by hash, for the organisers and recovery."""
+        folder = self.folder / team
+        folder.mkdir(parents=True, exist_ok=True)
+        path = folder / f"{sha[:16]}-{filename}"
+        if not path.exists():
+            path.write_text(source, encoding="utf-8", errors="surrogatepass")

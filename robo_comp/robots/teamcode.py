@@ -1,0 +1,355 @@
+"""Uploaded team code on a robot host: the bridge between the host's loop and its sandbox.
+
+One :class:`TeamCode` per robot host holds one :class:`~robo_comp.plugins.sandbox.Sandbox`
+(a limited child process, see ``docs/sandbox.md``). The host's single poll loop drives it:
+:meth:`TeamCode.fileno` joins the host's poller and :meth:`TeamCode.pump` handles what the
+sandbox says. Nothing here starts a thread.
+
+* **Uploads** arrive from the core as ``upload`` requests; the module is checked and loaded in
+  the sandbox (the checked init contract) and the answer goes back to the core with, per robot,
+  ``ok`` or the checked error (file, line, rule). A failed upload leaves the robot with what it
+  had: the sandbox switches modules in only on success.
+* **Tasks** of uploaded modules run as ordinary task generators (:meth:`TeamCode.task_spec`):
+  team code's movement calls (``move``, ``turn``, ``go_to``) become the host's movement steps,
+  so an interrupt still takes effect at a movement boundary and a stop halts at once (the run is
+  cancelled when its generator is closed). Between movements the generator waits a tick.
+* A robot runs only the modules uploaded *to it*; the host's robots share the sandbox process,
+  so a module's newest version applies to every robot of the host that has it.
+"""
+from __future__ import annotations
+
+import hashlib
+import logging
+import math
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+from robo_comp.errors import RoboCompError, UploadError
+from robo_comp.plugins.sandbox import (
+    Limits, LoadFailed, Loaded, LogLine, RpcCall, Sandbox, SandboxStopped, TaskDone, TaskFailed as SbFailed,
+)
+from robo_comp.robots.steps import Move, Step, TaskFailed, TaskSpec, Turn, Wait
+from robo_comp.world.planner import find_path
+
+if TYPE_CHECKING:  # pragma: no cover
+    from robo_comp.robots.host import RobotHost, SimRobot
+
+log = logging.getLogger("robo_comp.robots.teamcode")
+
+#: How long a team-code task waits between two looks at its sandbox (one host tick at most).
+WAIT_SECONDS = 0.02
+#: The largest piece of map team code may ask for (cells from the robot).
+MAX_PIECE_RADIUS = 20
+
+
+class _Refused(Exception):
+    """A robot call that cannot be carried out; its message reaches team code as RobotError."""
+
+
+@dataclass(slots=True)
+class CodeRun:
+    """A task of team code running on one robot."""
+
+    run_id: int
+    tag: int
+    task: str
+    call: tuple[int, Iterator[Step], Callable[[], Any]] | None = None
+    outcome: TaskDone | SbFailed | None = None
+
+
+@dataclass(slots=True)
+class LoadJob:
+    """An upload being checked: who asked (the core's request id) and for which robots."""
+
+    rid: int
+    tags: list[int]
+    filename: str
+    sha256: str
+
+
+@dataclass(slots=True)
+class TeamCode:
+    """The host's uploaded modules, their sandbox, and the runs of their tasks."""
+
+    host: RobotHost
+    limits: Limits = field(default_factory=Limits)
+    sb: Sandbox | None = None
+    #: module names each robot may run (uploaded to that robot)
+    enabled: dict[int, set[str]] = field(default_factory=dict)
+    loads: dict[int, LoadJob] = field(default_factory=dict)
+    runs: dict[int, CodeRun] = field(default_factory=dict)
+
+    # ------------------------------------------------------------------ the sandbox
+    def _sandbox(self) -> Sandbox:
+        if self.sb is None:
+            self.sb = Sandbox(self.host.team or "team", list(self.host.by_tag), None, self.limits,
+                              seed=self.host.seed)
+        for tag in self.host.by_tag:
+            self.sb.add_tag(tag)
+        return self.sb
+
+    def fileno(self) -> int | None:
+        """The sandbox's descriptor for the host's poller (None while there is no sandbox)."""
+        if self.sb is None or not self.sb.alive:
+            return None
+        return self.sb.fileno()
+
+    def wants_write(self) -> bool:
+        """True when the sandbox has output waiting for its socket."""
+        return self.sb is not None and self.sb.alive and self.sb.wants_write()
+
+    def deadline(self) -> float | None:
+        """When :meth:`pump` must run at the latest (a sandbox timer)."""
+        return self.sb.deadline() if self.sb is not None else None
+
+    def close(self) -> None:
+        """End the sandbox process."""
+        if self.sb is not None:
+            self.sb.close()
+            self.sb = None
+
+    # ------------------------------------------------------------------ uploads
+    def upload(self, rid: int, tags: list[int], filename: str, source: str | bytes) -> None:
+        """Check and load ``source`` for ``tags``; the answer goes to the core's request ``rid``."""
+        raw = source.encode() if isinstance(source, str) else bytes(source)
+        sha = hashlib.sha256(raw).hexdigest()
+        tags = [t for t in tags if t in self.host.by_tag]
+        try:
+            load_id = self._sandbox().begin_load(filename, source)
+        except RoboCompError as e:
+            self._answer_load(LoadJob(rid, tags, filename, sha), None, e)
+            return
+        self.loads[load_id] = LoadJob(rid, tags, filename, sha)
+
+    def unload(self, tags: list[int], name: str) -> list[int]:
+        """Take module ``name`` away from ``tags``; the sandbox drops it when no robot has it."""
+        done = [t for t in tags if name in self.enabled.get(t, set())]
+        for t in done:
+            self.enabled[t].discard(name)
+        if done and self.sb is not None and not any(name in s for s in self.enabled.values()):
+            self.sb.unload(name)
+        return done
+
+    def modules(self, tag: int) -> list[dict[str, Any]]:
+        """The modules robot ``tag`` has: name, version, kind, file, sha256, tasks."""
+        if self.sb is None:
+            return []
+        mine = self.enabled.get(tag, set())
+        return [_module_dict(m) for m in self.sb.modules() if m.name in mine]
+
+    def _answer_load(self, job: LoadJob, module: Any, err: RoboCompError | None) -> None:
+        results: list[dict[str, Any]] = []
+        for tag in job.tags:
+            if err is None:
+                self.enabled.setdefault(tag, set()).add(module.name)
+                results.append(dict(_module_dict(module), tag=tag, ok=True,
+                                    message=f"{job.filename}: {module.name} {module.version} loaded"))
+            else:
+                details = getattr(err, "details", None) or {}
+                results.append({"tag": tag, "ok": False, "message": str(err), "file": job.filename,
+                                "rule": details.get("rule"), "line": details.get("line"),
+                                "sha256": job.sha256})
+        self.host.upload_answered(job.rid, results)
+
+    # ------------------------------------------------------------------ tasks
+    def adverts(self, tag: int) -> dict[str, dict[str, Any]]:
+        """The task descriptions robot ``tag`` gains from its uploaded modules."""
+        if self.sb is None:
+            return {}
+        mine = self.enabled.get(tag, set())
+        out = {}
+        for name, spec in self.sb.advertised_tasks().items():
+            if spec.get("module") in mine:
+                out[name] = {"name": name, "description": spec.get("description", ""),
+                             "args": spec.get("args", [])}
+        return out
+
+    def task_spec(self, tag: int, name: str) -> TaskSpec | None:
+        """A runnable spec for task ``name`` of robot ``tag`` from its uploaded code, or None."""
+        advert = self.adverts(tag).get(name)
+        if advert is None:
+            return None
+        return TaskSpec(name, lambda robot, *args: self._run(robot, name, list(args)), advert["args"],
+                        advert["description"], source="upload")
+
+    def _run(self, r: SimRobot, name: str, args: list[Any]) -> Iterator[Step]:
+        """The task generator of a team-code task: movement steps from the sandbox's calls."""
+        sb = self._sandbox()
+        try:
+            run_id = sb.start_task(r.tag, name, args)
+        except RoboCompError as e:
+            raise TaskFailed(e.message) from None
+        run = self.runs[run_id] = CodeRun(run_id, r.tag, name)
+        try:
+            while run.outcome is None:
+                if run.call is None:
+                    yield Wait(WAIT_SECONDS)
+                    continue
+                call_id, steps, answer = run.call
+                run.call = None
+                try:
+                    for step in steps:
+                        yield step
+                        if r.driver.bump is not None:
+                            raise _Refused("bumped into something and stopped")
+                except _Refused as e:
+                    sb.reject(call_id, str(e))
+                else:
+                    sb.resolve(call_id, answer())
+            if isinstance(run.outcome, TaskDone):
+                return run.outcome.result
+            raise TaskFailed(run.outcome.message)
+        finally:
+            self.runs.pop(run_id, None)
+            if run.outcome is None and self.sb is not None:
+                try:
+                    self.sb.cancel(run_id)  # interrupted, stopped or bumped: team code gets TaskCancelled
+                except RoboCompError:
+                    pass
+
+    # ------------------------------------------------------------------ the loop
+    def pump(self) -> None:
+        """Handle everything the sandbox has to say, without blocking."""
+        if self.sb is None:
+            return
+        for rec in self.sb.poll(0.0):
+            if isinstance(rec, RpcCall):
+                self._call(rec)
+            elif isinstance(rec, (TaskDone, SbFailed)):
+                run = self.runs.get(rec.run_id)
+                if run is not None:
+                    run.outcome = rec
+            elif isinstance(rec, Loaded):
+                job = self.loads.pop(rec.load_id, None)
+                if job is not None:
+                    self._answer_load(job, rec.module, None)
+                    self.host.tasks_changed(job.tags)
+            elif isinstance(rec, LoadFailed):
+                job = self.loads.pop(rec.load_id, None)
+                if job is not None:
+                    self._answer_load(job, None, rec.error)
+            elif isinstance(rec, LogLine):
+                self.host.team_log(rec.tag, rec.stream, rec.text)
+            elif isinstance(rec, SandboxStopped):
+                log.warning("team sandbox stopped (%s): %s%s", rec.reason, rec.message,
+                            "; restarted with the good modules" if rec.respawned else "")
+                self.host.team_log(None, "sandbox", f"sandbox stopped: {rec.message}")
+
+    def _call(self, c: RpcCall) -> None:
+        sb = self.sb
+        assert sb is not None
+        r = self.host.by_tag.get(c.tag)
+        run = self.runs.get(c.run_id)
+        try:
+            if r is None or run is None:
+                raise _Refused("this robot is not running that task any more")
+            if c.name in ("move", "turn", "go_to"):
+                run.call = (c.call_id, self._steps(r, c.name, c.args), lambda: list(r.driver.pose))
+                return
+            value = self._immediate(r, c)
+            if value is not _PENDING:
+                sb.resolve(c.call_id, value)
+        except _Refused as e:
+            sb.reject(c.call_id, str(e))
+        except RoboCompError as e:
+            sb.reject(c.call_id, e.message)
+        except Exception as e:  # a host bug must not hang team code
+            log.exception("robot call %s failed", c.name)
+            sb.reject(c.call_id, f"the host could not do that: {type(e).__name__}")
+
+    def _immediate(self, r: SimRobot, c: RpcCall) -> Any:
+        host = self.host
+        args = c.args
+        if c.name == "position":
+            return [round(v, 3) for v in r.driver.pose]
+        if c.name == "sense":
+            return host.world.sense(r.robot_id) if host.world is not None else {}
+        if c.name == "plan":
+            goal = (int(args[0]), int(args[1]))
+            if not r.in_bounds(*goal):
+                raise _Refused(f"({goal[0]}, {goal[1]}) is a wall or outside the arena")
+            path = find_path(host.walls, r.free_cell(), goal)
+            if path is None:
+                raise _Refused(f"no path to ({goal[0]}, {goal[1]})")
+            return [list(p) for p in path]
+        if c.name == "map_piece":
+            radius = int(args[0])
+            if not 0 <= radius <= MAX_PIECE_RADIUS:
+                raise _Refused(f"radius must be between 0 and {MAX_PIECE_RADIUS}")
+            x, y = r.cell()
+            walls = host.walls
+            rows = []
+            for yy in range(y - radius, y + radius + 1):
+                rows.append([1 if not (0 <= yy < walls.shape[0] and 0 <= xx < walls.shape[1])
+                             or walls[yy, xx] else 0 for xx in range(x - radius, x + radius + 1)])
+            return {"x0": x - radius, "y0": y - radius, "walls": rows}
+        if c.name in ("take_picture", "upload_picture"):
+            host.code_picture(r, lambda ok, body: self._settle(c.call_id, ok, body.get("id") if ok else body))
+            return _PENDING
+        if c.name == "report_find":
+            x, y, kind, evidence = (list(args) + [None, None, None, None])[:4]
+            body = {"tag": r.tag, "x": float(x), "y": float(y), "kind": str(kind or "victim")[:32],
+                    "evidence": [int(e) for e in (evidence or [])][:16]}
+            host.code_request("find", body, lambda ok, b: self._settle(c.call_id, ok, b))
+            return _PENDING
+        if c.name == "radio":
+            to, data = (list(args) + [None, None])[:2]
+            host.code_request("radio", {"tag": r.tag, "to": to, "data": data},
+                              lambda ok, b: self._settle(c.call_id, ok, b.get("delivered") if ok else b))
+            return _PENDING
+        raise _Refused(f"unknown robot call {c.name!r}")
+
+    def _settle(self, call_id: int, ok: bool, value: Any) -> None:
+        """Answer a call that went to the core, once the core has answered."""
+        if self.sb is None:
+            return
+        try:
+            if ok:
+                self.sb.resolve(call_id, value)
+            else:
+                self.sb.reject(call_id, str((value or {}).get("message", "refused by the core")))
+        except RoboCompError:
+            pass  # the run ended meanwhile
+
+    def _steps(self, r: SimRobot, name: str, args: list[Any]) -> Iterator[Step]:
+        if name == "turn":
+            yield Turn(float(args[0]))
+            return
+        if name == "move":
+            cells = int(args[0])
+            rad = math.radians(r.driver.heading)
+            dx, dy = round(math.cos(rad)), round(math.sin(rad))
+            if dx and dy:  # between two axes: go along the nearer one
+                dx, dy = (dx, 0) if abs(math.cos(rad)) >= abs(math.sin(rad)) else (0, dy)
+            sign = 1 if cells >= 0 else -1
+            for _ in range(abs(cells)):
+                x, y = r.cell()
+                nx, ny = x + sign * dx, y + sign * dy
+                if not r.in_bounds(nx, ny):
+                    raise _Refused(f"({nx}, {ny}) is a wall or outside the arena; stopped at ({x}, {y})")
+                yield Move(nx, ny)
+            return
+        goal = (int(args[0]), int(args[1]))
+        if not r.in_bounds(*goal):
+            raise _Refused(f"({goal[0]}, {goal[1]}) is a wall or outside the arena")
+        path = find_path(self.host.walls, r.free_cell(), goal)
+        if path is None:
+            raise _Refused(f"no path to ({goal[0]}, {goal[1]})")
+        for x, y in path[1:]:
+            yield Move(x, y)
+
+
+class _Pending:
+    pass
+
+
+_PENDING = _Pending()
+
+
+def _module_dict(m: Any) -> dict[str, Any]:
+    return {"name": m.name, "version": m.version, "kind": m.kind, "file": m.file,
+            "sha256": m.sha256, "tasks": list(m.tasks), "replaces": list(getattr(m, "replaces", []) or [])}
+
+
+__all__ = ["TeamCode", "CodeRun", "UploadError"]
