@@ -331,9 +331,6 @@ def _stop_request_id(host: Raw, timeout: float = 3.0) -> int:
     raise AssertionError("the host got no stop request")
 
 
-@pytest.mark.xfail(strict=True, reason="server._on_host_reply calls .get on a non-map 'error'/'body' of a "
-                                       "host's reply after popping the pending stop: E_INTERNAL to the host "
-                                       "and no reply ever reaches the stop's requester")
 @pytest.mark.heartbeat(1.0)
 @pytest.mark.parametrize("reply", [
     {"v": 1, "type": "reply", "ok": False, "error": "boom"},
@@ -360,9 +357,6 @@ def test_malformed_stop_confirmation_still_answers_the_requester(core: Any, repl
         ref.close()
 
 
-@pytest.mark.xfail(strict=True, reason="server._on_host_reply accepts a stop confirmation from any session: "
-                                       "it never checks that the reply comes from the robot's host, so another "
-                                       "team can forge the halt position of a robot it does not own")
 @pytest.mark.heartbeat(1.0)
 def test_other_team_cannot_confirm_a_stop(core: Any) -> None:
     """Team blue answers the core's stop request for red's robot (the core's request ids are

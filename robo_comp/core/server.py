@@ -706,17 +706,25 @@ class Core:
 
     def _on_host_reply(self, ident: bytes, msg: P.Message) -> None:
         raw = msg.body
-        p = self.pending_stops.pop(msg.id, None)
+        p = self.pending_stops.get(msg.id)
         if p is None:
-            self.uploads.host_reply(msg.id, raw)
+            self.uploads.host_reply(ident, msg.id, raw)
             return None  # an upload's answer, or a late answer to a stop that already timed out
         r = self.registry.robots[p.tag]
+        if r.session != ident:  # request ids are easy to guess: only the robot's own host confirms
+            raise NotYoursError(f"this connection does not host robot {p.tag}; its stop is not yours to confirm")
+        del self.pending_stops[msg.id]
+        err, body = raw.get("error"), raw.get("body")
+        if not isinstance(err, (dict, type(None))) or not isinstance(body, (dict, type(None))):
+            self._send(p.ident, P.error_reply(p.req_id, RoboCompError(
+                f"robot {p.tag}'s host answered the stop with a malformed reply; it may not have halted")))
+            raise FieldError("a reply's 'error' and 'body' must be maps")
         if not raw.get("ok"):
-            err = raw.get("error") or {}
+            err = err or {}
             self._send(p.ident, P.error_reply(p.req_id, RoboCompError(
                 f"robot {p.tag} could not stop: {err.get('message', 'no reason given')}")))
             return None
-        body = raw.get("body") or {}
+        body = body or {}
         for k in ("x", "y", "heading"):
             if type(body.get(k)) in (int, float):
                 setattr(r, k, float(body[k]))

@@ -46,6 +46,7 @@ class HostAsk:
     deadline: float
     results: list[dict[str, Any]]
     tags_by_cid: dict[int, list[int]]
+    host_by_cid: dict[int, bytes]
     done: Callable[[list[dict[str, Any]]], None]
 
 
@@ -188,10 +189,15 @@ class UploadDesk:
                                                  "text": msg.body["text"][:2000]}, public=False)
         return None
 
-    def host_reply(self, cid: int, raw: dict[str, Any]) -> bool:
-        """A host answered request ``cid``; True when it was one of ours."""
+    def host_reply(self, ident: bytes, cid: int, raw: dict[str, Any]) -> bool:
+        """Host ``ident`` answered request ``cid``; True when it was one of ours (from that host)."""
         for ask_id, ask in list(self.asks.items()):
             if cid in ask.waiting:
+                if ask.host_by_cid.get(cid) != ident:
+                    raise NotYoursError("this connection was not asked; only the robots' host answers")
+                if not isinstance(raw.get("body"), (dict, type(None))) or \
+                        not isinstance(raw.get("error"), (dict, type(None))):
+                    raw = {"ok": False, "error": {"message": "the robot's host sent a malformed answer"}}
                 ask.waiting.discard(cid)
                 if raw.get("ok"):
                     rows = (raw.get("body") or {}).get("results")
@@ -231,13 +237,14 @@ class UploadDesk:
         by_host: dict[bytes, list[int]] = {}
         for r in robots:
             by_host.setdefault(r.session, []).append(r.tag)  # type: ignore[arg-type]
-        ask = HostAsk(set(), time.monotonic() + HOST_TIMEOUT, [], {}, done)
+        ask = HostAsk(set(), time.monotonic() + HOST_TIMEOUT, [], {}, {}, done)
         first = self.core.next_core_req
         for host, tags in by_host.items():
             cid = self.core.next_core_req
             self.core.next_core_req += 1
             ask.waiting.add(cid)
             ask.tags_by_cid[cid] = tags
+            ask.host_by_cid[cid] = host
             self.core._send(host, P.request(type_, cid, dict(body, tags=tags)))
         self.asks[first] = ask
 
@@ -250,6 +257,7 @@ class UploadDesk:
 
         def done(results: list[dict[str, Any]]) -> None:
             results.sort(key=lambda row: row.get("tag", 0))
+            self._advertised(results)
             ok = bool(results) and all(row.get("ok") for row in results)
             first_error = next((row for row in results if not row.get("ok")), None)
             good = [row for row in results if row.get("ok")]
@@ -263,6 +271,22 @@ class UploadDesk:
                 self._run_now(good, by)
             reply(results)
         self._ask(robots, "upload", {"filename": body["filename"], "source": body["source"]}, done)
+
+    def _advertised(self, results: list[dict[str, Any]]) -> None:
+        """Robots that took a module advertise its tasks from now on (before anyone is answered)."""
+        from robo_comp.core.tasks import check_specs
+
+        for row in results:
+            r = self.core.registry.robots.get(row.get("tag", -1))
+            adverts = row.pop("advertised", None)
+            if r is None or not row.get("ok") or not isinstance(adverts, list):
+                continue
+            try:
+                r.tasks = check_specs(adverts)
+            except RoboCompError as e:
+                row.update(ok=False, message=f"robot {r.tag} advertised tasks the core refuses: {e.message}")
+                continue
+            self.core.emit("robot.tasks", r.team, {"tag": r.tag, "tasks": list(r.tasks.values())})
 
     def _run_now(self, rows: list[dict[str, Any]], by: str) -> None:
         """``run``: give each robot the module's first task now (code that "runs now")."""

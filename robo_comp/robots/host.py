@@ -219,7 +219,11 @@ class RobotHost:
 
     # ------------------------------------------------------------------ team code (teamcode.py calls these)
     def upload_answered(self, rid: int, results: list[dict[str, Any]]) -> None:
-        """Answer the core's ``upload`` request ``rid`` with a verdict per robot."""
+        """Answer the core's ``upload`` request ``rid`` with a verdict per robot (and, for the
+        robots that took the module, what they advertise now)."""
+        for row in results:
+            if row.get("ok") and row.get("tag") in self.by_tag:
+                row["advertised"] = self.adverts(row["tag"])
         self._answer(rid, {"results": results})
 
     def tasks_changed(self, tags: list[int]) -> None:

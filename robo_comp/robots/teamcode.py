@@ -224,7 +224,6 @@ class TeamCode:
                 job = self.loads.pop(rec.load_id, None)
                 if job is not None:
                     self._answer_load(job, rec.module, None)
-                    self.host.tasks_changed(job.tags)
             elif isinstance(rec, LoadFailed):
                 job = self.loads.pop(rec.load_id, None)
                 if job is not None:
