@@ -106,6 +106,9 @@ def build_parser() -> argparse.ArgumentParser:
     d.set_defaults(func=_demo)
 
     plan_cli.add_parser(sub)
+    from robo_comp.teams import newteam
+
+    newteam.add_parser(sub)
     from robo_comp.tui import cli as tui_cli
     from robo_comp.wall import cli as wall_cli
 

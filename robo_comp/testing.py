@@ -39,7 +39,7 @@ from typing import TYPE_CHECKING, Any
 import pytest
 
 from robo_comp.client import Client
-from robo_comp.errors import BadTaskError, FieldError, RoboCompError, UnavailableError
+from robo_comp.errors import BadTaskError, FieldError, UnavailableError
 from robo_comp.launch import start_core, start_robots, stop_all
 
 if TYPE_CHECKING:  # heavy imports (numpy, numba, the sandbox) only when a fixture needs them
@@ -51,7 +51,7 @@ DEFAULT_SCENARIO = "demo_room"
 HEARTBEAT = 0.2
 #: What the robot host allows (robo_comp/robots/teamcode.py): map_piece radius, evidence ids.
 MAX_PIECE_RADIUS = 20
-MAX_EVIDENCE = 16
+MAX_EVIDENCE = 32
 
 
 # ---------------------------------------------------------------------- waiting helpers
@@ -264,7 +264,7 @@ class Bench:
     ``plan(x, y)``       ``[[x, y], ...]`` from the robot's cell; RobotError for a wall/no path
     ``map_piece(r)``     ``{"x0", "y0", "walls"}``: rows of 1 (blocked) / 0, r from 0 to 20
     ``take_picture()``   a picture id (the judge knows what the camera saw)
-    ``report_find(...)`` the first 16 evidence ids, judged by the installed scoring rules as
+    ``report_find(...)`` the first 32 evidence ids, judged by the installed scoring rules as
                          the core's ``find``: ``{"id", "state", "message"}``, state
                          ``confirmed``/``rejected``/``duplicate``
     ``radio``, ``upload_picture``  refused (RobotError): no core on the bench

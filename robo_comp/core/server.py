@@ -38,6 +38,7 @@ from robo_comp.errors import (
     NotYoursError,
     RateLimitError,
     RoboCompError,
+    TimeoutError_,
     TooLargeError,
     UnavailableError,
 )
@@ -449,7 +450,7 @@ class Core:
         for cid, p in list(self.pending_stops.items()):
             if now >= p.deadline:
                 del self.pending_stops[cid]
-                err = P.error_reply(p.req_id, RoboCompError(
+                err = P.error_reply(p.req_id, TimeoutError_(
                     f"robot {p.tag} did not confirm the stop within {STOP_TIMEOUT:.0f} s; "
                     "its host may be lost (it halts on its own when it loses the core)"))
                 self._send(p.ident, err)

@@ -234,7 +234,7 @@ class Child:
             return rpc(tag, "move", [_num(cells, "cells")])
 
         def turn(degrees):
-            """Turn on the spot by ``degrees`` (positive: counter-clockwise)."""
+            """Turn on the spot by ``degrees`` (positive: clockwise on the map, y pointing down)."""
             return rpc(tag, "turn", [_num(degrees, "degrees")])
 
         def go_to(x, y):

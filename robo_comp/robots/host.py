@@ -299,6 +299,8 @@ class RobotHost:
                 raise SystemExit(f"robots: no plugin provides the driver {self.driver_kind!r}")
             self.robots[rid] = SimRobot(rid, driver, self)
         self.loc.update()  # type: ignore[union-attr]
+        if self.robots:  # compile/load the sensor kernels now, not in the middle of a report
+            self.world.sense_many([next(iter(self.robots))])
 
     def _on_registered(self, r: SimRobot, ok: bool, body: dict[str, Any]) -> None:
         if not ok:
@@ -497,24 +499,34 @@ class RobotHost:
                 elif r.task is not None:
                     self._advance(r)
 
-    def _report_one(self, r: SimRobot, now: float) -> None:
+    def _report_one(self, r: SimRobot, now: float, sensors: dict[str, Any] | None = None) -> None:
         """Report what the robot believes (the positioning system's estimate), and now and
         then its sensor readings."""
         r.last_report = now
         x, y, heading = r.driver.pose
         body: dict[str, Any] = {"tag": r.tag, "x": round(x, 3), "y": round(y, 3),
                                 "heading": round(heading, 1), "moving": r.driver.moving}
-        if now - r.last_sensed >= self.sensor_interval and self.world is not None:
+        if sensors is None and now - r.last_sensed >= self.sensor_interval and self.world is not None:
+            sensors = self.world.sense(r.robot_id)
+        if sensors is not None:
             r.last_sensed = now
-            body["sensors"] = self.world.sense(r.robot_id)
+            body["sensors"] = sensors
         self.sock.send(P.request("report", 0, body))  # type: ignore[union-attr]
         self.last_tx = now
 
     def _report(self, now: float) -> None:
-        """Report moving robots every report interval, idle ones once a second."""
-        for r in self.by_tag.values():
-            if r.driver.moving or now - r.last_report >= 1.0:
-                self._report_one(r, now)
+        """Report moving robots every report interval, idle ones once a second; the sensors of
+        all robots due are read in one vectorised pass."""
+        due = [r for r in self.by_tag.values() if r.driver.moving or now - r.last_report >= 1.0]
+        if not due:
+            return
+        sensing = [r for r in due if now - r.last_sensed >= self.sensor_interval]
+        readings: dict[int, dict[str, Any]] = {}
+        if sensing and self.world is not None:
+            rows = self.world.sense_many([r.robot_id for r in sensing])
+            readings = {r.tag: row for r, row in zip(sensing, rows)}
+        for r in due:
+            self._report_one(r, now, readings.get(r.tag))
 
     def stop(self) -> None:
         """End the loop after the current turn."""

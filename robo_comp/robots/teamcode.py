@@ -289,7 +289,7 @@ class TeamCode:
         if c.name == "report_find":
             x, y, kind, evidence = (list(args) + [None, None, None, None])[:4]
             body = {"tag": r.tag, "x": float(x), "y": float(y), "kind": str(kind or "victim")[:32],
-                    "evidence": [int(e) for e in (evidence or [])][:16]}
+                    "evidence": [int(e) for e in (evidence or [])][:32]}
             host.code_request("find", body, lambda ok, b: self._settle(c.call_id, ok, b))
             return _PENDING
         if c.name == "radio":

@@ -556,13 +556,20 @@ class Arena:
         """Sensor readings of robot ``tag``: ``front``/``left``/``right``/``down`` in cm
         (``None`` = no echo within range), ``bump`` (its last move ended in a collision),
         ``moving``, ``zone`` (surface kind under it) and ``time``."""
-        s = self._slot_of(tag)
-        _, r = self.sense_all([tag])
-        out: dict[str, Any] = r.row(0)
-        cx, cy = self._cell(s)
-        zi = int(self.zone_map[min(max(cy, 0), self.height - 1), min(max(cx, 0), self.width - 1)])
-        out.update(bump=bool(self.bumped[s]), moving=bool(self.mode[s] != _IDLE),
-                   zone=self.zones[zi].kind if zi >= 0 else None, time=self.time)
+        return self.sense_many([tag])[0]
+
+    def sense_many(self, tags: list[str]) -> list[dict[str, Any]]:
+        """:meth:`sense` for several robots in one vectorised pass (a host reports many at once)."""
+        _, r = self.sense_all(tags)
+        out = []
+        for i, tag in enumerate(tags):
+            s = self._slot_of(tag)
+            row: dict[str, Any] = r.row(i)
+            cx, cy = self._cell(s)
+            zi = int(self.zone_map[min(max(cy, 0), self.height - 1), min(max(cx, 0), self.width - 1)])
+            row.update(bump=bool(self.bumped[s]), moving=bool(self.mode[s] != _IDLE),
+                       zone=self.zones[zi].kind if zi >= 0 else None, time=self.time)
+            out.append(row)
         return out
 
     def _view(self, s: int) -> _camera.CameraView:

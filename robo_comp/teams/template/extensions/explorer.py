@@ -40,7 +40,7 @@ MANIFEST = {
     },
 }
 
-# A robot host passes at most 16 picture ids as the evidence of one find.
+# A find may cite at most 32 picture ids; the explorer cites its latest 16.
 MAX_EVIDENCE = 16
 
 pictures = []
