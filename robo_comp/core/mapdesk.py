@@ -66,13 +66,17 @@ class MapDesk:
 
     def push(self) -> None:
         """Send every robot host the changes since the version it has."""
+        frames: dict[tuple[int, str | None], tuple[int, bytes]] = {}  # hosts at one version share a delta
         for ident in self.core.host_sessions():
             sess = self.core.sessions[ident]
             have = self.pushed.get(ident, 0)
             if have == self.service.version:
                 continue
-            delta = self.service.delta_since(have, sess.who.team)
-            self.pushed[ident] = delta["version"]
-            self.core._send(ident, P.request("map.delta", 0, delta))
+            key = (have, sess.who.team)
+            if key not in frames:
+                delta = self.service.delta_since(have, sess.who.team)
+                frames[key] = (delta["version"], P.request("map.delta", 0, delta))
+            self.pushed[ident], frame = frames[key]
+            self.core._send(ident, frame)
         for gone in set(self.pushed) - set(self.core.sessions):
             del self.pushed[gone]

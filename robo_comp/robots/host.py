@@ -282,10 +282,12 @@ class RobotHost:
         assert self.world is not None and self.team is not None
         start = [c for c in self.world.free_start_cells(self.team)] if any(
             t["name"] == self.team and t.get("start") for t in arena.get("teams", [])) else []
-        free = [(x, y) for y in range(self.walls.shape[0]) for x in range(self.walls.shape[1])
-                if not self.walls[y, x] and (x, y) not in set(start)]
-        self.rng.shuffle(free)
-        cells = start + free
+        taken = set(start)
+        free = [(x, y) for y, x in np.argwhere(~self.walls).tolist() if (x, y) not in taken]
+        need = max(0, min(self.count - len(start), len(free)))
+        cells = start + self.rng.sample(free, need)  # seeded: the same cells for the same seed
+        if self.count > len(start) + len(free):
+            cells = start + free
         prefix = self.prefix or self.team
         if self.count > len(cells):
             raise SystemExit(f"robots: the arena has room for {len(cells)} robots, not {self.count}")
