@@ -213,3 +213,18 @@ def test_bundled_victims_reachable_from_every_start_zone(name: str) -> None:
         start = s.start_cells(team.name)[0]
         for v in s.victims:
             assert find_path(s.walls, start, (v.x, v.y)) is not None, (team.name, v.id)
+
+
+def test_scoring_and_match_tables_configure_the_rules() -> None:
+    from robo_comp.scoring.config import ScoringConfig
+
+    text = 'name = "s"\nmap = """\n....\n"""\n[scoring]\nfirst_bonus = 7\nvictim_points = { adult = 3 }\n' \
+           '[match]\napprove_uploads = true\n'
+    sc = parse_scenario(text, "s.toml")
+    cfg = ScoringConfig.from_table(sc.scoring)
+    assert cfg.first_bonus == 7 and cfg.victim_points["adult"] == 3 and cfg.victim_points["child"] == 15
+    assert sc.approve_uploads is True
+    with pytest.raises(ScenarioError, match=r"s.toml line 6: unknown key scoring.first_bonnus .did you mean 'first_bonus'"):
+        parse_scenario(text.replace("first_bonus", "first_bonnus"), "s.toml")
+    with pytest.raises(ScenarioError, match=r"line 7: scoring.victim_points.adult must be a number"):
+        parse_scenario(text.replace("adult = 3", 'adult = "x"'), "s.toml")

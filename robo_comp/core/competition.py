@@ -57,6 +57,7 @@ class Competition:
         self.next_picture = 1
         self.picture_dir = core.state_dir / "pictures"
         self.victims = [v.to_dict() for v in core.scenario.victims]
+        self.score_dirty = False
 
     def handlers(self) -> dict[str, Callable[[bytes, P.Message], dict[str, Any] | None]]:
         """Request handlers this module adds to the core."""
@@ -121,7 +122,14 @@ class Competition:
             return
         for ln in lines:
             self.core.emit("score.change", ln.team, ln.to_dict())
-        self.core.emit("score", EVERYONE, {"teams": self.board.table(), **self.state()})
+        self.score_dirty = True  # one scoreboard event per loop turn, however many lines changed
+
+    def flush_score(self) -> None:
+        """Emit the scoreboard if it changed in this loop turn (the core calls this before its
+        log flush, so the board goes out with the replies that changed it)."""
+        if self.score_dirty:
+            self.score_dirty = False
+            self.core.emit("score", EVERYONE, {"teams": self.board.table(), **self.state()})
 
     def feed(self, event: dict[str, Any]) -> None:
         """Give a scoring-relevant event to the rules while the match runs."""

@@ -8,6 +8,7 @@ walls) and, in full, to the sessions that ``watch`` and may see them.
 """
 from __future__ import annotations
 
+import gc
 import json
 import logging
 import os
@@ -125,11 +126,11 @@ class Core:
             "leave": self._on_leave, "reply": self._on_host_reply, "arena": self._on_arena, "stats": self._on_stats,
         }
         self.pm = plugins or get_plugin_manager()
-        self.competition = Competition(self, scoring or ScoringConfig(), practice)
+        self.competition = Competition(self, scoring or ScoringConfig.from_table(scenario.scoring), practice)
         self._handlers.update(self.competition.handlers())
         self.maps = MapDesk(self)
         self._handlers.update(self.maps.handlers())
-        self.uploads = UploadDesk(self, approve_uploads)
+        self.uploads = UploadDesk(self, approve_uploads or scenario.approve_uploads)
         self._handlers.update(self.uploads.handlers())
         log_path = self.state_dir / "events.log"
         self.recovered: RecoveryReport | None = None
@@ -187,6 +188,12 @@ class Core:
                 signal.signal(sig, lambda *_: self.stop())
             except ValueError:  # not in the main thread (tests may run a core in a thread)
                 pass
+        # What exists now (modules, the arena, recovered state) lives as long as the core: keep it
+        # out of the collector's generations, and collect young objects less often, so that
+        # a full collection does not stall a stop behind it.
+        gc.collect()
+        gc.freeze()
+        gc.set_threshold(20_000, 50, 100)
         poller = zmq.Poller()
         poller.register(self.router, zmq.POLLIN)
         self._running = True
@@ -271,6 +278,7 @@ class Core:
         Nothing is acknowledged before the events it caused were handed to the OS (and, with
         ``--fsync``, forced to disk): an acknowledged event survives ``kill -9`` of the core.
         """
+        self.competition.flush_score()
         self.events.flush()
         out, self._out = self._out, []
         for sock, frames in out:

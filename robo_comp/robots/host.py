@@ -8,6 +8,7 @@ reconnects on its own; the robots resume where they were once registered again.
 """
 from __future__ import annotations
 
+import gc
 import logging
 import math
 import random
@@ -38,6 +39,8 @@ from robo_comp.world.scenario import Scenario
 log = logging.getLogger("robo_comp.robots")
 
 Reply = Callable[[bool, dict[str, Any]], None]
+#: Position reports sent between two looks at the core's socket (so a stop never waits long).
+REPORT_CHUNK = 50
 
 
 @dataclass(slots=True)
@@ -527,8 +530,20 @@ class RobotHost:
         if sensing and self.world is not None:
             rows = self.world.sense_many([r.robot_id for r in sensing])
             readings = {r.tag: row for r, row in zip(sensing, rows)}
-        for r in due:
+        for i, r in enumerate(due):
+            if i % REPORT_CHUNK == REPORT_CHUNK - 1:
+                self._drain()  # many robots: let a stop in between, it must not wait for all reports
             self._report_one(r, now, readings.get(r.tag))
+
+    def _drain(self) -> None:
+        """Handle what the core has sent, without waiting (between chunks of a tick's work)."""
+        sock = self.sock
+        while sock is not None and sock is self.sock:
+            try:
+                frame = sock.recv(zmq.NOBLOCK)
+            except zmq.Again:
+                return
+            self._dispatch(frame)
 
     def stop(self) -> None:
         """End the loop after the current turn."""
@@ -544,6 +559,9 @@ class RobotHost:
         t_end = None if duration is None else time.monotonic() + duration
         self._running = True
         warm_up()  # load the compiled planner before the robots exist, not during a task
+        gc.collect()  # long-lived modules and kernels out of the collector's way (see Core.run)
+        gc.freeze()
+        gc.set_threshold(20_000, 50, 100)
         self.last_rx = time.monotonic()
         self._open()
         last = time.monotonic()
@@ -570,6 +588,7 @@ class RobotHost:
             if now >= next_tick:
                 if self.state == "up" and not self.holding:
                     self.step(now - last)
+                    self._drain()  # a stop that came in meanwhile goes first
                     if now >= next_report:
                         self._report(now)
                         next_report = now + self.report_interval

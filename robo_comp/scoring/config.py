@@ -25,6 +25,14 @@ class ScoringConfig:
     match_radius: float = 1.5
     rules: str = "sar"
 
+    @classmethod
+    def from_table(cls, table: dict[str, Any]) -> "ScoringConfig":
+        """The defaults with a scenario's ``[scoring]`` table applied (``victim_points`` merge)."""
+        base = cls()
+        points = dict(base.victim_points, **table.get("victim_points", {}))
+        others = {k: v for k, v in table.items() if k != "victim_points"}
+        return cls(victim_points=points, **others)
+
     def points_for(self, kind: str, own: float | None) -> float:
         """Points for a victim of ``kind`` (its own ``points`` win when set)."""
         return float(own) if own is not None else float(self.victim_points.get(kind, self.default_points))

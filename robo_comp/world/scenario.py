@@ -247,6 +247,10 @@ class Scenario:
     camera: CameraConfig = field(default_factory=CameraConfig)
     shared_discoveries: bool = False
     map_name: str = ""
+    #: The ``[scoring]`` table as given (validated): overrides of the default rules' points.
+    scoring: dict[str, Any] = field(default_factory=dict)
+    #: ``[match] approve_uploads``: a team's upload during a running match waits for the referee.
+    approve_uploads: bool = False
 
     @property
     def width(self) -> int:
@@ -476,7 +480,8 @@ def _tname(v: Any) -> str:
 
 _TOP_KEYS = {"name", "map", "cell_size", "duration", "seed", "shared_discoveries", "walls",
              "costs", "zones", "objects", "victims", "teams", "positioning", "drift", "robot",
-             "sensors", "camera"}
+             "sensors", "camera", "scoring", "match"}
+_SCORING_NUMS = ("default_points", "first_bonus", "false_report", "collision", "robot_lost", "match_radius")
 
 
 def load_scenario(path: str | Path) -> Scenario:
@@ -683,11 +688,25 @@ def _build(data: dict, ctx: _Ctx, base: Path) -> Scenario:
         fov=float(ctx.num(cam, "fov", ("camera",), 90.0, lo=1, hi=360)),
         range=float(ctx.num(cam, "range", ("camera",), 6.0, lo=0, lo_open=True, hi=1000)),
     )
+    sc = ctx.table(data, "scoring", (), {"victim_points", *_SCORING_NUMS})
+    scoring: dict[str, Any] = {}
+    for key in _SCORING_NUMS:
+        if key in sc:
+            lo = 0.0 if key == "match_radius" else -1_000_000.0
+            scoring[key] = float(ctx.num(sc, key, ("scoring",), lo=lo, hi=1_000_000))
+    if "victim_points" in sc:
+        vp = ctx.table(sc, "victim_points", ("scoring",), set(sc["victim_points"]) if isinstance(
+            sc["victim_points"], dict) else set())
+        scoring["victim_points"] = {k: float(ctx.num(vp, k, ("scoring", "victim_points"), lo=-1_000_000,
+                                                     hi=1_000_000)) for k in vp}
+    mt = ctx.table(data, "match", (), {"approve_uploads"})
+    approve = ctx.boolean(mt, "approve_uploads", ("match",), False)
     return Scenario(name=name, source=ctx.source, walls=walls, cell_size=cell_size, costs=costs,
                     zones=zones, objects=objects, victims=victims, teams=teams,
                     duration=duration, seed=seed, positioning=positioning, drift=drift,
                     kinematics=kin, sensors=sensors, camera=camera,
-                    shared_discoveries=shared, map_name=map_name)
+                    shared_discoveries=shared, map_name=map_name, scoring=scoring,
+                    approve_uploads=approve)
 
 
 def _default_colour(i: int) -> str:
