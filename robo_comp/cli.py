@@ -48,6 +48,21 @@ def _robots(args: argparse.Namespace) -> int:
     return 0
 
 
+def _replay(args: argparse.Namespace) -> int:
+    import tempfile
+
+    from robo_comp.scoring.replay import ReplayCore
+
+    state = Path(args.state) if args.state else Path(tempfile.mkdtemp(prefix="robo_comp_replay_"))
+    core = ReplayCore(Path(args.log), state, speed=args.speed, start_at=args.start, host=args.host,
+                      port=args.port, exit_at_end=args.exit_at_end)
+    core.bind()
+    print(f"replay: {args.log} ({core.duration:.0f} s recorded) at {args.speed:g}x on tcp://{args.host}:{core.port}; "
+          f"state in {state} (tokens: {state}/referee.token, {state}/teams/)", flush=True)
+    core.run()
+    return 0
+
+
 def _demo(args: argparse.Namespace) -> int:
     from robo_comp.demo import run_demo
 
@@ -99,6 +114,18 @@ def build_parser() -> argparse.ArgumentParser:
     r.set_defaults(func=_robots)
 
     ctl.add_parser(sub)
+
+    rp = sub.add_parser("replay", help="serve a recorded match (an event log) as if live, at any speed",
+                        description="Play STATE/events.log of a match: walls and consoles connect to the "
+                                    "replay as to a live core (read-only; commands are refused).")
+    rp.add_argument("log", help="the event log (a core's STATE/events.log)")
+    rp.add_argument("--speed", type=float, default=1.0, help="times real time (default 1)")
+    rp.add_argument("--start", type=float, default=0.0, help="start this many seconds into the recording")
+    rp.add_argument("--state", help="state folder of the replay (core.json, tokens; default: a new temporary one)")
+    rp.add_argument("--host", default="127.0.0.1", help="address to bind")
+    rp.add_argument("--port", type=int, default=0, help="ROUTER port (0 = any free port)")
+    rp.add_argument("--exit-at-end", action="store_true", help="stop when the recording has been played")
+    rp.set_defaults(func=_replay)
 
     d = sub.add_parser("demo", help="run a demo match on localhost (what 'make demo' runs)")
     d.add_argument("--duration", type=float, default=20.0, help="seconds of match")
