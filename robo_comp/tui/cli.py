@@ -60,7 +60,7 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Stand-alone entry (``python -m robo_comp.tui.cli team --core … --token …``) until the lead wires it."""
+    """Stand-alone entry (``python -m robo_comp.tui.cli team --core … --token …``), the same as ``robo-comp team``."""
     from robo_comp.errors import RoboCompError
 
     parser = argparse.ArgumentParser(prog="robo-comp")
