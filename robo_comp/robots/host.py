@@ -88,8 +88,23 @@ class SimRobot:
         return min(free, key=lambda c: (c[0] - x) ** 2 + (c[1] - y) ** 2) if free else cell
 
     def plan_to(self, goal: tuple[int, int]) -> list[tuple[int, int]] | None:
-        """A 4-connected path from the (free) cell the robot believes it is in to ``goal``."""
-        return find_path(self.host.walls, self.free_cell(), goal)
+        """A 4-connected path from the (free) cell the robot believes it is in to ``goal``, around
+        the cells where the host's other robots are now; straight through them when there is no
+        way around."""
+        start = self.free_cell()
+        occupied = {r.cell() for r in self.host.robots.values() if r is not self}
+        occupied.discard(start)
+        occupied.discard(goal)
+        if occupied:
+            walls = self.host.walls.copy()
+            h, w = walls.shape
+            for x, y in occupied:
+                if 0 <= x < w and 0 <= y < h:
+                    walls[y, x] = True
+            path = find_path(walls, start, goal)
+            if path is not None:
+                return path
+        return find_path(self.host.walls, start, goal)
 
 
 def collect_tasks(pm: Any) -> dict[str, TaskSpec]:
@@ -495,8 +510,9 @@ class RobotHost:
             if r.driver.step is not None and r.driver.update(dt):
                 if r.driver.bump is not None and r.task is not None:
                     b = r.driver.bump
-                    self._done(r, False, f"bumped into {b.get('what', 'something')} at "
-                                         f"({b['x']:.1f}, {b['y']:.1f}) and stopped")
+                    other = self.robots.get(b.get("other") or "")
+                    what = f"robot {other.tag}" if other is not None else b.get("what", "something")
+                    self._done(r, False, f"bumped into {what} at ({b['x']:.1f}, {b['y']:.1f}) and stopped")
                 elif r.pending is not None:
                     nxt = r.pending
                     self._done(r, False, f"interrupted by task {nxt['task_id']}")
