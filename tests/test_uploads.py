@@ -184,3 +184,26 @@ def test_code_replaces_a_builtin_task_and_ctl_uploads(team):
                           "--token-file", token, "upload", str(a), str(bad)],
                          capture_output=True, text=True, timeout=60)
     assert run.returncode == 1 and "E_UPLOAD" in run.stderr and "bad.py:5: policy" in run.stderr
+
+
+TICK = '''
+MANIFEST = {"name": "ticker", "version": "VERSION", "kind": "extension", "tasks": {"tick": {"args": []}}}
+
+def tick(robot):
+    robot.turn(90)
+    return "VERSION"
+'''
+
+
+def test_hot_replace_under_load_loses_no_task(team):
+    core, red, rows, walls = team
+    tags = [r["tag"] for r in rows]
+    red.upload(tags, "ticker.py", TICK.replace("VERSION", "1"))
+    given = [red.give(tag, "tick", [], queue=True)["task_id"] for _ in range(6) for tag in tags]
+    for v in ("2", "3"):  # new versions while the queues run
+        time.sleep(0.4)
+        assert red.upload(tags, "ticker.py", TICK.replace("VERSION", v))["ok"]
+    results = {tid: done_event(red, tid, 60) for tid in given}
+    assert all(d["ok"] for d in results.values()), [d["status"] for d in results.values() if not d["ok"]]
+    versions = [d["result"] for d in results.values()]
+    assert versions[0] == "1" and "3" in versions  # old code finished, new code took over
