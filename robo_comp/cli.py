@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from robo_comp import __version__
-from robo_comp.errors import RoboCompError
+from robo_comp.errors import FieldError, RoboCompError
 
 
 def _core(args: argparse.Namespace) -> int:
@@ -23,10 +23,12 @@ def _core(args: argparse.Namespace) -> int:
         pm = load_rules(args.rules)
     core = Core(Path(args.state), scenario, teams, host=args.host, port=args.port,
                 heartbeat=args.heartbeat, fsync=args.fsync, plugins=pm,
-                practice=args.practice or not args.scenario, approve_uploads=args.approve_uploads)
+                practice=args.practice or not args.scenario, approve_uploads=args.approve_uploads,
+                curve=args.curve)
     core.bind()
     print(f"core: serving {scenario.name!r} for teams {', '.join(core.tokens.teams)} on "
-          f"tcp://{args.host}:{core.port} (events on port {core.pub_port}); state in {args.state}",
+          f"tcp://{args.host}:{core.port} (events on port {core.pub_port}); state in {args.state}"
+          f"{'; CurveZMQ on (keys in ' + str(Path(args.state) / 'keys') + ')' if args.curve else ''}",
           flush=True)
     core.run()
     return 0
@@ -34,6 +36,7 @@ def _core(args: argparse.Namespace) -> int:
 
 def _robots(args: argparse.Namespace) -> int:
     from robo_comp.client import read_token, resolve_core
+    from robo_comp.core.curve import client_keys
     from robo_comp.robots.host import RobotHost
 
     truth = None
@@ -41,9 +44,17 @@ def _robots(args: argparse.Namespace) -> int:
         from robo_comp.world.scenario import load_scenario
 
         truth = load_scenario(args.scenario)
-    host = RobotHost(resolve_core(args.core), read_token(args.token, args.token_file), args.count,
+    token = read_token(args.token, args.token_file)
+    options = {}
+    if args.driver == "er1":
+        options["rcc"] = [a.strip() for a in (args.rcc or "").split(",") if a.strip()]
+        if len(options["rcc"]) != args.count:
+            raise FieldError(f"--driver er1 needs one --rcc HOST:PORT per robot ({args.count}), "
+                             f"got {len(options['rcc'])}")
+    host = RobotHost(resolve_core(args.core), token, args.count,
                      prefix=args.prefix, speed=args.speed, report_hz=args.report_hz, seed=args.seed,
-                     truth=truth)
+                     truth=truth, driver=args.driver, driver_options=options,
+                     curve=client_keys(args.core, token, args.curve_cert, args.core_key))
     host.run(duration=args.duration or None)
     return 0
 
@@ -96,6 +107,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a team's upload during a running match waits for the referee's approval")
     c.add_argument("--rules", metavar="MODULE:OBJECT",
                    help="scoring rules plugin to use instead of the default search-and-rescue rules")
+    c.add_argument("--curve", action="store_true",
+                   help="CurveZMQ for a networked match: encrypted sockets, only the keys in STATE/keys "
+                        "get in (run 'robo-comp keys --state STATE' first)")
     c.set_defaults(func=_core)
 
     r = sub.add_parser("robots", help="host simulated robots of one team",
@@ -111,6 +125,10 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--seed", type=int, default=0)
     r.add_argument("--scenario", help="the match's scenario file (organisers only): the camera then shows victims")
     r.add_argument("--duration", type=float, default=0.0, help="exit after S seconds (0 = run until stopped)")
+    r.add_argument("--driver", choices=("sim", "er1"), default="sim",
+                   help="sim: simulated robots (default); er1: real ER1 robots through their robot control centers")
+    r.add_argument("--rcc", metavar="HOST:PORT[,HOST:PORT...]",
+                   help="for --driver er1: each robot's robot control center (one per robot, in order)")
     r.set_defaults(func=_robots)
 
     ctl.add_parser(sub)
@@ -133,6 +151,9 @@ def build_parser() -> argparse.ArgumentParser:
     d.set_defaults(func=_demo)
 
     plan_cli.add_parser(sub)
+    from robo_comp.core import curve
+
+    curve.add_parser(sub)
     from robo_comp.teams import newteam
 
     newteam.add_parser(sub)

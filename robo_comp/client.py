@@ -22,6 +22,7 @@ from urllib.parse import urlparse
 import zmq
 
 from robo_comp.core import protocol as P
+from robo_comp.core.curve import client_keys, secure_client
 from robo_comp.errors import ConnectionLostError, FieldError, TimeoutError_, error_from_code
 
 
@@ -61,11 +62,19 @@ def pub_url(router_url: str, pub_port: int) -> str:
 
 
 class Client:
-    """A DEALER connection to the core that has said hello with a token."""
+    """A DEALER connection to the core that has said hello with a token.
+
+    For a core run with ``--curve``, ``curve_cert`` is this client's secret certificate and
+    ``core_key`` the core's public one (see :func:`robo_comp.core.curve.client_keys` for the
+    defaults: ``$ROBO_COMP_CURVE_CERT``/``$ROBO_COMP_CORE_KEY``, or the state folder's keys).
+    """
 
     def __init__(self, core: str, token: str, *, client: str = "client", timeout: float = 5.0,
-                 ctx: zmq.Context | None = None) -> None:
+                 ctx: zmq.Context | None = None, curve_cert: str | Path | None = None,
+                 core_key: str | Path | None = None) -> None:
         self.url = resolve_core(core)
+        #: CurveZMQ keys of every socket this client opens (None: plain TCP).
+        self.curve = client_keys(core, token, curve_cert, core_key)
         self.token = token
         self.client_name = client
         self.timeout = timeout
@@ -85,8 +94,15 @@ class Client:
             self.sock.close(0)
         self.sock = self.ctx.socket(zmq.DEALER)
         self.sock.setsockopt(zmq.LINGER, 0)
+        secure_client(self.sock, self.curve)
         self.sock.connect(self.url)
-        self.info = self.request("hello", token=self.token, client=self.client_name)
+        try:
+            self.info = self.request("hello", token=self.token, client=self.client_name)
+        except TimeoutError_ as e:  # a refused CurveZMQ handshake looks the same: say so
+            hint = ("If it runs with --curve, give --curve-cert and --core-key." if self.curve is None else
+                    "With CurveZMQ, check that --curve-cert is the secret certificate the organiser gave "
+                    "you and --core-key is this core's core.key.")
+            raise TimeoutError_(f"{e.message} {hint}") from None
         if self._watching:
             self.request("watch", on=True)
         return self.info
@@ -227,6 +243,7 @@ class Client:
         """A SUB socket on the core's public event feed (all topics if none are given)."""
         sub = self.ctx.socket(zmq.SUB)
         sub.setsockopt(zmq.LINGER, 0)
+        secure_client(sub, self.curve)
         sub.connect(pub_url(self.url, self.info["pub_port"]))
         for t in topics or ("",):
             sub.setsockopt(zmq.SUBSCRIBE, t.encode())

@@ -54,11 +54,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def add_connection_args(p: argparse.ArgumentParser) -> None:
-    """``--core`` and ``--token``/``--token-file``, shared by every client command."""
+    """``--core``, ``--token``/``--token-file`` and the CurveZMQ ``--curve-cert``/``--core-key``,
+    shared by every client command."""
+    from robo_comp.core.curve import add_curve_args
+
     p.add_argument("--core", required=True, help="ROUTER URL (tcp://HOST:PORT) or the core's state folder")
     tok = p.add_mutually_exclusive_group(required=True)
     tok.add_argument("--token", help="team or referee token")
     tok.add_argument("--token-file", help="file holding the token")
+    add_curve_args(p)
 
 
 def _print_robots(rows: list[dict[str, Any]]) -> None:
@@ -93,7 +97,8 @@ def run(args: argparse.Namespace) -> int:
         return 2
     try:
         timeout = 30.0 if args.cmd in ("upload", "unload", "extensions") else 5.0  # a sandbox may start first
-        with Client(url, token, client="ctl", timeout=timeout) as c:
+        with Client(args.core, token, client="ctl", timeout=timeout, curve_cert=args.curve_cert,
+                    core_key=args.core_key) as c:
             return _run(c, args)
     except RoboCompError as e:
         print(f"error {e.code}: {e.message}", file=sys.stderr)

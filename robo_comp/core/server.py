@@ -26,6 +26,7 @@ import zmq
 
 from robo_comp.core import protocol as P
 from robo_comp.core.competition import EVERYONE, Competition
+from robo_comp.core.curve import ServerKeys, ZapHandler, load_server_keys, secure_server
 from robo_comp.core.mapdesk import MapDesk
 from robo_comp.core.uploads import UploadDesk
 from robo_comp.core.eventlog import EventLog
@@ -46,7 +47,7 @@ from robo_comp.errors import (
 from robo_comp.plugins.manager import get_plugin_manager
 from robo_comp.scoring.config import ScoringConfig
 from robo_comp.teams.policy import check_owner, check_referee
-from robo_comp.teams.tokens import Principal, TokenBook
+from robo_comp.teams.tokens import REFEREE, Principal, TokenBook
 from robo_comp.world.public import arena_payload
 from robo_comp.world.scenario import Scenario
 
@@ -91,12 +92,16 @@ class Core:
                  host: str = "127.0.0.1",
                  port: int = 5555, pub_port: int = 0, heartbeat: float = 1.0, fsync: bool = False,
                  practice: bool = False, scoring: ScoringConfig | None = None, plugins: Any = None,
-                 approve_uploads: bool = False) -> None:
+                 approve_uploads: bool = False, curve: bool = False) -> None:
         self.state_dir = Path(state_dir)
         self.state_dir.mkdir(parents=True, exist_ok=True)
         self.scenario = scenario
         self.tokens = TokenBook(self.state_dir, teams or [t.name for t in scenario.teams])
         self._arena_payload = arena_payload(scenario, self.tokens.teams)
+        #: CurveZMQ (``--curve``): the core's keys and the allow list from STATE/keys, else None.
+        self.curve: ServerKeys | None = load_server_keys(self.state_dir, self.tokens.teams) if curve else None
+        self._zap: ZapHandler | None = None
+        self._key_owner: str | None = None  # the key owner of the frame being handled (CurveZMQ)
         self.host = host
         self.port = port
         self.pub_port = pub_port
@@ -108,7 +113,8 @@ class Core:
         self.pending_stops: dict[int, PendingStop] = {}
         self.next_task_id = 1
         self.next_core_req = 1
-        self.ctx = zmq.Context.instance()
+        # A CURVE core owns its context: the ZAP endpoint is one per context.
+        self.ctx = zmq.Context() if curve else zmq.Context.instance()
         self.router: zmq.Socket | None = None
         self.pub: zmq.Socket | None = None
         self._running = False
@@ -144,7 +150,10 @@ class Core:
     # ------------------------------------------------------------------ sockets and loop
     def bind(self) -> None:
         """Bind the ROUTER and PUB sockets and write ``STATE/core.json``."""
+        if self.curve is not None:  # the key check is up before the first handshake can start
+            self._zap = ZapHandler(self.ctx, self.curve.allowed)
         self.router = self.ctx.socket(zmq.ROUTER)
+        secure_server(self.router, self.curve)
         self.router.setsockopt(zmq.LINGER, 0)
         self.router.setsockopt(zmq.MAXMSGSIZE, P.SOCKET_MAX_FRAME)
         self.router.setsockopt(zmq.ROUTER_HANDOVER, 1)
@@ -157,6 +166,7 @@ class Core:
         self.pub = self.ctx.socket(zmq.PUB)
         self.pub.setsockopt(zmq.LINGER, 0)
         self.pub.setsockopt(zmq.SNDHWM, 100_000)
+        secure_server(self.pub, self.curve)
         if self.pub_port == 0:
             self.pub_port = self.pub.bind_to_random_port(f"tcp://{self.host}")
         else:
@@ -165,6 +175,8 @@ class Core:
         info = {"router": f"tcp://{shown}:{self.port}", "pub": f"tcp://{shown}:{self.pub_port}",
                 "pid": os.getpid(), "protocol": P.PROTOCOL_VERSION, "teams": self.tokens.teams,
                 "heartbeat": self.heartbeat, "arena": self.scenario.name}
+        if self.curve is not None:
+            info.update(curve=True, curve_public=self.curve.public.decode())
         tmp = self.state_dir / "core.json.tmp"
         tmp.write_text(json.dumps(info, indent=2))
         os.replace(tmp, self.state_dir / "core.json")
@@ -196,6 +208,8 @@ class Core:
         gc.set_threshold(20_000, 50, 100)
         poller = zmq.Poller()
         poller.register(self.router, zmq.POLLIN)
+        if self._zap is not None:
+            poller.register(self._zap.sock, zmq.POLLIN)
         self._running = True
         next_tick = time.monotonic() + self.heartbeat
         try:
@@ -204,6 +218,8 @@ class Core:
                 if self.pending_stops or self.uploads.busy:
                     timeout = min(timeout, 0.05)
                 if poller.poll(timeout * 1000):
+                    if self._zap is not None:
+                        self._zap.serve()
                     self._drain()
                 now = time.monotonic()
                 if self.pending_stops:
@@ -220,17 +236,24 @@ class Core:
             self.router.close(0)
             assert self.pub is not None
             self.pub.close(0)
+            if self._zap is not None:  # after the servers: no handshake may find no handler
+                self._zap.close()
+                self.ctx.term()  # the core's own context (see __init__)
 
     def _drain(self, budget: int = 2000) -> None:
         """Handle every message waiting on the ROUTER (up to ``budget``) without blocking."""
         router = self.router
         assert router is not None
+        curve = self.curve is not None
         for _ in range(budget):
             try:
-                frames = router.recv_multipart(zmq.NOBLOCK, copy=True)
+                frames = router.recv_multipart(zmq.NOBLOCK, copy=not curve)
             except zmq.Again:
                 return
             self.stats["received"] += 1
+            if curve:  # which key the frame came with (the ZAP handler named its owner)
+                self._key_owner = frames[-1].get("User-Id")
+                frames = [f.bytes for f in frames]
             ident = frames[0]
             if len(frames) != 2:
                 self._send_error(ident, 0, MalformedError(
@@ -464,8 +487,15 @@ class Core:
                 self._send(p.ident, err)
 
     # ------------------------------------------------------------------ session requests
+    def _check_key(self, who: Principal) -> None:
+        """With CurveZMQ a team's key lets in that team only (the referee's key any role)."""
+        owner = self._key_owner
+        if self.curve is not None and owner not in (REFEREE, who.name):
+            raise AuthError(f"this connection uses team {owner}'s key; {who.name}'s token needs {who.name}'s key")
+
     def _on_hello(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
         who = self.tokens.lookup(msg.body["token"])
+        self._check_key(who)
         old = self._forget(ident)
         sess = Session(ident, who, str(msg.body.get("client", "client"))[:64], time.monotonic())
         self.sessions[ident] = sess
@@ -590,6 +620,7 @@ class Core:
     def _on_register(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
         b = msg.body
         who = self.tokens.lookup(b["token"])
+        self._check_key(who)
         if who.role != "team":
             raise FieldError("robots register with a team token, not the referee's")
         robot_id = b["robot_id"]

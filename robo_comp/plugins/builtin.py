@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from robo_comp.errors import UnavailableError
 from robo_comp.plugins.hookspecs import hookimpl
 from robo_comp.robots.drivers import ArenaDriver
 from robo_comp.robots.builtin_tasks import BUILTIN_TASKS
@@ -18,11 +19,22 @@ class BuiltinPlugin:
         return list(BUILTIN_TASKS)
 
     @hookimpl
-    def robo_comp_driver(self, kind: str, options: dict[str, Any]) -> ArenaDriver | None:
-        """The simulated driver for ``kind == "sim"``: options ``arena``, ``localization``, ``robot_id``."""
-        if kind != "sim":
-            return None
-        return ArenaDriver(options["arena"], options["robot_id"], options["localization"])
+    def robo_comp_driver(self, kind: str, options: dict[str, Any]) -> Any:
+        """``sim``: the simulated driver (options ``arena``, ``localization``, ``robot_id``).
+        ``er1``: an ER1 through its robot control center (options ``rcc``: one ``HOST:PORT`` per
+        robot, ``index`` of this robot, ``cell_cm``, the start pose ``x``, ``y``, ``heading``)."""
+        if kind == "sim":
+            return ArenaDriver(options["arena"], options["robot_id"], options["localization"])
+        if kind == "er1":
+            from robo_comp.robots.er1 import ER1Driver, RCCLink
+
+            rcc = options.get("rcc") or []
+            i = int(options.get("index", 0))
+            if i >= len(rcc):
+                raise UnavailableError(f"robot {i + 1} has no robot control center: give one --rcc HOST:PORT per robot")
+            return ER1Driver(RCCLink(rcc[i]), cell_cm=options["cell_cm"], x=options["x"], y=options["y"],
+                             heading=options.get("heading", 0.0))
+        return None
 
 
 plugin = BuiltinPlugin()

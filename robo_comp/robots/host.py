@@ -23,6 +23,7 @@ import numpy as np
 import zmq
 
 from robo_comp.core import protocol as P
+from robo_comp.core.curve import ClientKeys, secure_client
 from robo_comp.core.tasks import check_args
 from robo_comp.errors import RoboCompError
 from robo_comp.plugins.manager import get_plugin_manager
@@ -121,8 +122,9 @@ class RobotHost:
 
     def __init__(self, core_url: str, token: str, count: int, *, prefix: str | None = None,
                  speed: float | None = None, report_hz: float = 10.0, sensor_hz: float = 2.0,
-                 tick_hz: float = 20.0, driver: str = "sim", plugins: Any = None,
-                 ctx: zmq.Context | None = None, seed: int = 0, truth: Scenario | None = None) -> None:
+                 tick_hz: float = 20.0, driver: str = "sim", driver_options: dict[str, Any] | None = None,
+                 plugins: Any = None, ctx: zmq.Context | None = None, seed: int = 0,
+                 truth: Scenario | None = None, curve: ClientKeys | None = None) -> None:
         self.url = core_url
         self.token = token
         self.count = count
@@ -134,6 +136,9 @@ class RobotHost:
         self.tick = 1.0 / tick_hz
         self.pm = plugins or get_plugin_manager()
         self.driver_kind = driver
+        self.driver_options = dict(driver_options or {})
+        #: CurveZMQ keys for a ``--curve`` core (None: plain TCP).
+        self.curve = curve
         self.tasks = collect_tasks(self.pm)
         self.ctx = ctx or zmq.Context.instance()
         self.rng = random.Random(seed)
@@ -189,6 +194,7 @@ class RobotHost:
         self.sock.setsockopt(zmq.LINGER, 0)
         self.sock.setsockopt(zmq.SNDHWM, 100_000)
         self.sock.setsockopt(zmq.RCVHWM, 100_000)
+        secure_client(self.sock, self.curve)  # plain TCP when there are no keys
         self.sock.connect(self.url)
         self.poller.register(self.sock, zmq.POLLIN)
         self.replies.clear()
@@ -314,7 +320,8 @@ class RobotHost:
             rid = f"{prefix}-{i + 1}"
             self.world.add_robot(rid, self.team, x, y, 0.0)
             driver = self.pm.hook.robo_comp_driver(kind=self.driver_kind, options={
-                "arena": self.world, "localization": self.loc, "robot_id": rid})
+                **self.driver_options, "arena": self.world, "localization": self.loc, "robot_id": rid,
+                "index": i, "cell_cm": self.world.cell_size, "x": float(x), "y": float(y), "heading": 0.0})
             if driver is None:
                 raise SystemExit(f"robots: no plugin provides the driver {self.driver_kind!r}")
             self.robots[rid] = SimRobot(rid, driver, self)

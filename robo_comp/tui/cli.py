@@ -5,22 +5,33 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
 
 def _connection(p: argparse.ArgumentParser) -> None:
+    from robo_comp.core.curve import add_curve_args
+
     p.add_argument("--core", required=True, help="ROUTER URL (tcp://HOST:PORT) or the core's state folder")
     tok = p.add_mutually_exclusive_group(required=True)
     tok.add_argument("--token", help="team token (referee token for 'referee')")
     tok.add_argument("--token-file", help="file holding the token")
+    add_curve_args(p)
 
 
 def _check(args: argparse.Namespace, role: str) -> tuple[str, str]:
     from robo_comp.client import read_token, resolve_core
+    from robo_comp.core.curve import ENV_CERT, ENV_CORE_KEY, client_keys
 
     token = read_token(args.token, args.token_file)
     resolve_core(args.core)  # a clear message now for a wrong --core, before the screen opens
+    # The console's link (robo_comp.tui.connection.CoreLink) reads the CurveZMQ options from the
+    # environment, as a user may set them; check them now, before the screen opens.
+    for value, name in ((args.curve_cert, ENV_CERT), (args.core_key, ENV_CORE_KEY)):
+        if value:
+            os.environ[name] = str(Path(value).resolve())
+    client_keys(args.core, token)
     if not sys.stdout.isatty():
         print(f"robo-comp {role}: the console needs a terminal (over SSH use 'ssh -t')", file=sys.stderr)
     return args.core, token

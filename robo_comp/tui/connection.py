@@ -28,6 +28,7 @@ import zmq.asyncio
 
 from robo_comp.client import resolve_core
 from robo_comp.core import protocol as P
+from robo_comp.core.curve import client_keys, secure_client
 from robo_comp.errors import (
     ConnectionLostError,
     RoboCompError,
@@ -65,13 +66,19 @@ class CoreLink:
     ``on_event(topic, team, data)`` is called for every pushed event and
     ``on_state(state, detail, hello_reply)`` for every change of :class:`LinkState`; both are
     called from the event loop (a Textual app passes functions that post messages).
+
+    ``curve_cert``/``core_key`` are the CurveZMQ certificates for a core run with ``--curve``
+    (defaults as in :func:`robo_comp.core.curve.client_keys`, read again at every reconnect).
     """
 
     def __init__(self, core: str, token: str, *, client: str = "console",
                  on_event: EventSink | None = None, on_state: StateSink | None = None,
-                 ctx: zmq.asyncio.Context | None = None) -> None:
+                 ctx: zmq.asyncio.Context | None = None, curve_cert: str | None = None,
+                 core_key: str | None = None) -> None:
         self.core = core
         self.token = token
+        self.curve_cert = curve_cert
+        self.core_key = core_key
         self.client_name = client
         self.on_event = on_event or (lambda *_: None)
         self.on_state = on_state or (lambda *_: None)
@@ -191,8 +198,10 @@ class CoreLink:
         """Open a fresh socket and say hello; raise when the core does not answer in time."""
         self._drop_socket(ConnectionLostError("the connection to the core was replaced"))
         self.url = resolve_core(self.core)
+        keys = client_keys(self.core, self.token, self.curve_cert, self.core_key)
         sock = self.ctx.socket(zmq.DEALER)
         sock.setsockopt(zmq.LINGER, 0)
+        secure_client(sock, keys)
         sock.connect(self.url)
         self.sock = sock
         rid = self._id()

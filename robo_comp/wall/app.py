@@ -40,8 +40,10 @@ _KEYS = {pygame.K_RETURN: "enter", pygame.K_KP_ENTER: "enter", pygame.K_ESCAPE: 
 class LiveSource:
     """The core's public event feed plus a session for snapshot, monitor, pictures and commands."""
 
-    def __init__(self, core: str, token: str, *, timeout: float = 3.0) -> None:
-        self.client = Client(core, token, client="wall", timeout=timeout)
+    def __init__(self, core: str, token: str, *, timeout: float = 3.0, curve_cert: str | None = None,
+                 core_key: str | None = None) -> None:
+        # both sockets (the session and the event feed) use the client's CurveZMQ keys, if any
+        self.client = Client(core, token, client="wall", timeout=timeout, curve_cert=curve_cert, core_key=core_key)
         self.sub = self.client.subscribe()
 
     def start(self, model: WallModel) -> None:

@@ -25,6 +25,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     tok = p.add_mutually_exclusive_group()
     tok.add_argument("--token", help="team or referee token (a team token commands only its own robots)")
     tok.add_argument("--token-file", help="file holding the token")
+    from robo_comp.core.curve import add_curve_args
+
+    add_curve_args(p)
     p.add_argument("--size", default="1280x800", help="window (or tile) size WxH in pixels (default 1280x800)")
     p.add_argument("--grid", default="1x1", help="the wall is CxR tiles of --size each (default 1x1)")
     p.add_argument("--tile", default="0,0", help="which tile this process renders: c,r from 0,0 (default 0,0)")
@@ -93,7 +96,8 @@ def run(args: argparse.Namespace) -> int:
     else:
         if not args.core:
             raise FieldError("give --core URL_OR_STATE_FOLDER (or --replay LOG)")
-        source = LiveSource(args.core, read_token(args.token, args.token_file))
+        source = LiveSource(args.core, read_token(args.token, args.token_file), curve_cert=args.curve_cert,
+                            core_key=args.core_key)
         source.start(model)
     app = WallApp(model, tile, view, source=source, fps=args.fps, trails=not args.no_trails,
                   double_click=args.double_click, path_wait=args.path_wait,
