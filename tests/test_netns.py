@@ -57,6 +57,7 @@ for line in sys.stdin:
             ys, xs = np.nonzero(~walls)
             body = {"cells": [[int(x), int(y)] for x, y in zip(xs, ys)]}
         elif req["type"] == "events":
+            c.robots()  # a round trip reads what the core pushed meanwhile into c.events
             body = {"events": [e for e in c.events if e.get("topic") != "robot.position"]}
             c.events.clear()
         else:
