@@ -16,7 +16,33 @@ from robo_comp.world.localization import Localization
 CAPTURE_SECONDS = 0.2
 
 
-class ArenaDriver:
+class PoseReadings:
+    """``x``, ``y``, ``heading`` and ``cell()`` of a driver, from its ``pose`` (what it believes)."""
+
+    pose: tuple[float, float, float]
+
+    @property
+    def x(self) -> float:
+        """Believed x."""
+        return self.pose[0]
+
+    @property
+    def y(self) -> float:
+        """Believed y."""
+        return self.pose[1]
+
+    @property
+    def heading(self) -> float:
+        """Believed heading in degrees (0 = +x, 90 = +y)."""
+        return self.pose[2]
+
+    def cell(self) -> tuple[int, int]:
+        """The cell the robot believes it is in."""
+        x, y, _ = self.pose
+        return int(round(x)), int(round(y))
+
+
+class ArenaDriver(PoseReadings):
     """One robot of a simulated :class:`Arena`, commanded one step at a time."""
 
     def __init__(self, arena: Arena, tag: str, localization: Localization) -> None:
@@ -29,29 +55,9 @@ class ArenaDriver:
 
     # what the robot believes (estimate) ------------------------------------
     @property
-    def pose(self) -> tuple[float, float, float]:
+    def pose(self) -> tuple[float, float, float]:  # type: ignore[override]
         """Estimated (x, y, heading): what the robot and its team see."""
         return self.loc.estimate(self.tag)
-
-    @property
-    def x(self) -> float:
-        """Estimated x."""
-        return self.pose[0]
-
-    @property
-    def y(self) -> float:
-        """Estimated y."""
-        return self.pose[1]
-
-    @property
-    def heading(self) -> float:
-        """Estimated heading in degrees."""
-        return self.pose[2]
-
-    def cell(self) -> tuple[int, int]:
-        """The cell the robot believes it is in."""
-        x, y, _ = self.pose
-        return int(round(x)), int(round(y))
 
     def truth(self) -> tuple[float, float, float]:
         """The true pose (the arena's; for the camera and the referee, not for the team)."""

@@ -20,6 +20,7 @@ import socket
 from typing import Any
 
 from robo_comp.errors import UnavailableError
+from robo_comp.robots.drivers import PoseReadings
 from robo_comp.robots.steps import Capture, Move, Step, Turn, Wait
 
 CAPTURE_SECONDS = 0.2
@@ -82,7 +83,7 @@ class RCCLink:
         self.sock.close()
 
 
-class ER1Driver:
+class ER1Driver(PoseReadings):
     """One ER1 robot, commanded one step at a time through its RCC (same interface as
     :class:`robo_comp.robots.drivers.ArenaDriver`)."""
 
@@ -104,28 +105,9 @@ class ER1Driver:
 
     # what the robot believes ----------------------------------------------------------
     @property
-    def pose(self) -> tuple[float, float, float]:
+    def pose(self) -> tuple[float, float, float]:  # type: ignore[override]
         """Dead-reckoned (x, y, heading)."""
         return self._pose[0], self._pose[1], self._pose[2]
-
-    @property
-    def x(self) -> float:
-        """Dead-reckoned x."""
-        return self._pose[0]
-
-    @property
-    def y(self) -> float:
-        """Dead-reckoned y."""
-        return self._pose[1]
-
-    @property
-    def heading(self) -> float:
-        """Dead-reckoned heading in degrees (0 = +x, 90 = +y)."""
-        return self._pose[2]
-
-    def cell(self) -> tuple[int, int]:
-        """The cell the robot believes it is in."""
-        return int(round(self._pose[0])), int(round(self._pose[1]))
 
     def truth(self) -> tuple[float, float, float]:
         """A real robot's truth is not known here: the dead-reckoned pose."""
