@@ -67,7 +67,8 @@ class ReplayCore(Core):
             shutil.copytree(log.parent / "pictures", state_dir / "pictures")
         scenario = scenario_from_payload(started["arena"])
         super().__init__(state_dir, scenario, list(started.get("teams") or []) or None, host=host, port=port,
-                         heartbeat=STEP, practice=False)
+                         heartbeat=STEP,
+                         practice=not any(r.topic == "match.phase" for r in self.records))  # no phases: practice
         self.log_path = log
         self.speed = speed
         self.exit_at_end = exit_at_end
