@@ -59,6 +59,8 @@ PRIVATE_KEYS = frozenset({"status", "result", "data", "args", "message", "cancel
 #: How long a console session may stay silent before it is forgotten (watchers heartbeat).
 SESSION_IDLE = 300.0
 STOP_TIMEOUT = 2.0
+#: Events queued per PUB subscriber before the slowest ones start missing events (ZMQ_SNDHWM).
+PUB_QUEUE = 20_000
 MAX_RESULT = 64 * 1024
 
 
@@ -165,7 +167,9 @@ class Core:
             self.router.bind(f"tcp://{self.host}:{self.port}")
         self.pub = self.ctx.socket(zmq.PUB)
         self.pub.setsockopt(zmq.LINGER, 0)
-        self.pub.setsockopt(zmq.SNDHWM, 100_000)
+        # A slow subscriber (a wall on a weak link) gets at most this many events queued for it,
+        # then PUB drops for that subscriber only: bounded memory, and the core never waits.
+        self.pub.setsockopt(zmq.SNDHWM, PUB_QUEUE)
         secure_server(self.pub, self.curve)
         if self.pub_port == 0:
             self.pub_port = self.pub.bind_to_random_port(f"tcp://{self.host}")
