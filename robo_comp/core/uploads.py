@@ -13,40 +13,36 @@ referee's ``approve``; its verdict then reaches the team as an ``upload.done`` e
 """
 from __future__ import annotations
 
-import hashlib
-import re
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from robo_comp.core import protocol as P
+from robo_comp.core.tasks import check_specs
 from robo_comp.errors import (
-    FieldError, ForbiddenError, NotYoursError, RoboCompError, TooLargeError, UnavailableError, UploadError,
+    FieldError, ForbiddenError, NotYoursError, RoboCompError, UnavailableError, UploadError,
 )
+from robo_comp.plugins import contract
 
 if TYPE_CHECKING:  # pragma: no cover
     from robo_comp.core.registry import RobotRecord
     from robo_comp.core.server import Core, Session
 
-#: The largest module source accepted (the sandbox's contract says the same).
-MAX_SOURCE = 60_000
 #: Most robots one upload may go to.
 MAX_TAGS = 64
 #: How long the core waits for the robots' hosts to answer an upload.
 HOST_TIMEOUT = 20.0
-_FILENAME = re.compile(r"[A-Za-z0-9_.-]{1,64}\.py")
 
 
 @dataclass(slots=True)
 class HostAsk:
-    """A request forwarded to one or more robot hosts; ``done`` runs once all have answered."""
+    """A request forwarded to one or more robot hosts; ``done`` runs once all have answered.
+    ``waiting`` maps each forwarded request id to (the host asked, the robots it was asked about)."""
 
-    waiting: set[int]
+    waiting: dict[int, tuple[bytes, list[int]]]
     deadline: float
     results: list[dict[str, Any]]
-    tags_by_cid: dict[int, list[int]]
-    host_by_cid: dict[int, bytes]
     done: Callable[[list[dict[str, Any]]], None]
 
 
@@ -68,7 +64,7 @@ class UploadDesk:
     def __init__(self, core: Core, approve_uploads: bool = False) -> None:
         self.core = core
         self.approve_uploads = approve_uploads
-        self.asks: dict[int, HostAsk] = {}
+        self.asks: dict[int, HostAsk] = {}  # by forwarded request id (an ask spanning hosts: several)
         self.pending: dict[int, PendingUpload] = {}
         self.next_upload = 1
         self.folder = core.state_dir / "uploads"
@@ -92,20 +88,13 @@ class UploadDesk:
 
     @staticmethod
     def _source(body: dict[str, Any]) -> tuple[str, str]:
-        filename, source = body["filename"], body["source"]
-        if not _FILENAME.fullmatch(filename):
-            raise FieldError(f"{filename!r} is not a module file name: use letters, digits, '_', '.', '-' "
-                             "and end in .py")
-        if isinstance(source, bytes):
-            try:
-                source = source.decode("utf-8")
-            except UnicodeDecodeError:
-                raise FieldError(f"{filename}: the source must be UTF-8 text") from None
-        if not isinstance(source, str):
-            raise FieldError("'source' must be the module's text")
-        if len(source.encode("utf-8", "surrogatepass")) > MAX_SOURCE:
-            raise TooLargeError(f"{filename}: a module may be at most {MAX_SOURCE} bytes")
-        return filename, source
+        """The file name and source, checked by the contract's own first rules (the robots'
+        sandboxes check everything again): a refusal names the file and the rule."""
+        filename = body["filename"]
+        try:
+            return contract.check_filename(filename), contract.check_source(body["source"])
+        except contract.ContractError as e:
+            raise contract.upload_error(str(filename)[:80], e.rule, e.detail) from None
 
     # ------------------------------------------------------------------ requests
     def _on_upload(self, ident: bytes, msg: P.Message) -> dict[str, Any] | None:
@@ -113,7 +102,7 @@ class UploadDesk:
         robots = self._robots(ident, msg.body["tags"])
         self.core.competition.check_phase("upload")
         filename, source = self._source(msg.body)
-        sha = hashlib.sha256(source.encode("utf-8", "surrogatepass")).hexdigest()
+        sha = contract.source_hash(source)
         team = robots[0].team
         if any(r.team != team for r in robots):
             raise FieldError("one upload goes to robots of one team; send one per team")
@@ -173,12 +162,13 @@ class UploadDesk:
 
     # ------------------------------------------------------------------ from robot hosts
     def _on_advertise(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        from robo_comp.core.tasks import check_specs
-
-        r = self.core._hosted(ident, msg.body["tag"])
-        r.tasks = check_specs(msg.body["tasks"])
-        self.core.emit("robot.tasks", r.team, {"tag": r.tag, "tasks": list(r.tasks.values())})
+        self._set_tasks(self.core._hosted(ident, msg.body["tag"]), msg.body["tasks"])
         return {}
+
+    def _set_tasks(self, r: RobotRecord, adverts: list[Any]) -> None:
+        """What robot ``r`` advertises from now on (checked like at registration)."""
+        r.tasks = check_specs(adverts)
+        self.core.emit("robot.tasks", r.team, {"tag": r.tag, "tasks": list(r.tasks.values())})
 
     def _on_log(self, ident: bytes, msg: P.Message) -> None:
         tag = msg.body.get("tag")
@@ -191,40 +181,40 @@ class UploadDesk:
 
     def host_reply(self, ident: bytes, cid: int, raw: dict[str, Any]) -> bool:
         """Host ``ident`` answered request ``cid``; True when it was one of ours (from that host)."""
-        for ask_id, ask in list(self.asks.items()):
-            if cid in ask.waiting:
-                if ask.host_by_cid.get(cid) != ident:
-                    raise NotYoursError("this connection was not asked; only the robots' host answers")
-                if not isinstance(raw.get("body"), (dict, type(None))) or \
-                        not isinstance(raw.get("error"), (dict, type(None))):
-                    raw = {"ok": False, "error": {"message": "the robot's host sent a malformed answer"}}
-                ask.waiting.discard(cid)
-                if raw.get("ok"):
-                    rows = (raw.get("body") or {}).get("results")
-                    if isinstance(rows, list):
-                        ask.results.extend(r for r in rows if isinstance(r, dict))
-                    else:
-                        ask.results.append(dict(raw.get("body") or {}, ok=True))
-                else:
-                    err = raw.get("error") or {}
-                    ask.results.extend({"tag": t, "ok": False, "message": str(err.get("message"))}
-                                       for t in ask.tags_by_cid.get(cid, []))
-                if not ask.waiting:
-                    del self.asks[ask_id]
-                    ask.done(ask.results)
-                return True
-        return False
+        ask = self.asks.get(cid)
+        if ask is None:
+            return False
+        host, tags = ask.waiting[cid]
+        if host != ident:
+            raise NotYoursError("this connection was not asked; only the robots' host answers")
+        del self.asks[cid], ask.waiting[cid]
+        body, err = raw.get("body"), raw.get("error")
+        if not isinstance(body, (dict, type(None))) or not isinstance(err, (dict, type(None))):
+            raw, err = {"ok": False}, {"message": "the robot's host sent a malformed answer"}
+        if raw.get("ok"):
+            rows = (body or {}).get("results")
+            if isinstance(rows, list):
+                ask.results.extend(r for r in rows if isinstance(r, dict))
+            else:
+                ask.results.append(dict(body or {}, ok=True))
+        else:
+            ask.results.extend({"tag": t, "ok": False, "message": str((err or {}).get("message"))} for t in tags)
+        if not ask.waiting:
+            ask.done(ask.results)
+        return True
 
     def expire(self, now: float) -> None:
         """Answer for hosts that did not answer in time."""
-        for ask_id, ask in list(self.asks.items()):
-            if now >= ask.deadline:
-                del self.asks[ask_id]
-                for cid in ask.waiting:
-                    ask.results.extend({"tag": t, "ok": False,
-                                        "message": f"robot {t}'s host did not answer within {HOST_TIMEOUT:.0f} s"}
-                                       for t in ask.tags_by_cid.get(cid, []))
-                ask.done(ask.results)
+        for ask in {id(a): a for a in self.asks.values()}.values():
+            if now < ask.deadline:
+                continue
+            for cid, (_, tags) in ask.waiting.items():
+                del self.asks[cid]
+                ask.results.extend({"tag": t, "ok": False,
+                                    "message": f"robot {t}'s host did not answer within {HOST_TIMEOUT:.0f} s"}
+                                   for t in tags)
+            ask.waiting.clear()
+            ask.done(ask.results)
 
     @property
     def busy(self) -> bool:
@@ -237,16 +227,13 @@ class UploadDesk:
         by_host: dict[bytes, list[int]] = {}
         for r in robots:
             by_host.setdefault(r.session, []).append(r.tag)  # type: ignore[arg-type]
-        ask = HostAsk(set(), time.monotonic() + HOST_TIMEOUT, [], {}, {}, done)
-        first = self.core.next_core_req
+        ask = HostAsk({}, time.monotonic() + HOST_TIMEOUT, [], done)
         for host, tags in by_host.items():
             cid = self.core.next_core_req
             self.core.next_core_req += 1
-            ask.waiting.add(cid)
-            ask.tags_by_cid[cid] = tags
-            ask.host_by_cid[cid] = host
+            ask.waiting[cid] = (host, tags)
+            self.asks[cid] = ask
             self.core._send(host, P.request(type_, cid, dict(body, tags=tags)))
-        self.asks[first] = ask
 
     def _forward(self, robots: list[RobotRecord], body: dict[str, Any], by: str,
                  reply: Callable[[list[dict[str, Any]]], None], upload_id: int | None = None) -> None:
@@ -274,32 +261,28 @@ class UploadDesk:
 
     def _advertised(self, results: list[dict[str, Any]]) -> None:
         """Robots that took a module advertise its tasks from now on (before anyone is answered)."""
-        from robo_comp.core.tasks import check_specs
-
         for row in results:
             r = self.core.registry.robots.get(row.get("tag", -1))
             adverts = row.pop("advertised", None)
             if r is None or not row.get("ok") or not isinstance(adverts, list):
                 continue
             try:
-                r.tasks = check_specs(adverts)
+                self._set_tasks(r, adverts)
             except RoboCompError as e:
                 row.update(ok=False, message=f"robot {r.tag} advertised tasks the core refuses: {e.message}")
-                continue
-            self.core.emit("robot.tasks", r.team, {"tag": r.tag, "tasks": list(r.tasks.values())})
 
     def _run_now(self, rows: list[dict[str, Any]], by: str) -> None:
         """``run``: give each robot the module's first task now (code that "runs now")."""
         for row in rows:
-            tasks = row.get("tasks") or []
+            first = next(iter(row.get("tasks") or ()), None)  # the manifest's first task
             r = self.core.registry.robots.get(row.get("tag", -1))
-            if not tasks or r is None:
+            if first is None or r is None:
                 continue
             try:
-                self.core.give_task(r, tasks[0], [], queue=False, by=by)
+                self.core.give_task(r, first, [], queue=False, by=by)
             except RoboCompError as e:
                 self.core.emit("refused", r.team, {"by": by, "type": "upload", "code": e.code,
-                                                   "message": f"could not run {tasks[0]} on robot {r.tag}: "
+                                                   "message": f"could not run {first} on robot {r.tag}: "
                                                               f"{e.message}"}, public=False)
 
     def _reply(self, ident: bytes, req_id: int, filename: str, results: list[dict[str, Any]]) -> None:

@@ -337,6 +337,7 @@ class RobotHost:
                 self.by_tag.pop(r.tag, None)
             r.tag = body["tag"]
             self.by_tag[r.tag] = r
+            self.code.add_tag(r.tag)
             self.holding = bool(body.get("hold", False))
             task = body.get("task")
             if task is None:
@@ -559,7 +560,8 @@ class RobotHost:
             self._report_one(r, now, readings.get(r.tag))
 
     def _drain(self) -> None:
-        """Handle what the core has sent, without waiting (between chunks of a tick's work)."""
+        """Handle what the core has sent, without waiting (also between chunks of a tick's work);
+        a reconnect that replaces the socket mid-way ends it."""
         sock = self.sock
         while sock is not None and sock is self.sock:
             try:
@@ -596,13 +598,8 @@ class RobotHost:
             code_deadline = self.code.deadline()
             if code_deadline is not None:
                 wake = min(wake, code_deadline)
-            for sock, _ in self.poller.poll(max(0.0, wake - time.monotonic()) * 1000):
-                while sock is self.sock:  # a reconnect replaces the socket mid-loop
-                    try:
-                        frame = sock.recv(zmq.NOBLOCK)
-                    except zmq.Again:
-                        break
-                    self._dispatch(frame)
+            if self.poller.poll(max(0.0, wake - time.monotonic()) * 1000):
+                self._drain()
             try:
                 self.code.pump()
             except Exception:  # a bug on the team-code path must not take the robots down

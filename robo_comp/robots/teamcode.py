@@ -18,16 +18,16 @@ sandbox says. Nothing here starts a thread.
 """
 from __future__ import annotations
 
-import hashlib
 import logging
 import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-from robo_comp.errors import RoboCompError, UploadError
+from robo_comp.errors import RoboCompError
+from robo_comp.plugins.contract import source_hash
 from robo_comp.plugins.sandbox import (
-    Limits, LoadFailed, Loaded, LogLine, RpcCall, Sandbox, SandboxStopped, TaskDone, TaskFailed as SbFailed,
+    PENDING, Limits, LoadFailed, Loaded, LogLine, RpcCall, Sandbox, SandboxStopped, TaskDone, TaskFailed as SbFailed,
 )
 from robo_comp.robots.steps import Move, Step, TaskFailed, TaskSpec, Turn, Wait
 from robo_comp.world.planner import find_path
@@ -82,12 +82,15 @@ class TeamCode:
 
     # ------------------------------------------------------------------ the sandbox
     def _sandbox(self) -> Sandbox:
-        if self.sb is None:
+        if self.sb is None:  # started on the first upload, for the robots registered by then
             self.sb = Sandbox(self.host.team or "team", list(self.host.by_tag), None, self.limits,
                               seed=self.host.seed)
-        for tag in self.host.by_tag:
-            self.sb.add_tag(tag)
         return self.sb
+
+    def add_tag(self, tag: int) -> None:
+        """A robot registered (again) with ``tag``: its team code may act for it."""
+        if self.sb is not None:
+            self.sb.add_tag(tag)
 
     def fileno(self) -> int | None:
         """The sandbox's descriptor for the host's poller (None while there is no sandbox)."""
@@ -112,8 +115,7 @@ class TeamCode:
     # ------------------------------------------------------------------ uploads
     def upload(self, rid: int, tags: list[int], filename: str, source: str | bytes) -> None:
         """Check and load ``source`` for ``tags``; the answer goes to the core's request ``rid``."""
-        raw = source.encode() if isinstance(source, str) else bytes(source)
-        sha = hashlib.sha256(raw).hexdigest()
+        sha = source_hash(source if isinstance(source, str) else bytes(source).decode("utf-8", "replace"))
         tags = [t for t in tags if t in self.host.by_tag]
         try:
             load_id = self._sandbox().begin_load(filename, source)
@@ -136,14 +138,14 @@ class TeamCode:
         if self.sb is None:
             return []
         mine = self.enabled.get(tag, set())
-        return [_module_dict(m) for m in self.sb.modules() if m.name in mine]
+        return [m.plain() for m in self.sb.modules() if m.name in mine]
 
     def _answer_load(self, job: LoadJob, module: Any, err: RoboCompError | None) -> None:
         results: list[dict[str, Any]] = []
         for tag in job.tags:
             if err is None:
                 self.enabled.setdefault(tag, set()).add(module.name)
-                results.append(dict(_module_dict(module), tag=tag, ok=True,
+                results.append(dict(module.plain(), tag=tag, ok=True,
                                     message=f"{job.filename}: {module.name} {module.version} loaded"))
             else:
                 details = getattr(err, "details", None) or {}
@@ -247,7 +249,7 @@ class TeamCode:
                 run.call = (c.call_id, self._steps(r, c.name, c.args), lambda: list(r.driver.pose))
                 return
             value = self._immediate(r, c)
-            if value is not _PENDING:
+            if value is not PENDING:
                 sb.resolve(c.call_id, value)
         except _Refused as e:
             sb.reject(c.call_id, str(e))
@@ -285,18 +287,18 @@ class TeamCode:
             return {"x0": x - radius, "y0": y - radius, "walls": rows}
         if c.name in ("take_picture", "upload_picture"):
             host.code_picture(r, lambda ok, body: self._settle(c.call_id, ok, body.get("id") if ok else body))
-            return _PENDING
+            return PENDING
         if c.name == "report_find":
             x, y, kind, evidence = (list(args) + [None, None, None, None])[:4]
             body = {"tag": r.tag, "x": float(x), "y": float(y), "kind": str(kind or "victim")[:32],
                     "evidence": [int(e) for e in (evidence or [])][:32]}
             host.code_request("find", body, lambda ok, b: self._settle(c.call_id, ok, b))
-            return _PENDING
+            return PENDING
         if c.name == "radio":
             to, data = (list(args) + [None, None])[:2]
             host.code_request("radio", {"tag": r.tag, "to": to, "data": data},
                               lambda ok, b: self._settle(c.call_id, ok, b.get("delivered") if ok else b))
-            return _PENDING
+            return PENDING
         raise _Refused(f"unknown robot call {c.name!r}")
 
     def _settle(self, call_id: int, ok: bool, value: Any) -> None:
@@ -339,16 +341,4 @@ class TeamCode:
             yield Move(x, y)
 
 
-class _Pending:
-    pass
-
-
-_PENDING = _Pending()
-
-
-def _module_dict(m: Any) -> dict[str, Any]:
-    return {"name": m.name, "version": m.version, "kind": m.kind, "file": m.file,
-            "sha256": m.sha256, "tasks": list(m.tasks), "replaces": list(getattr(m, "replaces", []) or [])}
-
-
-__all__ = ["TeamCode", "CodeRun", "UploadError"]
+__all__ = ["TeamCode", "CodeRun", "LoadJob"]
