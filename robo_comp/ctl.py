@@ -53,13 +53,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def add_connection_args(p: argparse.ArgumentParser) -> None:
+def add_connection_args(p: argparse.ArgumentParser, required: bool = True) -> None:
     """``--core``, ``--token``/``--token-file`` and the CurveZMQ ``--curve-cert``/``--core-key``,
-    shared by every client command."""
+    shared by every client command (``required=False`` where another source may replace the core,
+    as the wall's ``--replay``)."""
     from robo_comp.core.curve import add_curve_args
 
-    p.add_argument("--core", required=True, help="ROUTER URL (tcp://HOST:PORT) or the core's state folder")
-    tok = p.add_mutually_exclusive_group(required=True)
+    p.add_argument("--core", required=required, help="ROUTER URL (tcp://HOST:PORT) or the core's state folder")
+    tok = p.add_mutually_exclusive_group(required=required)
     tok.add_argument("--token", help="team or referee token")
     tok.add_argument("--token-file", help="file holding the token")
     add_curve_args(p)
@@ -91,7 +92,7 @@ def run(args: argparse.Namespace) -> int:
     """Run one ``ctl`` command; 0 on success, 1 when refused, 2 on bad usage."""
     try:
         token = read_token(args.token, args.token_file)
-        url = resolve_core(args.core)
+        resolve_core(args.core)  # a clear message now for a wrong --core
     except RoboCompError as e:
         print(f"error: {e.message}", file=sys.stderr)
         return 2

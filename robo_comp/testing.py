@@ -47,17 +47,15 @@ import pytest
 from robo_comp.client import Client
 from robo_comp.errors import BadTaskError, FieldError, RoboCompError, UnavailableError, UploadError
 from robo_comp.launch import start_core, start_robots, stop_all
+from robo_comp.robots import teamcode as host_answers  # the robot host's answers to team code
 
 if TYPE_CHECKING:  # heavy imports (numpy, numba, the sandbox) only when a fixture needs them
     from robo_comp.plugins.contract import ModuleInfo
-    from robo_comp.plugins.sandbox import Limits, LogLine, Sandbox
+    from robo_comp.plugins.sandbox import Limits, LogLine
     from robo_comp.world.scenario import Scenario
 
 DEFAULT_SCENARIO = "demo_room"
 HEARTBEAT = 0.2
-#: What the robot host allows (robo_comp/robots/teamcode.py): map_piece radius, evidence ids.
-MAX_PIECE_RADIUS = 20
-MAX_EVIDENCE = 32
 
 
 # ---------------------------------------------------------------------- waiting helpers
@@ -107,7 +105,7 @@ def resolve_scenario(spec: str | os.PathLike[str], base: Path | None = None) -> 
         p = base / p
     if p.is_file():
         return p.resolve()
-    if str(spec).endswith(".toml") and (os.sep in str(spec) or "/" in str(spec)):
+    if str(spec).endswith(".toml"):  # a file name, not a bundled scenario's name
         raise FieldError(f"scenario file {spec!r} not found (looked in {p})")
     return bundled_scenario_path(str(spec))
 
@@ -611,7 +609,7 @@ class Bench:
                 self._begin_motion(tag, c)
                 return
             value = self._immediate(t, c.name, list(c.args))
-        except (RoboCompError, _Refused) as e:
+        except (RoboCompError, host_answers.Refused) as e:
             self._reject(tag, c.call_id, c.name, c.args, getattr(e, "message", None) or str(e))
             return
         except (TypeError, ValueError, IndexError) as e:
@@ -642,23 +640,13 @@ class Bench:
         if c.name == "move":
             m = _Motion(c.call_id, c.name, list(c.args), [])
             cells = int(c.args[0])
-            rad = math.radians(self._pose_raw(t)[2])
-            dx, dy = round(math.cos(rad)), round(math.sin(rad))
-            if dx and dy:  # between two axes: go along the nearer one (as the host does)
-                dx, dy = (dx, 0) if abs(math.cos(rad)) >= abs(math.sin(rad)) else (0, dy)
+            dx, dy = host_answers.move_direction(self._pose_raw(t)[2])
             sign = 1 if cells >= 0 else -1
             m.cells = [(sign * dx, sign * dy)] * abs(cells)  # relative: checked cell by cell
             self._motions[tag] = m
             self._next_cell(tag, m)
             return
-        goal = (int(c.args[0]), int(c.args[1]))
-        if not self._in_bounds(*goal):
-            raise _Refused(f"({goal[0]}, {goal[1]}) is a wall or outside the arena")
-        from robo_comp.world.planner import find_path
-
-        path = find_path(self.arena.walls, self._free_cell(t), goal)
-        if path is None:
-            raise _Refused(f"no path to ({goal[0]}, {goal[1]})")
+        path = host_answers.plan_path(self.arena.walls, self._free_cell(t), (int(c.args[0]), int(c.args[1])))
         m = _Motion(c.call_id, c.name, list(c.args), [(int(x), int(y)) for x, y in path[1:]])
         self._motions[tag] = m
         self._next_cell(tag, m)
@@ -760,18 +748,12 @@ class Bench:
         return int(round(x)), int(round(y))
 
     def _in_bounds(self, x: int, y: int) -> bool:
-        walls = self.arena.walls
-        return 0 <= y < walls.shape[0] and 0 <= x < walls.shape[1] and not walls[y, x]
+        return host_answers.in_bounds(self.arena.walls, x, y)
 
     def _free_cell(self, t: str) -> tuple[int, int]:
         """The free cell the robot believes it is in (as ``SimRobot.free_cell`` on the host)."""
         x, y, _ = self._pose_raw(t)
-        cell = (int(round(x)), int(round(y)))
-        if self._in_bounds(*cell):
-            return cell
-        near = [(int(math.floor(x)) + dx, int(math.floor(y)) + dy) for dx in (0, 1) for dy in (0, 1)]
-        free = [c for c in near if self._in_bounds(*c)]
-        return min(free, key=lambda c: (c[0] - x) ** 2 + (c[1] - y) ** 2) if free else cell
+        return host_answers.free_cell(self.arena.walls, x, y)
 
     def _immediate(self, t: str, name: str, args: list[Any]) -> Any:
         if name == "position":
@@ -779,25 +761,10 @@ class Bench:
         if name == "sense":
             return {k: _plain(v) for k, v in self.arena.sense(t).items()}
         if name == "plan":
-            from robo_comp.world.planner import find_path
-
-            goal = (int(args[0]), int(args[1]))
-            if not self._in_bounds(*goal):
-                raise _Refused(f"({goal[0]}, {goal[1]}) is a wall or outside the arena")
-            path = find_path(self.arena.walls, self._free_cell(t), goal)
-            if path is None:
-                raise _Refused(f"no path to ({goal[0]}, {goal[1]})")
+            path = host_answers.plan_path(self.arena.walls, self._free_cell(t), (int(args[0]), int(args[1])))
             return [[int(x), int(y)] for x, y in path]
         if name == "map_piece":
-            r = int(args[0])
-            if not 0 <= r <= MAX_PIECE_RADIUS:
-                raise _Refused(f"radius must be between 0 and {MAX_PIECE_RADIUS}")
-            x, y = self._cell(t)
-            walls = self.arena.walls
-            h, w = walls.shape
-            rows = [[1 if not (0 <= yy < h and 0 <= xx < w) or walls[yy, xx] else 0
-                     for xx in range(x - r, x + r + 1)] for yy in range(y - r, y + r + 1)]
-            return {"x0": x - r, "y0": y - r, "walls": rows}
+            return host_answers.map_piece(self.arena.walls, *self._cell(t), int(args[0]))
         if name in ("take_picture", "upload_picture"):
             return self._picture(t)
         if name == "report_find":
@@ -823,7 +790,7 @@ class Bench:
         return pid
 
     def _find(self, t: str, x: Any, y: Any, kind: Any, evidence: Any) -> dict[str, Any]:
-        ev = [int(e) for e in (evidence or [])][:MAX_EVIDENCE]  # as the host passes it on
+        ev = [int(e) for e in (evidence or [])][:host_answers.MAX_EVIDENCE]  # as the host passes it on
         for pid in ev:
             if pid not in self.pictures:
                 raise FieldError(f"picture {pid} is not one of team {self.team}'s pictures")
@@ -838,10 +805,6 @@ class Bench:
                     evidence=ev, message=verdict["reason"])
         self._score({"kind": "find.judged", "team": self.team, "tag": int(t), "verdict": verdict})
         return {"id": fid, "state": state, "message": verdict["reason"]}
-
-
-class _Refused(Exception):
-    """A robot call the bench cannot carry out; its message reaches team code as RobotError."""
 
 
 def _json_line(event: dict[str, Any]) -> str:

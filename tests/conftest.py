@@ -2,8 +2,7 @@
 from __future__ import annotations
 
 import os
-import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from subprocess import Popen
@@ -15,6 +14,7 @@ os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 
 from robo_comp.client import Client  # noqa: E402
 from robo_comp.launch import start_core, start_robots, stop_all  # noqa: E402
+from robo_comp.testing import next_event_where, wait_for, wait_robots  # noqa: E402,F401  (tests import them from here)
 
 HEARTBEAT = 0.2
 
@@ -44,35 +44,6 @@ class CoreHandle:
         p = start_robots(self.state, team, count, *extra)
         self.procs.append(p)
         return p
-
-
-def wait_for(pred: Callable[[], Any], timeout: float = 10.0, what: str = "condition") -> Any:
-    """Poll ``pred`` until it returns a truthy value; fail the test after ``timeout`` s."""
-    t_end = time.monotonic() + timeout
-    while True:
-        v = pred()
-        if v:
-            return v
-        if time.monotonic() > t_end:
-            raise AssertionError(f"timed out after {timeout} s waiting for {what}")
-        time.sleep(0.05)
-
-
-def wait_robots(c: Client, n: int, status: str = "connected", timeout: float = 15.0) -> list[dict[str, Any]]:
-    """Wait until ``c`` sees ``n`` robots with ``status``; return them sorted by tag."""
-    return wait_for(lambda: (lambda rows: sorted(rows, key=lambda r: r["tag"])
-                             if sum(r["status"] == status for r in rows) >= n else None)(c.robots()),
-                    timeout, f"{n} {status} robots")
-
-
-def next_event_where(c: Client, pred: Callable[[dict[str, Any]], bool], timeout: float = 10.0) -> dict[str, Any]:
-    """Read watched events until one matches ``pred``."""
-    t_end = time.monotonic() + timeout
-    while time.monotonic() < t_end:
-        ev = c.next_event(0.2)
-        if ev is not None and pred(ev):
-            return ev
-    raise AssertionError("timed out waiting for a matching event")
 
 
 @pytest.fixture(scope="session", autouse=True)

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import CoreHandle, next_event_where, wait_for, wait_robots
+from conftest import wait_robots
 from robo_comp.client import Client
 from robo_comp.core.eventlog import LogCorrupt, read_log
 from robo_comp.launch import start_core, start_robots, stop_all

@@ -4,7 +4,6 @@ from __future__ import annotations
 import asyncio
 from pathlib import Path
 
-import pytest
 from conftest import CoreHandle, wait_robots
 
 from robo_comp.launch import start_core

@@ -27,7 +27,7 @@ from robo_comp.plugins import contract
 
 if TYPE_CHECKING:  # pragma: no cover
     from robo_comp.core.registry import RobotRecord
-    from robo_comp.core.server import Core, Session
+    from robo_comp.core.server import Core
 
 #: Most robots one upload may go to.
 MAX_TAGS = 64

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import gc
 import logging
-import math
 import random
 import signal
 import time
@@ -29,7 +28,7 @@ from robo_comp.errors import RoboCompError
 from robo_comp.plugins.manager import get_plugin_manager
 from robo_comp.robots.drivers import ArenaDriver
 from robo_comp.robots.steps import Capture, Step, TaskFailed, TaskSpec
-from robo_comp.robots.teamcode import TeamCode
+from robo_comp.robots.teamcode import TeamCode, free_cell, in_bounds
 from robo_comp.world.arena import Arena
 from robo_comp.world.localization import Localization
 from robo_comp.world.mapservice import MapView
@@ -75,18 +74,12 @@ class SimRobot:
 
     def in_bounds(self, x: int, y: int) -> bool:
         """True when (x, y) is a free cell of the arena."""
-        walls = self.host.walls
-        return 0 <= y < walls.shape[0] and 0 <= x < walls.shape[1] and not walls[y, x]
+        return in_bounds(self.host.walls, x, y)
 
     def free_cell(self) -> tuple[int, int]:
         """The free cell the robot believes it is in (a noisy estimate may round into a wall)."""
         x, y, _ = self.driver.pose
-        cell = (int(round(x)), int(round(y)))
-        if self.in_bounds(*cell):
-            return cell
-        near = [(int(math.floor(x)) + dx, int(math.floor(y)) + dy) for dx in (0, 1) for dy in (0, 1)]
-        free = [c for c in near if self.in_bounds(*c)]
-        return min(free, key=lambda c: (c[0] - x) ** 2 + (c[1] - y) ** 2) if free else cell
+        return free_cell(self.host.walls, x, y)
 
     def plan_to(self, goal: tuple[int, int]) -> list[tuple[int, int]] | None:
         """A 4-connected path from the (free) cell the robot believes it is in to ``goal``, around

@@ -41,10 +41,58 @@ log = logging.getLogger("robo_comp.robots.teamcode")
 WAIT_SECONDS = 0.02
 #: The largest piece of map team code may ask for (cells from the robot).
 MAX_PIECE_RADIUS = 20
+#: The most picture ids one reported find passes on as evidence (what the core accepts).
+MAX_EVIDENCE = 32
 
 
-class _Refused(Exception):
+class Refused(Exception):
     """A robot call that cannot be carried out; its message reaches team code as RobotError."""
+
+
+# The answers to team code's robot calls, as plain functions of the walls and the robot's belief,
+# so that the seeded bench of robo_comp.testing answers exactly as a robot host does.
+def in_bounds(walls: Any, x: int, y: int) -> bool:
+    """True when (x, y) is a free cell of ``walls`` (a bool grid ``walls[y, x]``)."""
+    return 0 <= y < walls.shape[0] and 0 <= x < walls.shape[1] and not walls[y, x]
+
+
+def free_cell(walls: Any, x: float, y: float) -> tuple[int, int]:
+    """The free cell a robot at (x, y) believes it is in (a noisy estimate may round into a wall)."""
+    cell = (int(round(x)), int(round(y)))
+    if in_bounds(walls, *cell):
+        return cell
+    near = [(int(math.floor(x)) + dx, int(math.floor(y)) + dy) for dx in (0, 1) for dy in (0, 1)]
+    free = [c for c in near if in_bounds(walls, *c)]
+    return min(free, key=lambda c: (c[0] - x) ** 2 + (c[1] - y) ** 2) if free else cell
+
+
+def move_direction(heading: float) -> tuple[int, int]:
+    """The cell step of ``robot.move`` for a heading in degrees (between two axes: the nearer one)."""
+    rad = math.radians(heading)
+    dx, dy = round(math.cos(rad)), round(math.sin(rad))
+    if dx and dy:
+        dx, dy = (dx, 0) if abs(math.cos(rad)) >= abs(math.sin(rad)) else (0, dy)
+    return dx, dy
+
+
+def plan_path(walls: Any, start: tuple[int, int], goal: tuple[int, int]) -> list[tuple[int, int]]:
+    """``robot.plan``/``robot.go_to``: a path from ``start`` to a free ``goal``, or :class:`Refused`."""
+    if not in_bounds(walls, *goal):
+        raise Refused(f"({goal[0]}, {goal[1]}) is a wall or outside the arena")
+    path = find_path(walls, start, goal)
+    if path is None:
+        raise Refused(f"no path to ({goal[0]}, {goal[1]})")
+    return path
+
+
+def map_piece(walls: Any, x: int, y: int, radius: int) -> dict[str, Any]:
+    """``robot.map_piece``: the walls within ``radius`` cells of (x, y), outside the map blocked."""
+    if not 0 <= radius <= MAX_PIECE_RADIUS:
+        raise Refused(f"radius must be between 0 and {MAX_PIECE_RADIUS}")
+    h, w = walls.shape
+    rows = [[1 if not (0 <= yy < h and 0 <= xx < w) or walls[yy, xx] else 0
+             for xx in range(x - radius, x + radius + 1)] for yy in range(y - radius, y + radius + 1)]
+    return {"x0": x - radius, "y0": y - radius, "walls": rows}
 
 
 @dataclass(slots=True)
@@ -194,8 +242,8 @@ class TeamCode:
                     for step in steps:
                         yield step
                         if r.driver.bump is not None:
-                            raise _Refused("bumped into something and stopped")
-                except _Refused as e:
+                            raise Refused("bumped into something and stopped")
+                except Refused as e:
                     sb.reject(call_id, str(e))
                 else:
                     sb.resolve(call_id, answer())
@@ -244,14 +292,14 @@ class TeamCode:
         run = self.runs.get(c.run_id)
         try:
             if r is None or run is None:
-                raise _Refused("this robot is not running that task any more")
+                raise Refused("this robot is not running that task any more")
             if c.name in ("move", "turn", "go_to"):
                 run.call = (c.call_id, self._steps(r, c.name, c.args), lambda: list(r.driver.pose))
                 return
             value = self._immediate(r, c)
             if value is not PENDING:
                 sb.resolve(c.call_id, value)
-        except _Refused as e:
+        except Refused as e:
             sb.reject(c.call_id, str(e))
         except RoboCompError as e:
             sb.reject(c.call_id, e.message)
@@ -267,31 +315,16 @@ class TeamCode:
         if c.name == "sense":
             return host.world.sense(r.robot_id) if host.world is not None else {}
         if c.name == "plan":
-            goal = (int(args[0]), int(args[1]))
-            if not r.in_bounds(*goal):
-                raise _Refused(f"({goal[0]}, {goal[1]}) is a wall or outside the arena")
-            path = find_path(host.walls, r.free_cell(), goal)
-            if path is None:
-                raise _Refused(f"no path to ({goal[0]}, {goal[1]})")
-            return [list(p) for p in path]
+            return [list(p) for p in plan_path(host.walls, r.free_cell(), (int(args[0]), int(args[1])))]
         if c.name == "map_piece":
-            radius = int(args[0])
-            if not 0 <= radius <= MAX_PIECE_RADIUS:
-                raise _Refused(f"radius must be between 0 and {MAX_PIECE_RADIUS}")
-            x, y = r.cell()
-            walls = host.walls
-            rows = []
-            for yy in range(y - radius, y + radius + 1):
-                rows.append([1 if not (0 <= yy < walls.shape[0] and 0 <= xx < walls.shape[1])
-                             or walls[yy, xx] else 0 for xx in range(x - radius, x + radius + 1)])
-            return {"x0": x - radius, "y0": y - radius, "walls": rows}
+            return map_piece(host.walls, *r.cell(), int(args[0]))
         if c.name in ("take_picture", "upload_picture"):
             host.code_picture(r, lambda ok, body: self._settle(c.call_id, ok, body.get("id") if ok else body))
             return PENDING
         if c.name == "report_find":
             x, y, kind, evidence = (list(args) + [None, None, None, None])[:4]
             body = {"tag": r.tag, "x": float(x), "y": float(y), "kind": str(kind or "victim")[:32],
-                    "evidence": [int(e) for e in (evidence or [])][:32]}
+                    "evidence": [int(e) for e in (evidence or [])][:MAX_EVIDENCE]}
             host.code_request("find", body, lambda ok, b: self._settle(c.call_id, ok, b))
             return PENDING
         if c.name == "radio":
@@ -299,7 +332,7 @@ class TeamCode:
             host.code_request("radio", {"tag": r.tag, "to": to, "data": data},
                               lambda ok, b: self._settle(c.call_id, ok, b.get("delivered") if ok else b))
             return PENDING
-        raise _Refused(f"unknown robot call {c.name!r}")
+        raise Refused(f"unknown robot call {c.name!r}")
 
     def _settle(self, call_id: int, ok: bool, value: Any) -> None:
         """Answer a call that went to the core, once the core has answered."""
@@ -319,26 +352,19 @@ class TeamCode:
             return
         if name == "move":
             cells = int(args[0])
-            rad = math.radians(r.driver.heading)
-            dx, dy = round(math.cos(rad)), round(math.sin(rad))
-            if dx and dy:  # between two axes: go along the nearer one
-                dx, dy = (dx, 0) if abs(math.cos(rad)) >= abs(math.sin(rad)) else (0, dy)
+            dx, dy = move_direction(r.driver.heading)
             sign = 1 if cells >= 0 else -1
             for _ in range(abs(cells)):
                 x, y = r.cell()
                 nx, ny = x + sign * dx, y + sign * dy
                 if not r.in_bounds(nx, ny):
-                    raise _Refused(f"({nx}, {ny}) is a wall or outside the arena; stopped at ({x}, {y})")
+                    raise Refused(f"({nx}, {ny}) is a wall or outside the arena; stopped at ({x}, {y})")
                 yield Move(nx, ny)
             return
-        goal = (int(args[0]), int(args[1]))
-        if not r.in_bounds(*goal):
-            raise _Refused(f"({goal[0]}, {goal[1]}) is a wall or outside the arena")
-        path = find_path(self.host.walls, r.free_cell(), goal)
-        if path is None:
-            raise _Refused(f"no path to ({goal[0]}, {goal[1]})")
+        path = plan_path(self.host.walls, r.free_cell(), (int(args[0]), int(args[1])))
         for x, y in path[1:]:
             yield Move(x, y)
 
 
-__all__ = ["TeamCode", "CodeRun", "LoadJob"]
+__all__ = ["TeamCode", "CodeRun", "LoadJob", "Refused", "in_bounds", "free_cell", "move_direction", "plan_path",
+           "map_piece", "MAX_PIECE_RADIUS", "MAX_EVIDENCE"]

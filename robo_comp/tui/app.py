@@ -9,7 +9,6 @@ every refusal becomes a readable notification, never a traceback.
 """
 from __future__ import annotations
 
-import time
 from collections import deque
 from collections.abc import Callable, Iterable
 from functools import partial
@@ -88,7 +87,7 @@ class ConsoleApp(App[None]):
 
     def __init__(self, core: str = "", token: str = "", *, link: Link | None = None,
                  clock: Callable[[], float] | None = None, wall_clock: Callable[[], float] | None = None,
-                 poll: bool = True) -> None:
+                 poll: bool = True, curve_cert: str | None = None, core_key: str | None = None) -> None:
         super().__init__()
         self.model = ConsoleModel()
         if clock is not None:
@@ -96,7 +95,7 @@ class ConsoleApp(App[None]):
         if wall_clock is not None:
             self.model.wall_clock = wall_clock
         self.link: Link = link or CoreLink(core, token, client=self.CLIENT_NAME, on_event=self._post_event,
-                                           on_state=self._post_state)
+                                           on_state=self._post_state, curve_cert=curve_cert, core_key=core_key)
         if link is not None and hasattr(link, "on_event"):
             link.on_event = self._post_event  # type: ignore[attr-defined]
             link.on_state = self._post_state  # type: ignore[attr-defined]
@@ -375,6 +374,3 @@ class ConsoleApp(App[None]):
         """``check_action`` helper: None (greyed out) when the core lacks request ``name``."""
         return None if self.features.get(name) is False else True
 
-    def now(self) -> float:
-        """The model's wall clock (fixed in snapshot tests)."""
-        return self.model.wall_clock() if self.model.wall_clock is not time.time else time.time()

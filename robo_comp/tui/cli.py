@@ -5,35 +5,22 @@
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from pathlib import Path
 
-
-def _connection(p: argparse.ArgumentParser) -> None:
-    from robo_comp.core.curve import add_curve_args
-
-    p.add_argument("--core", required=True, help="ROUTER URL (tcp://HOST:PORT) or the core's state folder")
-    tok = p.add_mutually_exclusive_group(required=True)
-    tok.add_argument("--token", help="team token (referee token for 'referee')")
-    tok.add_argument("--token-file", help="file holding the token")
-    add_curve_args(p)
+from robo_comp.ctl import add_connection_args
 
 
 def _check(args: argparse.Namespace, role: str) -> tuple[str, str]:
     from robo_comp.client import read_token, resolve_core
-    from robo_comp.core.curve import ENV_CERT, ENV_CORE_KEY, client_keys
+    from robo_comp.core.curve import client_keys
 
     token = read_token(args.token, args.token_file)
-    resolve_core(args.core)  # a clear message now for a wrong --core, before the screen opens
-    # The console's link (robo_comp.tui.connection.CoreLink) reads the CurveZMQ options from the
-    # environment, as a user may set them; check them now, before the screen opens.
-    for value, name in ((args.curve_cert, ENV_CERT), (args.core_key, ENV_CORE_KEY)):
-        if value:
-            os.environ[name] = str(Path(value).resolve())
-    client_keys(args.core, token)
+    resolve_core(args.core)  # clear messages now for a wrong --core or key file, before the screen opens
+    client_keys(args.core, token, args.curve_cert, args.core_key)
     if not sys.stdout.isatty():
-        print(f"robo-comp {role}: the console needs a terminal (over SSH use 'ssh -t')", file=sys.stderr)
+        print(f"robo-comp {role}: warning: this is not a terminal, the console may not show "
+              "(over SSH use 'ssh -t')", file=sys.stderr)
     return args.core, token
 
 
@@ -42,7 +29,8 @@ def run_team(args: argparse.Namespace) -> int:
     from robo_comp.tui.team_app import TeamApp
 
     core, token = _check(args, "team")
-    TeamApp(core, token, upload_dir=Path(args.upload_dir) if args.upload_dir else None).run()
+    TeamApp(core, token, upload_dir=Path(args.upload_dir) if args.upload_dir else None,
+            curve_cert=args.curve_cert, core_key=args.core_key).run()
     return 0
 
 
@@ -51,7 +39,7 @@ def run_referee(args: argparse.Namespace) -> int:
     from robo_comp.tui.referee_app import RefereeApp
 
     core, token = _check(args, "referee")
-    RefereeApp(core, token).run()
+    RefereeApp(core, token, curve_cert=args.curve_cert, core_key=args.core_key).run()
     return 0
 
 
@@ -60,13 +48,13 @@ def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-a
     t = sub.add_parser("team", help="the team console (Textual): robots, tasks, uploads, STOP",
                        description="A live console for one team: robots table, monitor, map, events, "
                                    "a give-task form, uploads, STOP on ctrl+s. Works from 80x24, also over SSH.")
-    _connection(t)
+    add_connection_args(t)
     t.add_argument("--upload-dir", help="folder the upload file picker opens in (default: the current one)")
     t.set_defaults(func=run_team)
     r = sub.add_parser("referee", help="the referee console (Textual): phases, scores, penalties",
                        description="The whole match: phase control with confirmations, scores, every robot, "
                                    "penalties, disqualification, broadcasts, upload approval, filtered events.")
-    _connection(r)
+    add_connection_args(r)
     r.set_defaults(func=run_referee)
 
 

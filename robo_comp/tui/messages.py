@@ -34,7 +34,3 @@ class RobotSelected(Message):
     def __init__(self, tag: int | None) -> None:
         super().__init__()
         self.tag = tag
-
-
-class ModelChanged(Message):
-    """The console model changed; widgets that draw from it refresh."""

@@ -15,11 +15,11 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import msgpack
 import pygame
 import zmq
 
 from robo_comp.client import Client, recv_event
+from robo_comp.core import protocol as P
 from robo_comp.errors import AuthError, RoboCompError
 from robo_comp.wall.interact import Command, Interaction
 from robo_comp.wall.model import WallModel
@@ -213,7 +213,7 @@ class WallApp:
             self.source.advance(self.model)
         if self.view_sub is not None:
             while self.view_sub.poll(0):
-                self.view.update(msgpack.unpackb(self.view_sub.recv(), raw=False))
+                self.view.update(P.unpack(self.view_sub.recv()))
 
     def handle(self, ev: pygame.event.Event, now: float) -> None:
         """One pygame event: mouse presses, wheel, keys, window close."""
@@ -309,9 +309,7 @@ class WallApp:
             if pid in self.pictures:
                 continue
             try:
-                if isinstance(self.source, LiveSource):
-                    self.pictures[pid] = self.source.picture(pid)
-                elif isinstance(self.source, ReplaySource):
+                if self.source is not None:
                     self.pictures[pid] = self.source.picture(pid)
             except RoboCompError as e:
                 self.pictures[pid] = e.message
@@ -322,7 +320,7 @@ class WallApp:
             return
         state = self.view.to_dict()
         if state != self._view_sent[0] or now - self._view_sent[1] >= VIEW_REPUBLISH:
-            self.view_pub.send(msgpack.packb(state, use_bin_type=True))
+            self.view_pub.send(P.pack(state))
             self._view_sent = (state, now)
 
     def close(self) -> None:

@@ -21,13 +21,9 @@ from robo_comp.wall.view import TileSpec, ViewState, parse_pair
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """The wall's options (shared by ``robo-comp wall`` and ``python -m robo_comp.wall.cli``)."""
-    p.add_argument("--core", help="ROUTER URL (tcp://HOST:PORT) or the core's state folder")
-    tok = p.add_mutually_exclusive_group()
-    tok.add_argument("--token", help="team or referee token (a team token commands only its own robots)")
-    tok.add_argument("--token-file", help="file holding the token")
-    from robo_comp.core.curve import add_curve_args
+    from robo_comp.ctl import add_connection_args
 
-    add_curve_args(p)
+    add_connection_args(p, required=False)  # --replay plays without a core
     p.add_argument("--size", default="1280x800", help="window (or tile) size WxH in pixels (default 1280x800)")
     p.add_argument("--grid", default="1x1", help="the wall is CxR tiles of --size each (default 1x1)")
     p.add_argument("--tile", default="0,0", help="which tile this process renders: c,r from 0,0 (default 0,0)")

@@ -46,7 +46,6 @@ def test_demo_room_all_victims_found():
     assert out.victims == set(victims) == {"v1", "v2", "v3"}
     assert [f["state"] for f in out.finds] == ["confirmed"] * 3
     assert out.score == expected_score(out, victims, config) == 50  # 10 + 15 + 10, + 3 x 5 first bonus
-    assert out.sim_seconds <= 300
     assert all(o["ok"] for done in out.outcomes.values() for o in done)  # no bump, no failure
 
 

@@ -13,7 +13,8 @@ from textual.screen import ModalScreen
 from textual.widgets import Button, Checkbox, DirectoryTree, Input, RadioButton, RadioSet
 
 from robo_comp.errors import RoboCompError
-from robo_comp.tui.widgets.upload import MAX_UPLOAD, PythonTree, UploadResult
+from robo_comp.plugins.contract import MAX_SOURCE_BYTES as MAX_UPLOAD  # what the robots accept
+from robo_comp.tui.widgets.upload import PythonTree, UploadResult
 
 Sender = Callable[[dict[str, Any]], Awaitable[dict[str, Any]]]
 
@@ -90,7 +91,7 @@ class UploadScreen(ModalScreen[None]):
         if not path.is_file():
             raise ValueError(f"{path} is not a file")
         if path.stat().st_size > MAX_UPLOAD:
-            raise ValueError(f"{path.name} is larger than {MAX_UPLOAD // 1024} KiB")
+            raise ValueError(f"{path.name} is larger than {MAX_UPLOAD:,} bytes, the most a robot accepts")
         try:
             source = path.read_text(encoding="utf-8")
         except (OSError, UnicodeDecodeError) as e:

@@ -9,7 +9,6 @@ from rich.text import Text
 from textual.widgets import DirectoryTree, Static
 
 #: Largest file the console sends (the core has its own, stricter limits).
-MAX_UPLOAD = 256 * 1024
 
 
 class PythonTree(DirectoryTree):

@@ -21,10 +21,20 @@ def test_every_upload_passes_the_contract(robo_bench, path):
     assert set(info.tasks) <= set(robo_bench.tasks())
 
 
+BROKEN = '''MANIFEST = {"name": "bad", "version": "1", "kind": "extension", "tasks": {"t": {"args": []}}}
+
+def t(robot):
+    return 1
+
+open("/etc/passwd")
+'''
+
+
 def test_a_broken_upload_is_refused_with_file_and_line(robo_bench):
     with pytest.raises(UploadError) as err:
-        robo_bench.load("bad.py", "MANIFEST = {}\nopen('/etc/passwd')\n")
-    assert err.value.details["file"] == "bad.py"
+        robo_bench.load("bad.py", BROKEN)  # there is no open() in the sandbox: line 6 fails
+    assert err.value.details == {"file": "bad.py", "line": 6, "rule": "module"}
+    assert "open" in err.value.message
 
 
 @pytest.fixture
