@@ -9,6 +9,8 @@ every refusal becomes a readable notification, never a traceback.
 """
 from __future__ import annotations
 
+import logging
+
 from collections import deque
 from collections.abc import Callable, Iterable
 from functools import partial
@@ -35,6 +37,10 @@ ERROR_TITLES = {
 OPTIONAL_REQUESTS = {"team": ("upload", "score"),
                      "referee": ("upload", "approve", "score", "penalty", "disqualify", "broadcast", "match")}
 
+
+log = logging.getLogger("robo_comp.tui")
+#: What a student sees when the console itself fails (the details go to the log, never a traceback).
+INTERNAL_PROBLEM = "the console hit a problem of its own (details in its log); the match and your robots are not affected"
 
 class Link(Protocol):
     """What a console needs from its link to the core (:class:`CoreLink` or a stand-in)."""
@@ -239,8 +245,8 @@ class ConsoleApp(App[None]):
         from textual.worker import WorkerState
 
         if event.state is WorkerState.ERROR and self.main() is not None:
-            err = event.worker.error
-            self.notify(f"{type(err).__name__}: {err}", title="Console error", severity="error")
+            log.error("console task failed", exc_info=event.worker.error)
+            self.notify(INTERNAL_PROBLEM, title="Console error", severity="error")
 
     async def call(self, type_: str, *, quiet: bool = False, title: str | None = None,
                    **body: Any) -> dict[str, Any] | None:
@@ -258,9 +264,10 @@ class ConsoleApp(App[None]):
                 self.notify(e.message, title=title or ERROR_TITLES.get(e.code, "Refused"), severity="error",
                             timeout=8)
             return None
-        except Exception as e:  # never a traceback on screen
+        except Exception:  # never a traceback on screen
+            log.exception("request %r failed in the console", type_)
             if not quiet:
-                self.notify(f"{type(e).__name__}: {e}", title="Unexpected error", severity="error", timeout=8)
+                self.notify(INTERNAL_PROBLEM, title="Unexpected error", severity="error", timeout=8)
             return None
 
     async def fetch_detail(self, tag: int) -> None:

@@ -154,7 +154,9 @@ class CoreLink:
             raise TimeoutError_(
                 f"the core did not answer {type_!r} within {timeout:.0f} s") from None
         except zmq.ZMQError as e:
-            raise ConnectionLostError(f"could not send {type_!r} to the core: {e}") from None
+            log.debug("send of %r failed: %s", type_, e)
+            raise ConnectionLostError(f"could not send {type_!r}: the connection to the core is down; "
+                                      "the console reconnects on its own") from None
         finally:
             self._pending.pop(rid, None)
 

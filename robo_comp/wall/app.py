@@ -20,7 +20,7 @@ import zmq
 
 from robo_comp.client import Client, recv_event
 from robo_comp.core import protocol as P
-from robo_comp.errors import AuthError, RoboCompError
+from robo_comp.errors import AuthError, FieldError, RoboCompError
 from robo_comp.wall.interact import Command, Interaction
 from robo_comp.wall.model import WallModel
 from robo_comp.wall.render import Overlay, Renderer
@@ -132,7 +132,12 @@ class WallApp:
         if view_pub:
             self.view_pub = self._ctx.socket(zmq.PUB)
             self.view_pub.setsockopt(zmq.LINGER, 0)
-            self.view_pub.bind(view_pub)  # "tcp://*:0"-style wildcards work: see view_pub_url
+            try:
+                self.view_pub.bind(view_pub)  # "tcp://*:0"-style wildcards work: see view_pub_url
+            except zmq.ZMQError as e:
+                self.view_pub.close(0)
+                raise FieldError(f"--view-pub {view_pub}: cannot publish the view there ({e.strerror}); "
+                                 "is another wall using that port?") from None
             self.view_pub_url = self.view_pub.getsockopt_string(zmq.LAST_ENDPOINT)
         if view_sub:
             self.view_sub = self._ctx.socket(zmq.SUB)

@@ -114,7 +114,10 @@ def run(args: argparse.Namespace) -> int:
             print(f"wall: screenshot {path} ({tile.width}x{tile.height}, tile {tile.col},{tile.row} "
                   f"of {tile.cols}x{tile.rows})")
             return 0
-        app.open_window(fullscreen=args.fullscreen)
+        try:
+            app.open_window(fullscreen=args.fullscreen)
+        except pygame.error as e:
+            raise FieldError(f"cannot open a window ({e}); on a machine without a screen use --screenshot PNG") from None
         app.run(max_frames=args.frames)
         return 0
     finally:
