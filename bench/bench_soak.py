@@ -18,8 +18,10 @@ What runs (real processes, TCP on loopback):
 Timeline: warm-up (20 % of the run, at most 60 s) → phase ``fast-wall-only`` → phase
 ``slow-wall-attached``. Reported: message rates from ``stats`` (received, events, dropped),
 p50/p99 give/stop latency per phase, core RSS over time and its growth after warm-up, and
-the acknowledged-give check (every acknowledged give must be found in the robot's tasks
-afterwards, and must have been pushed as a ``task.given`` event to the watching console).
+the acknowledged-give check: every acknowledged give must be in the core's event log as
+``task.given`` and, at the end, either finished (``task.done``, done or cancelled, in the log)
+or still the robot's current, pending or queued task; and it must have been pushed as a
+``task.given`` event to the watching console.
 """
 from __future__ import annotations
 
@@ -27,7 +29,6 @@ import argparse
 import json
 import os
 import random
-import statistics
 import subprocess
 import sys
 import tempfile
@@ -44,6 +45,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from robo_comp.client import Client, pub_url  # noqa: E402
 from robo_comp.core import protocol as P  # noqa: E402
+from robo_comp.core.eventlog import read_log  # noqa: E402
 from robo_comp.errors import RoboCompError  # noqa: E402
 from robo_comp.launch import start_core, start_robots, stop_all  # noqa: E402
 
@@ -58,6 +60,12 @@ def rss_kib(pid: int) -> int:
         if line.startswith("VmRSS:"):
             return int(line.split()[1])
     return 0
+
+
+def cpu_seconds(pid: int) -> float:
+    """User + system CPU time process ``pid`` used so far (``/proc/PID/stat``)."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 def percentile(values: list[float], q: float) -> float:
@@ -127,12 +135,9 @@ class Console:
     rate: float
     rng: random.Random
     latency: dict[str, dict[str, list[float]]] = field(default_factory=dict)
-    acked: dict[int, list[int]] = field(default_factory=dict)  # tag -> acknowledged task ids
+    acked: dict[int, int] = field(default_factory=dict)  # acknowledged task id -> tag
     given_events: set[int] = field(default_factory=set)
-    all_acked: set[int] = field(default_factory=set)
     errors: dict[str, int] = field(default_factory=dict)
-    missing: list[tuple[int, int]] = field(default_factory=list)  # (tag, task id) not found
-    checked: int = 0
 
     def _drain_events(self) -> None:
         ev = self.client.events
@@ -152,16 +157,13 @@ class Console:
             self.latency.setdefault(phase, {}).setdefault(kind, []).append((time.perf_counter() - t0) * 1000)
             self._drain_events()
 
-    def verify(self, tag: int) -> None:
-        """Check that every acknowledged give to ``tag`` is among its tasks now."""
-        ids = self.acked.pop(tag, [])
-        if not ids:
-            return
-        t = self.client.tasks(tag)
-        known = {x["task_id"] for x in [t["current"], t["pending"], *t["queued"], *t["done"]] if x}
-        self.checked += len(ids)
-        self.missing += [(tag, i) for i in ids if i not in known]
-        self._drain_events()
+    def waiting(self) -> set[int]:
+        """Ids of the tasks the team's robots still run or wait to run (asked at the end)."""
+        ids: set[int] = set()
+        for tag in set(self.acked.values()):
+            t = self.client.tasks(tag)
+            ids |= {x["task_id"] for x in [t["current"], t["pending"], *t["queued"]] if x}
+        return ids
 
     def one_command(self, phase: str) -> None:
         """Give now (70 %), give queued (15 %) or stop (15 %) a random robot of the team."""
@@ -171,12 +173,9 @@ class Console:
             x, y = self.rng.choice(self.cells)
             rep = self._timed(phase, "give", self.client.give, tag, "goTo", [x, y], queue=op >= 0.70)
             if rep is not None:
-                self.acked.setdefault(tag, []).append(rep["task_id"])
-                self.all_acked.add(rep["task_id"])
+                self.acked[rep["task_id"]] = tag
         else:
             self._timed(phase, "stop", self.client.stop, tag)
-        if self.rng.random() < 0.1:  # now and then, check a robot's tasks (the rest at the end)
-            self.verify(self.rng.choice(self.tags))
 
     def run(self, phase_of: Any, stop_at: float) -> None:
         """Issue commands at ``rate`` per second until ``stop_at`` (monotonic)."""
@@ -186,8 +185,6 @@ class Console:
             self.one_command(phase_of())
             nxt += period
             time.sleep(max(0.0, nxt - time.monotonic()))
-        for tag in list(self.acked):
-            self.verify(tag)
         t_end = time.monotonic() + 2.0  # late task.given pushes
         while time.monotonic() < t_end and self.client.next_event(0.2) is not None:
             self._drain_events()
@@ -255,27 +252,53 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         threads = [threading.Thread(target=c.run, args=(phase_of, stop_at), daemon=True) for c in consoles]
         for t in threads:
             t.start()
-        samples = sample_loop(ref, core.pid, t0, stop_at, args.sample, phase_of)
+        pids = {"core": core.pid, **{f"robots-{t}": p.pid for t, p in zip(TEAMS, procs[1:1 + len(TEAMS)])},
+                "walls": procs[-1].pid, "consoles (this process)": os.getpid()}
+        samples = sample_loop(ref, pids, t0, stop_at, args.sample, phase_of)
         for t in threads:
             t.join(timeout=120)
         procs[-1].wait(timeout=60)
         walls = json.loads(walls_out.read_text()) if walls_out.exists() else {}
         final = ref.request("stats")
+        waiting = set().union(*(c.waiting() for c in consoles))  # first: what finishes later is logged
+        check = check_acked(consoles, waiting, state / "events.log")
         for c in consoles:
             c.client.close()
         ref.close()
-        return report(args, reg_s, warm, half, samples, consoles, walls, final)
+        return report(args, reg_s, warm, half, samples, consoles, walls, final, check)
     finally:
         stop_all(procs)
 
 
-def sample_loop(ref: Client, pid: int, t0: float, stop_at: float, every: float, phase_of: Any) -> list[dict[str, Any]]:
-    """Sample ``stats`` and the core's RSS every ``every`` seconds until ``stop_at``."""
+def check_acked(consoles: list[Console], waiting: set[int], log_path: Path) -> dict[str, Any]:
+    """Every acknowledged give: logged as given, and finished in the log or still waiting."""
+    given: set[int] = set()
+    finished: set[int] = set()
+    for rec in read_log(log_path, strict=False):  # the core is still writing: a partial tail is fine
+        if rec.topic == "task.given":
+            given.add(rec.data["task_id"])
+        elif rec.topic == "task.done":
+            finished.add(rec.data["task_id"])
+    acked = {i: c.acked[i] for c in consoles for i in c.acked}
+    return {"acked_gives": len(acked),
+            "not_logged": sorted(i for i in acked if i not in given),
+            "lost": sorted(i for i in acked if i not in finished and i not in waiting),
+            "finished": sum(1 for i in acked if i in finished),
+            "still_waiting": sum(1 for i in acked if i in waiting and i not in finished),
+            "not_pushed": sum(1 for c in consoles for i in c.acked if i not in c.given_events)}
+
+
+def sample_loop(ref: Client, pids: dict[str, int], t0: float, stop_at: float, every: float,
+                phase_of: Any) -> list[dict[str, Any]]:
+    """Sample ``stats``, the core's RSS and every process's CPU time every ``every`` seconds
+    until ``stop_at``."""
+    pid = pids["core"]
     samples = []
     while True:
         now = time.monotonic()
         st = ref.request("stats")
         samples.append({"t": round(now - t0, 1), "phase": phase_of(), "rss_kib": rss_kib(pid),
+                        "cpu_s": {name: cpu_seconds(p) for name, p in pids.items()},
                         "received": st["received"], "events": st["events"], "dropped": st["dropped"],
                         "errors": st["errors"], "connected": st["robots"].get("connected", 0)})
         s = samples[-1]
@@ -288,20 +311,18 @@ def sample_loop(ref: Client, pid: int, t0: float, stop_at: float, every: float, 
 
 
 def report(args: argparse.Namespace, reg_s: float, warm: float, half: float, samples: list[dict[str, Any]],
-           consoles: list[Console], walls: dict[str, Any], final: dict[str, Any]) -> dict[str, Any]:
+           consoles: list[Console], walls: dict[str, Any], final: dict[str, Any],
+           check: dict[str, Any]) -> dict[str, Any]:
     """Turn the samples into the figures of docs/perf-soak.md."""
     first = next(s for s in samples if s["t"] >= warm)
     last = samples[-1]
     dt = last["t"] - first["t"]
     rates = {k: round((last[k] - first[k]) / dt, 1) for k in ("received", "events", "dropped", "errors")}
+    cpu = {name: round(100.0 * (last["cpu_s"][name] - first["cpu_s"][name]) / dt, 1) for name in last["cpu_s"]}
     rss_after = [s["rss_kib"] for s in samples if s["t"] >= warm]
     mid = [s["rss_kib"] for s in samples if s["phase"] == "fast-wall-only"]
     growth = 100.0 * (rss_after[-1] - rss_after[0]) / rss_after[0]
     growth_a = 100.0 * (mid[-1] - mid[0]) / mid[0] if len(mid) > 1 else float("nan")
-    acked = sum(c.checked for c in consoles)
-    missing = [m for c in consoles for m in c.missing]
-    # every acknowledged give must also have been pushed to the watching console as task.given
-    not_pushed = sum(len(c.all_acked - c.given_events) for c in consoles)
     errors: dict[str, int] = {}
     for c in consoles:
         for k, v in c.errors.items():
@@ -309,14 +330,13 @@ def report(args: argparse.Namespace, reg_s: float, warm: float, half: float, sam
     return {
         "command": " ".join(sys.argv), "minutes": args.minutes, "robots": args.robots, "teams": list(TEAMS),
         "report_hz": args.report_hz, "console_rate": args.rate, "warmup_s": warm, "phase_s": half,
-        "registration_s": round(reg_s, 1), "rates_per_s": rates, "final_stats": final,
+        "registration_s": round(reg_s, 1), "rates_per_s": rates, "cpu_pct": cpu, "final_stats": final,
         "rss_mib": {"start_after_warmup": round(rss_after[0] / 1024, 1), "end": round(rss_after[-1] / 1024, 1),
                     "max": round(max(rss_after) / 1024, 1), "growth_pct": round(growth, 2),
                     "growth_pct_fast_only_phase": round(growth_a, 2)},
         "rss_series": [(s["t"], round(s["rss_kib"] / 1024, 1)) for s in samples],
         "latency": summarize_latency(consoles), "command_errors": errors,
-        "acked_gives_checked": acked, "acked_gives_missing": missing,
-        "acked_gives_not_pushed": not_pushed, "walls": walls,
+        "acked_check": check, "walls": walls,
     }
 
 
@@ -341,8 +361,8 @@ def main(argv: list[str] | None = None) -> int:
     print(text)
     if args.json:
         Path(args.json).write_text(text)
-    missing = res["acked_gives_missing"]
-    return 1 if missing else 0
+    check = res["acked_check"]
+    return 1 if check["not_logged"] or check["lost"] or check["not_pushed"] else 0
 
 
 if __name__ == "__main__":

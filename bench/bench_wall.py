@@ -2,8 +2,8 @@
 
     .venv/bin/python bench/bench_wall.py [--robots 1000] [--frames 120] [--no-trails]
 
-Feeds the wall's model directly with a synthetic ``robot.position`` event per robot per
-frame (all robots move every frame, the worst case: the core sends 10 per second), then
+Feeds the wall's model directly with a synthetic ``robot.positions`` batch per team per
+frame (all robots move every frame, the worst case: the core sends 10 batches per second), then
 times drawing and ``display.flip`` (incremental frames, as the wall's window does; ``--full``
 redraws everything each frame, as screenshots do). Configurations: the whole 7168×3072 Tromsø wall in one
 process, one 1024×768 tile of that wall as a 7×4 grid (the middle tile (3,1)), and one
@@ -79,9 +79,10 @@ def run(tile: TileSpec, robots: int, frames: int, trails: bool, incremental: boo
         y = np.clip(y + np.sin(rad) * 0.15, 1, a["height"] - 2)
         t0 = time.perf_counter()
         apply = model.apply
-        for i, tag in enumerate(tags):
-            apply("robot.position", {"tag": tag, "team": TEAMS[i % 4][0], "x": float(x[i]), "y": float(y[i]),
-                                     "heading": float(head[i]), "moving": True})
+        for k, (team, _) in enumerate(TEAMS):  # one conflated batch per team, as the core sends
+            apply("robot.positions", {"team": team, "tags": tags[k::4], "x": x[k::4].tolist(),
+                                      "y": y[k::4].tolist(), "heading": head[k::4].tolist(),
+                                      "moving": [True] * len(tags[k::4])})
         t1 = time.perf_counter()
         renderer.draw(screen, f / 30, incremental=incremental)
         pygame.display.flip()

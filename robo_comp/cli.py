@@ -10,6 +10,17 @@ from robo_comp import __version__
 from robo_comp.errors import FieldError, RoboCompError
 
 
+def _positive(text: str) -> float:
+    """An argparse type: a number above zero."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not value > 0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"{text!r} must be a number above zero")
+    return value
+
+
 def _core(args: argparse.Namespace) -> int:
     from robo_comp.core.server import Core
     from robo_comp.world.scenario import default_scenario, load_scenario
@@ -24,7 +35,7 @@ def _core(args: argparse.Namespace) -> int:
     core = Core(Path(args.state), scenario, teams, host=args.host, port=args.port,
                 heartbeat=args.heartbeat, fsync=args.fsync, plugins=pm,
                 practice=args.practice or not args.scenario, approve_uploads=args.approve_uploads,
-                curve=args.curve)
+                curve=args.curve, pose_hz=args.pose_hz)
     core.bind()
     print(f"core: serving {scenario.name!r} for teams {', '.join(core.tokens.teams)} on "
           f"tcp://{args.host}:{core.port} (events on port {core.pub_port}); state in {args.state}"
@@ -66,7 +77,7 @@ def _replay(args: argparse.Namespace) -> int:
 
     state = Path(args.state) if args.state else Path(tempfile.mkdtemp(prefix="robo_comp_replay_"))
     core = ReplayCore(Path(args.log), state, speed=args.speed, start_at=args.start, host=args.host,
-                      port=args.port, exit_at_end=args.exit_at_end)
+                      port=args.port, exit_at_end=args.exit_at_end, curve=args.curve)
     core.bind()
     print(f"replay: {args.log} ({core.duration:.0f} s recorded) at {args.speed:g}x on tcp://{args.host}:{core.port}; "
           f"state in {state} (tokens: {state}/referee.token, {state}/teams/)", flush=True)
@@ -101,6 +112,9 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--port", type=int, default=5555, help="ROUTER port (0 = any free port)")
     c.add_argument("--heartbeat", type=float, default=1.0, help="heartbeat interval in seconds")
     c.add_argument("--fsync", action="store_true", help="fsync the event log every loop turn")
+    c.add_argument("--pose-hz", type=_positive, default=10.0,
+                   help="robot.positions batches per team per second; reports in between are "
+                        "conflated, the newest pose wins (default 10)")
     c.add_argument("--practice", action="store_true",
                    help="no match phases: running at once, no time limit (the default without --scenario)")
     c.add_argument("--approve-uploads", action="store_true",
@@ -143,6 +157,9 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("--host", default="127.0.0.1", help="address to bind")
     rp.add_argument("--port", type=int, default=0, help="ROUTER port (0 = any free port)")
     rp.add_argument("--exit-at-end", action="store_true", help="stop when the recording has been played")
+    rp.add_argument("--curve", action="store_true",
+                    help="CurveZMQ, as core --curve: the keys of the replay's --state folder, else the "
+                         "recorded match's (STATE/keys beside the log)")
     rp.set_defaults(func=_replay)
 
     d = sub.add_parser("demo", help="run a demo match on localhost (what 'make demo' runs)")

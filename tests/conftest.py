@@ -59,12 +59,14 @@ def compiled_planner() -> None:
 def core(tmp_path: Path, request: pytest.FixtureRequest) -> Iterator[CoreHandle]:
     """A core process with teams red and blue and a fast heartbeat (0.2 s).
 
-    ``@pytest.mark.heartbeat(S)`` sets another interval (for tests driving raw sockets).
+    ``@pytest.mark.heartbeat(S)`` sets another interval (for tests driving raw sockets);
+    ``@pytest.mark.core_args(*ARGS)`` adds options to ``robo-comp core``.
     """
     state = tmp_path / "state"
     mark = request.node.get_closest_marker("heartbeat")
     hb = mark.args[0] if mark else HEARTBEAT
-    proc = start_core(state, "--heartbeat", str(hb), "--teams", "red,blue")
+    extra = request.node.get_closest_marker("core_args")
+    proc = start_core(state, "--heartbeat", str(hb), "--teams", "red,blue", *(extra.args if extra else ()))
     h = CoreHandle(state, proc)
     yield h
     for c in h.clients:

@@ -248,7 +248,7 @@ class Raw:
 
 
 #: Types that, when valid, get no reply (notifications and host replies).
-SILENT = {"report", "heartbeat", "bump", "reply"}
+SILENT = P.NOTIFICATIONS | {"reply"}
 
 
 def _may_be_silent(frames: list[bytes]) -> bool:

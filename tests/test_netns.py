@@ -58,7 +58,7 @@ for line in sys.stdin:
             body = {"cells": [[int(x), int(y)] for x, y in zip(xs, ys)]}
         elif req["type"] == "events":
             c.robots()  # a round trip reads what the core pushed meanwhile into c.events
-            body = {"events": [e for e in c.events if e.get("topic") != "robot.position"]}
+            body = {"events": [e for e in c.events if e.get("topic") != "robot.positions"]}
             c.events.clear()
         else:
             body = c.request(req["type"], **req.get("body", {}))

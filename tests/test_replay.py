@@ -1,6 +1,8 @@
 """``robo-comp replay``: a recorded match served like a live one, read-only, at any speed."""
 from __future__ import annotations
 
+import json
+import shutil
 import time
 from pathlib import Path
 
@@ -9,7 +11,8 @@ import pytest
 import robo_comp.world.scenario as scen
 from conftest import next_event_where, wait_for, wait_robots
 from robo_comp.client import Client
-from robo_comp.errors import FieldError, ForbiddenError
+from robo_comp.core.curve import ENV_CERT, ENV_CORE_KEY, create_keys
+from robo_comp.errors import FieldError, ForbiddenError, TimeoutError_
 from robo_comp.launch import _spawn, start_core, start_robots, stop_all
 from robo_comp.scoring.replay import ReplayCore
 
@@ -61,7 +64,7 @@ def test_consoles_follow_a_replay_like_a_live_match_and_cannot_command_it(record
             assert ev is not None, f"no more events; got {[e['topic'] for e in seen]}"
             seen.append(ev)
         topics = {e["topic"] for e in seen}
-        assert {"robot.registered", "task.given", "task.started", "robot.position"} <= topics
+        assert {"robot.registered", "task.given", "task.started", "robot.positions"} <= topics
         assert not any(e["data"].get("team") == "blue" for e in seen)  # team views stay private
         got = [e["data"] for e in seen if e["topic"] == "task.done"]
         assert [(d["task_id"], d["ok"]) for d in got] == [(d["task_id"], d["ok"]) for d in done]
@@ -93,6 +96,30 @@ def test_a_fast_replay_ends_where_the_match_ended(recorded, tmp_path):
         r = core.registry.robots[tag]
         assert abs(r.x - x) < 1.0 and abs(r.y - y) < 1.0
     assert len(core.registry.robots) == 3
+
+
+def test_a_replay_of_a_networked_match_takes_the_matchs_keys(recorded, tmp_path, monkeypatch):
+    monkeypatch.delenv(ENV_CERT, raising=False)
+    monkeypatch.delenv(ENV_CORE_KEY, raising=False)
+    match = tmp_path / "match"  # the recorded match, as if it had run with --curve: keys beside its log
+    shutil.copytree(recorded[0], match, ignore=shutil.ignore_patterns("core.json", "*.log.*"))
+    create_keys(match, ["red", "blue"])
+    replay = tmp_path / "replay"
+    proc = start_replay(match / "events.log", replay, "--curve", "--speed", "10")
+    try:
+        info = json.loads((replay / "core.json").read_text())
+        assert info["curve"] is True
+        assert (replay / "keys" / "red.key_secret").read_bytes() == (match / "keys" / "red.key_secret").read_bytes()
+        red_token = (match / "teams" / "red.token").read_text().strip()
+        red = Client(str(replay), red_token, timeout=5.0)  # red's certificate, found in the state folder
+        assert red.curve is not None
+        wait_robots(red, 2)
+        with pytest.raises(TimeoutError_, match="--curve"):  # no certificate: no handshake, no reply
+            Client(info["router"], red_token, timeout=1.0)
+        assert len(red.robots()) == 2  # the replay kept serving
+        red.close()
+    finally:
+        stop_all([proc])
 
 
 def test_bad_logs_are_refused_with_a_sentence(tmp_path):

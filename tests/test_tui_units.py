@@ -50,8 +50,10 @@ def test_model_follows_events() -> None:
     m.apply("task.done", "red", {"tag": 102, "task_id": 20, "name": "goTo", "ok": True, "state": "done",
                                  "status": "reached"})
     assert m.robots[102]["task"] is None
-    assert m.apply("robot.position", "red", {"tag": 102, "x": 4.0, "y": 5.0, "heading": 90.0}) is None  # not logged
-    assert (m.robots[102]["x"], m.robots[102]["y"]) == (4.0, 5.0)
+    assert m.apply("robot.positions", "red", {"team": "red", "tags": [102, 999], "x": [4.0, 1.0], "y": [5.0, 1.0],
+                                              "heading": [90.0, 0.0], "moving": [True, True]}) is None  # not logged
+    assert (m.robots[102]["x"], m.robots[102]["y"], m.robots[102]["moving"]) == (4.0, 5.0, True)
+    assert 999 not in m.robots  # a pose for a robot the console does not know adds nothing
     m.apply("robot.lost", "red", {"tag": 102, "message": "silent"})
     assert m.robots[102]["status"] == "lost"
     m.apply("robot.stopped", "red", {"tag": 101, "cancelled": [7, 8], "ms": 2.0})

@@ -85,8 +85,10 @@ def test_model_follows_events():
     assert m.robots[101].status == "lost"
     m.apply("robot.returned", {"tag": 101, "x": 5.0, "y": 5.0})
     assert m.robots[101].status == "connected"
-    m.apply("robot.position", {"tag": 201, "team": "blue", "x": 3.0, "y": 4.0, "heading": 45.0, "moving": True})
+    m.apply("robot.positions", {"team": "blue", "tags": [201, 202], "x": [3.0, 6.0], "y": [4.0, 7.0],
+                                "heading": [45.0, 90.0], "moving": [True, False]})
     assert (m.robots[201].team, m.robots[201].x, m.robots[201].heading) == ("blue", 3.0, 45.0)
+    assert (m.robots[202].y, m.robots[202].moving, m.robots[201].moving) == (7.0, False, True)
     m.apply("match.phase", {"phase": "paused", "elapsed": 80.0, "remaining": 220.0})
     assert m.match.now(100.0) == (80.0, 220.0)  # a paused clock does not run
     m.apply("score", {"teams": [{"team": "red", "score": 5, "rank": 1}]})
@@ -166,10 +168,11 @@ def test_incremental_frames_equal_full_redraws():
     screen = pygame.Surface(tile.size, 0, 32)
     rng = np.random.default_rng(3)
     for frame in range(40):
-        for tag, rb in m.robots.items():
-            m.apply("robot.position", {"tag": tag, "x": float(np.clip(rb.x + rng.uniform(-0.4, 0.6), 1, W - 2)),
-                                       "y": float(np.clip(rb.y + rng.uniform(-0.4, 0.5), 1, H - 2)),
-                                       "heading": float(rng.uniform(0, 360))})
+        tags = list(m.robots)
+        m.apply("robot.positions", {
+            "tags": tags, "x": [float(np.clip(m.robots[t].x + rng.uniform(-0.4, 0.6), 1, W - 2)) for t in tags],
+            "y": [float(np.clip(m.robots[t].y + rng.uniform(-0.4, 0.5), 1, H - 2)) for t in tags],
+            "heading": [float(rng.uniform(0, 360)) for _ in tags]})
         if frame == 10:
             m.apply("robot.lost", {"tag": 102})
         if frame == 20:
@@ -256,7 +259,7 @@ def test_replay_feeds_the_model_from_an_event_log(tmp_path: Path):
     log.append("core.started", None, {"router": "tcp://x", "teams": ["red", "blue"], "arena": arena_payload()}, t=t0)
     log.append("robot.registered", "red", {"tag": 101, "team": "red", "x": 1.0, "y": 1.0, "heading": 0.0}, t=t0 + 1)
     log.append("match.phase", "*", {"phase": "running", "elapsed": 0.0, "remaining": 300.0}, t=t0 + 1)
-    log.append("robot.position", "red", {"tag": 101, "team": "red", "x": 4.0, "y": 2.0, "heading": 0.0}, t=t0 + 5)
+    log.append("robot.positions", None, {"tags": [101], "x": [4.0], "y": [2.0], "heading": [0.0]}, t=t0 + 5)
     log.append("robot.lost", "red", {"tag": 101, "x": 4.0, "y": 2.0, "message": "gone"}, t=t0 + 9)
     log.close()
     fake = [0.0]

@@ -91,6 +91,11 @@ REQUESTS: dict[str, dict[str, tuple[str, bool]]] = {
         "tag": (_INT, True), "x": (_NUM, True), "y": (_NUM, True), "heading": (_NUM, True),
         "moving": (_BOOL, False), "sensors": (_MAP, False),
     },
+    # many robots of one host in one message: lists of the same length, row i is one report
+    "reports": {
+        "tags": (_LIST, True), "x": (_LIST, True), "y": (_LIST, True), "heading": (_LIST, True),
+        "moving": (_LIST, False), "sensors": (_LIST, False),
+    },
     "task.next": {"tag": (_INT, True)},
     "task.done": {
         "tag": (_INT, True), "task_id": (_INT, True), "ok": (_BOOL, True),
@@ -108,7 +113,9 @@ REQUESTS: dict[str, dict[str, tuple[str, bool]]] = {
 }
 
 #: Types a sender may use without a reply on success.
-NOTIFICATIONS = frozenset({"report", "heartbeat", "bump", "log"})
+NOTIFICATIONS = frozenset({"report", "reports", "heartbeat", "bump", "log"})
+#: Robots in one ``reports`` message at most.
+MAX_REPORTS = 1000
 
 #: Messages the core sends to robot hosts (requests expect a ``reply``).
 CORE_TO_HOST = ("heartbeat", "task.start", "task.interrupt", "stop", "radio", "hold", "map.delta", "event",
@@ -116,7 +123,7 @@ CORE_TO_HOST = ("heartbeat", "task.start", "task.interrupt", "stop", "radio", "h
 
 #: Event topics; the PUB socket uses them as the first frame.
 TOPICS = (
-    "robot.registered", "robot.position", "robot.lost", "robot.returned", "robot.left",
+    "robot.registered", "robot.positions", "robot.lost", "robot.returned", "robot.left",
     "task.given", "task.started", "task.done", "robot.stopped", "radio", "refused", "core.started",
     "match.phase", "score", "score.change", "penalty", "disqualified", "broadcast", "find.reported",
     "picture", "robot.bump", "robot.tasks", "robot.log", "upload.pending", "upload.sent", "upload.done",
@@ -189,6 +196,36 @@ _TYPE_NAMES = {int: "an integer", float: "a number", str: "a string", bool: "tru
 
 def _describe(value: Any) -> str:
     return _TYPE_NAMES.get(type(value), type(value).__name__)
+
+
+def check_reports(body: dict[str, Any]) -> int:
+    """Check a validated ``reports`` body row by row; return the number of rows.
+
+    Every list has one entry per robot: ``tags`` integers, ``x``/``y``/``heading`` finite
+    numbers, ``moving`` true/false, ``sensors`` a map or nil. Raises :class:`FieldError`
+    naming the first bad row.
+    """
+    tags = body["tags"]
+    n = len(tags)
+    if n > MAX_REPORTS:
+        raise FieldError(f"'reports' holds {n} robots; the limit is {MAX_REPORTS} per message")
+    for name in ("x", "y", "heading", "moving", "sensors"):
+        if name in body and len(body[name]) != n:
+            raise FieldError(f"'reports' needs one {name!r} per tag: {n} tags, {len(body[name])} {name!r}")
+    for i, tag in enumerate(tags):
+        if type(tag) is not int:
+            raise FieldError(f"'tags'[{i}] of 'reports' must be an integer, got {_describe(tag)}")
+    for name in ("x", "y", "heading"):
+        for i, v in enumerate(body[name]):
+            if type(v) not in (int, float) or not _finite(v):
+                raise FieldError(f"{name!r}[{i}] of 'reports' must be a finite number, got {v!r}")
+    for i, v in enumerate(body.get("moving", ())):
+        if type(v) is not bool:
+            raise FieldError(f"'moving'[{i}] of 'reports' must be true/false, got {_describe(v)}")
+    for i, v in enumerate(body.get("sensors", ())):
+        if v is not None and type(v) is not dict:
+            raise FieldError(f"'sensors'[{i}] of 'reports' must be a map or nil, got {_describe(v)}")
+    return n
 
 
 def decode_envelope(frame: bytes) -> tuple[dict[str, Any], int]:

@@ -147,7 +147,7 @@ class Replayer:
             r.pending = None
         if task in r.queue:
             r.queue.remove(task)
-        r.done.append(task)
+        self.core.registry.finished(r, task)
 
     # the match ----------------------------------------------------------
     def _phase(self, team: str | None, d: dict[str, Any], t: float) -> None:

@@ -10,7 +10,11 @@ from robo_comp.core.tasks import TaskRecord
 from robo_comp.errors import NoSuchRobotError
 
 FIRST_TAG = 101
-MAX_DONE_KEPT = 200
+#: Finished tasks kept per robot for ``tasks`` and ``monitor`` (the event log keeps them all).
+MAX_DONE_KEPT = 20
+#: Finished tasks kept in all: with 1,000 robots the core's memory stays flat however long
+#: the match; the oldest finished task of the whole match is forgotten first.
+MAX_DONE_TOTAL = 2_000
 
 
 @dataclass(slots=True)
@@ -64,6 +68,18 @@ class Registry:
         self.robots: dict[int, RobotRecord] = {}
         self.by_key: dict[tuple[str, str], int] = {}
         self.next_tag = FIRST_TAG
+        self._finished: deque[TaskRecord] = deque()  # every robot's kept finished tasks, oldest first
+
+    def finished(self, r: RobotRecord, t: TaskRecord) -> None:
+        """Keep finished task ``t`` in ``r.done``, forgetting the match's oldest beyond the limits."""
+        r.done.append(t)  # the deque's maxlen drops the robot's own oldest
+        kept = self._finished
+        kept.append(t)
+        while len(kept) > MAX_DONE_TOTAL:
+            old = kept.popleft()
+            owner = self.robots.get(old.tag)
+            if owner is not None and owner.done and owner.done[0] is old:
+                owner.done.popleft()
 
     def get(self, tag: int) -> RobotRecord:
         """The robot with ``tag`` or :class:`NoSuchRobotError`."""

@@ -59,7 +59,11 @@ PRIVATE_KEYS = frozenset({"status", "result", "data", "args", "message", "cancel
 SESSION_IDLE = 300.0
 STOP_TIMEOUT = 2.0
 #: Events queued per PUB subscriber before the slowest ones start missing events (ZMQ_SNDHWM).
-PUB_QUEUE = 20_000
+#: Positions travel conflated (one batch per team per pose period), so 2,000 events are tens of
+#: seconds of a 1,000-robot match.
+PUB_QUEUE = 2_000
+#: Position batches per second: reports that arrive in between are conflated (the newest pose wins).
+POSE_HZ = 10.0
 MAX_RESULT = 64 * 1024
 
 
@@ -93,7 +97,7 @@ class Core:
                  host: str = "127.0.0.1",
                  port: int = 5555, pub_port: int = 0, heartbeat: float = 1.0, fsync: bool = False,
                  practice: bool = False, scoring: ScoringConfig | None = None, plugins: Any = None,
-                 approve_uploads: bool = False, curve: bool = False) -> None:
+                 approve_uploads: bool = False, curve: bool = False, pose_hz: float = POSE_HZ) -> None:
         self.state_dir = Path(state_dir)
         self.state_dir.mkdir(parents=True, exist_ok=True)
         self.scenario = scenario
@@ -123,12 +127,15 @@ class Core:
         self.core_id = secrets.token_hex(8)  # tells clients when they talk to a restarted core
         self.stats = {"received": 0, "errors": 0, "events": 0, "dropped": 0}
         self._out: list[tuple[zmq.Socket, list[bytes]]] = []
-        self._moved: set[int] = set()
+        self._moved: set[int] = set()  # moved since the last heartbeat (the log's sample)
+        self._posed: dict[str, set[int]] = {}  # team -> robots that reported since the last batch
+        self.pose_period = 1.0 / pose_hz
         self._handlers: dict[str, Callable[[bytes, P.Message], dict[str, Any] | None]] = {
             "hello": self._on_hello, "heartbeat": self._on_heartbeat, "bye": self._on_bye,
             "watch": self._on_watch, "robots": self._on_robots, "monitor": self._on_monitor,
             "tasks": self._on_tasks, "give": self._on_give, "stop": self._on_stop,
             "snapshot": self._on_snapshot, "register": self._on_register, "report": self._on_report,
+            "reports": self._on_reports,
             "task.next": self._on_task_next, "task.done": self._on_task_done, "radio": self._on_radio,
             "leave": self._on_leave, "reply": self._on_host_reply, "arena": self._on_arena, "stats": self._on_stats,
         }
@@ -215,11 +222,14 @@ class Core:
             poller.register(self._zap.sock, zmq.POLLIN)
         self._running = True
         next_tick = time.monotonic() + self.heartbeat
+        next_pose = time.monotonic() + self.pose_period
         try:
             while self._running:
                 timeout = max(0.0, next_tick - time.monotonic())
                 if self.pending_stops or self.uploads.busy:
                     timeout = min(timeout, 0.05)
+                if self._posed:
+                    timeout = min(timeout, max(0.0, next_pose - time.monotonic()))
                 if poller.poll(timeout * 1000):
                     if self._zap is not None:
                         self._zap.serve()
@@ -229,6 +239,9 @@ class Core:
                     self._expire_stops(now)
                 if self.uploads.busy:
                     self.uploads.expire(now)
+                if now >= next_pose:
+                    self._publish_positions()
+                    next_pose = now + self.pose_period
                 if now >= next_tick:
                     self._tick(now)
                     next_tick = now + self.heartbeat
@@ -335,7 +348,7 @@ class Core:
             frame = P.request("event", 0, {"topic": topic, "team": team, "data": data})
             for ident in targets:
                 self._send(ident, frame)
-        if topic != "robot.position":
+        if topic != "robot.positions":
             self.pm.hook.robo_comp_event(topic=topic, team=team, data=data)
 
     def _set_watch(self, s: Session, on: bool) -> None:
@@ -371,11 +384,14 @@ class Core:
         check_owner(s.who, tag, r.team)
         return r
 
-    def _hosted(self, ident: bytes, tag: int) -> RobotRecord:
-        """The robot ``tag`` as reported by its host connection ``ident``."""
+    def _check_known(self, ident: bytes) -> None:
         if ident not in self.sessions:
             raise AuthError("this connection is not known to the core (did the core restart?); "
                             "say hello and register your robots again")
+
+    def _hosted(self, ident: bytes, tag: int) -> RobotRecord:
+        """The robot ``tag`` as reported by its host connection ``ident``."""
+        self._check_known(ident)
         r = self.registry.robots.get(tag)
         if r is None or r.session != ident:
             raise NotYoursError(f"robot {tag} is not hosted by this connection; register it first")
@@ -405,7 +421,7 @@ class Core:
         t.status = status
         t.result = result
         t.finished_at = time.time()
-        r.done.append(t)
+        self.registry.finished(r, t)
         self.emit("task.done", r.team, {"tag": r.tag, "task_id": t.id, "name": t.name, "ok": ok,
                                          "state": state, "status": status, "result": result})
 
@@ -445,9 +461,22 @@ class Core:
             self.emit("robot.returned", r.team, {"tag": r.tag, "x": r.x, "y": r.y})
 
     # ------------------------------------------------------------------ timers
+    def _publish_positions(self) -> None:
+        """Publish the newest pose of every robot that reported since the last batch, one
+        ``robot.positions`` event per team: however often robots report, subscribers get at
+        most ``pose_hz`` position events per team per second (conflation)."""
+        posed, self._posed = self._posed, {}
+        robots = self.registry.robots
+        for team in sorted(posed):
+            rows = [robots[t] for t in sorted(posed[team])]
+            self.emit("robot.positions", team, {
+                "team": team, "tags": [r.tag for r in rows], "x": [r.x for r in rows],
+                "y": [r.y for r in rows], "heading": [r.heading for r in rows],
+                "moving": [r.moving for r in rows]}, log_it=False)
+
     def _log_positions(self) -> None:
         """Log the robots that moved since the last heartbeat as one batched record
-        (the PUB feed carried every report; the log keeps one sample per robot per beat)."""
+        (the feed had a batch every pose period; the log keeps one sample per robot per beat)."""
         if not self._moved:
             return
         rows = [self.registry.robots[t] for t in sorted(self._moved)]
@@ -671,16 +700,45 @@ class Core:
 
     def _on_report(self, ident: bytes, msg: P.Message) -> None:
         b = msg.body
-        r = self._hosted(ident, b["tag"])
-        r.x, r.y, r.heading = b["x"], b["y"], b["heading"]
-        r.moving = b.get("moving", False)
-        if "sensors" in b:
-            r.sensors = b["sensors"]
-        r.last_report = time.time()
-        self._moved.add(r.tag)
-        self.emit("robot.position", r.team, {"tag": r.tag, "team": r.team, "x": r.x, "y": r.y,
-                                             "heading": r.heading, "moving": r.moving}, log_it=False)
+        self._pose(self._hosted(ident, b["tag"]), b["x"], b["y"], b["heading"], b.get("moving", False),
+                   b.get("sensors"), time.time())
         return None
+
+    def _on_reports(self, ident: bytes, msg: P.Message) -> None:
+        """Many robots of one host in one message (a host reports its robots in batches)."""
+        b = msg.body
+        n = P.check_reports(b)
+        self._check_known(ident)
+        robots = self.registry.robots
+        xs, ys, hs = b["x"], b["y"], b["heading"]
+        moving = b.get("moving") or [False] * n
+        sensors = b.get("sensors") or [None] * n
+        now = time.time()
+        foreign = []
+        for i, tag in enumerate(b["tags"]):
+            r = robots.get(tag)
+            if r is None or r.session != ident:
+                foreign.append(tag)
+                continue
+            if r.status != "connected":
+                self._mark_returned(r)
+            self._pose(r, xs[i], ys[i], hs[i], moving[i], sensors[i], now)
+        if foreign:  # the others' rows were taken
+            raise NotYoursError(f"robots {foreign[:10]} are not hosted by this connection; register them first")
+        return None
+
+    def _pose(self, r: RobotRecord, x: float, y: float, heading: float, moving: bool,
+              sensors: dict[str, Any] | None, now: float) -> None:
+        """Take one robot's reported pose (published in the next ``robot.positions`` batch)."""
+        r.x, r.y, r.heading, r.moving = x, y, heading, moving
+        if sensors is not None:
+            r.sensors = sensors
+        r.last_report = now
+        self._moved.add(r.tag)
+        posed = self._posed.get(r.team)
+        if posed is None:
+            posed = self._posed[r.team] = set()
+        posed.add(r.tag)
 
     def _on_task_next(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
         r = self._hosted(ident, msg.body["tag"])

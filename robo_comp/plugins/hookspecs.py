@@ -91,5 +91,5 @@ def robo_comp_rank(rows: list[dict[str, Any]]) -> list[dict[str, Any]] | None:
 # ---------------------------------------------------------------------- events
 @hookspec
 def robo_comp_event(topic: str, team: str | None, data: dict[str, Any]) -> None:
-    """Called by the core for every event it emits, except ``robot.position`` (too frequent),
+    """Called by the core for every event it emits, except ``robot.positions`` (too frequent),
     after the event was logged. Must be fast and must not raise. Return nothing."""

@@ -39,8 +39,9 @@ from robo_comp.world.scenario import Scenario
 log = logging.getLogger("robo_comp.robots")
 
 Reply = Callable[[bool, dict[str, Any]], None]
-#: Position reports sent between two looks at the core's socket (so a stop never waits long).
-REPORT_CHUNK = 50
+#: Robots per ``reports`` message; the host looks at the core's socket between two messages
+#: (so a stop never waits long behind a big host's reports).
+REPORT_CHUNK = 100
 
 
 @dataclass(slots=True)
@@ -521,24 +522,41 @@ class RobotHost:
                 elif r.task is not None:
                     self._advance(r)
 
-    def _report_one(self, r: SimRobot, now: float, sensors: dict[str, Any] | None = None) -> None:
-        """Report what the robot believes (the positioning system's estimate), and now and
-        then its sensor readings."""
-        r.last_report = now
-        x, y, heading = r.driver.pose
-        body: dict[str, Any] = {"tag": r.tag, "x": round(x, 3), "y": round(y, 3),
-                                "heading": round(heading, 1), "moving": r.driver.moving}
-        if sensors is None and now - r.last_sensed >= self.sensor_interval and self.world is not None:
+    def _report_one(self, r: SimRobot, now: float) -> None:
+        """Report what one robot believes (the positioning system's estimate) at once, and
+        its sensor readings when they are due."""
+        sensors = None
+        if now - r.last_sensed >= self.sensor_interval and self.world is not None:
             sensors = self.world.sense(r.robot_id)
-        if sensors is not None:
-            r.last_sensed = now
-            body["sensors"] = sensors
-        self.sock.send(P.request("report", 0, body))  # type: ignore[union-attr]
+        body = self._pose_rows([r], now, {r.tag: sensors} if sensors is not None else {})
+        self.sock.send(P.request("reports", 0, body))  # type: ignore[union-attr]
         self.last_tx = now
 
+    def _pose_rows(self, robots: list[SimRobot], now: float,
+                   readings: dict[int, dict[str, Any]]) -> dict[str, Any]:
+        """The body of one ``reports`` message for ``robots`` (sensors where ``readings`` has them)."""
+        tags, xs, ys, hs, moving, sensors = [], [], [], [], [], []
+        for r in robots:
+            r.last_report = now
+            x, y, heading = r.driver.pose
+            tags.append(r.tag)
+            xs.append(round(x, 3))
+            ys.append(round(y, 3))
+            hs.append(round(heading, 1))
+            moving.append(r.driver.moving)
+            s = readings.get(r.tag)
+            if s is not None:
+                r.last_sensed = now
+            sensors.append(s)
+        body: dict[str, Any] = {"tags": tags, "x": xs, "y": ys, "heading": hs, "moving": moving}
+        if readings:
+            body["sensors"] = sensors
+        return body
+
     def _report(self, now: float) -> None:
-        """Report moving robots every report interval, idle ones once a second; the sensors of
-        all robots due are read in one vectorised pass."""
+        """Report moving robots every report interval, idle ones once a second, in ``reports``
+        messages of up to ``REPORT_CHUNK`` robots; the sensors of all robots due are read in one
+        vectorised pass."""
         due = [r for r in self.by_tag.values() if r.driver.moving or now - r.last_report >= 1.0]
         if not due:
             return
@@ -547,10 +565,16 @@ class RobotHost:
         if sensing and self.world is not None:
             rows = self.world.sense_many([r.robot_id for r in sensing])
             readings = {r.tag: row for r, row in zip(sensing, rows)}
-        for i, r in enumerate(due):
-            if i % REPORT_CHUNK == REPORT_CHUNK - 1:
+        sock = self.sock
+        for start in range(0, len(due), REPORT_CHUNK):
+            if start:
                 self._drain()  # many robots: let a stop in between, it must not wait for all reports
-            self._report_one(r, now, readings.get(r.tag))
+                if self.sock is not sock:  # reconnected meanwhile: the robots register again first
+                    return
+            chunk = due[start:start + REPORT_CHUNK]
+            body = self._pose_rows(chunk, now, {r.tag: readings[r.tag] for r in chunk if r.tag in readings})
+            sock.send(P.request("reports", 0, body))  # type: ignore[union-attr]
+        self.last_tx = now
 
     def _drain(self) -> None:
         """Handle what the core has sent, without waiting (also between chunks of a tick's work);

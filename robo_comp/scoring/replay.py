@@ -16,12 +16,14 @@ per heartbeat, so replayed robots move in those steps.
 """
 from __future__ import annotations
 
+import os
 import shutil
 import time
 from pathlib import Path
 from typing import Any
 
 from robo_comp.core import protocol as P
+from robo_comp.core.curve import keys_dir
 from robo_comp.core.eventlog import LogRecord, read_log
 from robo_comp.core.recovery import Replayer
 from robo_comp.core.server import Core
@@ -53,7 +55,7 @@ class ReplayCore(Core):
     """A read-only core that plays ``log`` at ``speed`` × real time (see the module docstring)."""
 
     def __init__(self, log: Path, state_dir: Path, *, speed: float = 1.0, start_at: float = 0.0,
-                 host: str = "127.0.0.1", port: int = 0, exit_at_end: bool = False) -> None:
+                 host: str = "127.0.0.1", port: int = 0, exit_at_end: bool = False, curve: bool = False) -> None:
         if speed <= 0:
             raise FieldError("--speed must be above 0")
         log = Path(log)
@@ -63,11 +65,13 @@ class ReplayCore(Core):
         if (state_dir / "events.log").exists():
             raise FieldError(f"{state_dir} holds a match of its own; give the replay an empty --state folder")
         _copy_tokens(log.parent, state_dir)
+        if curve:
+            _copy_keys(log.parent, state_dir)
         if (log.parent / "pictures").is_dir() and not (state_dir / "pictures").exists():
             shutil.copytree(log.parent / "pictures", state_dir / "pictures")
         scenario = scenario_from_payload(started["arena"])
         super().__init__(state_dir, scenario, list(started.get("teams") or []) or None, host=host, port=port,
-                         heartbeat=STEP,
+                         heartbeat=STEP, curve=curve,
                          practice=not any(r.topic == "match.phase" for r in self.records))  # no phases: practice
         self.log_path = log
         self.speed = speed
@@ -133,19 +137,28 @@ class ReplayCore(Core):
         return n
 
     def _publish(self, rec: LogRecord) -> None:
-        if rec.topic == "robot.positions":  # one batched record → the live feed's single events
+        if rec.topic == "robot.positions":  # the log's batch of all teams → the feed's batch per team
             d = rec.data
+            robots = self.registry.robots
             for tag, x, y, h in zip(d["tags"], d["x"], d["y"], d["heading"]):
-                r = self.registry.robots.get(tag)
+                r = robots.get(tag)
                 if r is not None:
-                    self.emit("robot.position", r.team, {"tag": tag, "team": r.team, "x": x, "y": y,
-                                                         "heading": h, "moving": True}, log_it=False)
+                    self._posed.setdefault(r.team, set()).add(tag)
+            self._publish_positions()
         elif rec.topic not in ("core.started", "core.recovered"):
             self.emit(rec.topic, rec.team, rec.data, log_it=False)
 
 
 def _refuse(ident: bytes, msg: P.Message) -> None:
     raise ForbiddenError(f"this is a replay of a recorded match: it is read-only ({msg.type!r} is refused)")
+
+
+def _copy_keys(src: Path, dst: Path) -> None:
+    """The recorded match's CurveZMQ keys (``STATE/keys`` beside its log), unless the replay's
+    state folder has keys of its own: the same certificates then work for the replay."""
+    if keys_dir(src).is_dir() and not keys_dir(dst).exists():
+        shutil.copytree(keys_dir(src), keys_dir(dst))
+        os.chmod(keys_dir(dst), 0o700)
 
 
 def _copy_tokens(src: Path, dst: Path) -> None:

@@ -19,7 +19,7 @@ from robo_comp.core.protocol import unpack_walls
 #: Events kept for the log pane and the monitor's "recent events".
 MAX_EVENTS = 2000
 #: Topics too chatty for the event log.
-QUIET_TOPICS = frozenset({"robot.position"})
+QUIET_TOPICS = frozenset({"robot.positions"})
 
 
 @dataclass
@@ -149,8 +149,11 @@ class ConsoleModel:
             row["status"] = "connected"
             if "tasks" in data and tag in self.details:
                 self.details[tag]["advertised"] = data["tasks"]
-        elif topic == "robot.position" and row is not None:
-            row.update({k: data[k] for k in ("x", "y", "heading", "moving") if k in data})
+        elif topic == "robot.positions":
+            for i, t in enumerate(data.get("tags") or ()):
+                pose = self.robots.get(t)
+                if pose is not None:
+                    pose.update({k: data[k][i] for k in ("x", "y", "heading", "moving") if k in data})
         elif topic == "robot.lost" and row is not None:
             row.update(status="lost", moving=False)
         elif topic == "robot.left" and row is not None:

@@ -195,7 +195,7 @@ class WallModel:
         if handler is not None:
             handler(self, d)
             self.version += 1
-            if topic != "robot.position":
+            if topic != "robot.positions":
                 self.panel_version += 1
 
     def note(self, text: str, level: str = "info") -> None:
@@ -246,12 +246,16 @@ class WallModel:
         self.things[t.key] = t
 
 
-def _on_position(m: WallModel, d: dict[str, Any]) -> None:
-    r = m._robot(d["tag"], d.get("team"))
-    r.move(float(d["x"]), float(d["y"]), float(d.get("heading", r.heading)))
-    r.moving = bool(d.get("moving", False))
-    if r.status in ("lost", "left"):
-        r.status = "connected"
+def _on_positions(m: WallModel, d: dict[str, Any]) -> None:
+    team = d.get("team")
+    xs, ys, hs = d["x"], d["y"], d["heading"]
+    moving = d.get("moving") or [True] * len(xs)
+    for i, tag in enumerate(d["tags"]):
+        r = m._robot(tag, team)
+        r.move(float(xs[i]), float(ys[i]), float(hs[i]))
+        r.moving = bool(moving[i])
+        if r.status in ("lost", "left"):
+            r.status = "connected"
 
 
 def _on_registered(m: WallModel, d: dict[str, Any]) -> None:
@@ -317,7 +321,7 @@ def _on_penalty(m: WallModel, d: dict[str, Any]) -> None:
 
 
 _HANDLERS: dict[str, Any] = {
-    "robot.position": _on_position,
+    "robot.positions": _on_positions,
     "robot.registered": _on_registered,
     "robot.returned": _status("connected"),
     "robot.lost": _status("lost"),
