@@ -11,6 +11,10 @@ What runs (real processes, TCP on loopback):
 * one *walls* process (this script, ``--walls-role``) with two SUB consumers of the PUB feed:
   a fast one that reads everything, and a slow one that sleeps between reads and is only
   attached for the second half of the measured time;
+* one *echo* process (``--echo-role``): a bare ROUTER that sends every frame back. A thread
+  of this process sends it a frame every 50 ms and times the round trip: the same-run
+  baseline, what two processes of this machine need for a round trip under this load with
+  no robo_comp code in between;
 * in this process: four team consoles (threads, one :class:`Client` each, watching their
   team's events) giving ``goTo`` tasks now or queued and stopping robots, timing every
   round trip; a referee client sampling ``stats`` and the core's RSS.
@@ -123,6 +127,34 @@ def walls_role(router: str, pub_port: int, seconds: float, slow_after: float, ou
     out.write_text(json.dumps(results))
 
 
+# ---------------------------------------------------------------------------- echo baseline
+def echo_role(port_file: Path) -> None:
+    """A bare ROUTER echo server (the baseline): runs until killed."""
+    sock = zmq.Context.instance().socket(zmq.ROUTER)
+    port = sock.bind_to_random_port("tcp://127.0.0.1")
+    port_file.write_text(str(port))
+    while True:
+        sock.send_multipart(sock.recv_multipart())
+
+
+def echo_probe(url: str, phase_of: Any, stop_at: float, out: dict[str, list[float]], every: float = 0.05) -> None:
+    """Time a round trip to the echo server every ``every`` seconds until ``stop_at``."""
+    sock = zmq.Context.instance().socket(zmq.DEALER)
+    sock.setsockopt(zmq.LINGER, 0)
+    sock.connect(url)
+    payload = P.request("robots", 1, {})
+    nxt = time.monotonic()
+    while time.monotonic() < stop_at:
+        t0 = time.perf_counter()
+        sock.send(payload)
+        if sock.poll(5000):
+            sock.recv()
+            out.setdefault(phase_of(), []).append((time.perf_counter() - t0) * 1000)
+        nxt += every
+        time.sleep(max(0.0, nxt - time.monotonic()))
+    sock.close(0)
+
+
 # ---------------------------------------------------------------------------- consoles
 @dataclass
 class Console:
@@ -191,6 +223,15 @@ class Console:
 
 
 # ---------------------------------------------------------------------------- the run
+def wait_file(path: Path, timeout: float) -> None:
+    """Wait until ``path`` exists and is not empty."""
+    end = time.monotonic() + timeout
+    while not (path.exists() and path.read_text()):
+        if time.monotonic() > end:
+            raise SystemExit(f"{path} did not appear within {timeout:.0f} s")
+        time.sleep(0.05)
+
+
 def wait_registered(ref: Client, n: int, timeout: float) -> float:
     """Wait until the referee sees ``n`` connected robots; return the seconds it took."""
     t0 = time.monotonic()
@@ -202,12 +243,13 @@ def wait_registered(ref: Client, n: int, timeout: float) -> float:
     raise SystemExit(f"only {ref.request('stats')['robots']} robots after {timeout:.0f} s")
 
 
-def summarize_latency(consoles: list[Console]) -> dict[str, dict[str, dict[str, float]]]:
-    """p50/p99/max and counts of give and stop round trips per phase."""
+def summarize_latency(consoles: list[Console], echo: dict[str, list[float]]) -> dict[str, dict[str, dict[str, float]]]:
+    """p50/p99/max and counts of give and stop round trips per phase, and of the echo baseline."""
     out: dict[str, dict[str, dict[str, float]]] = {}
     for phase in ("fast-wall-only", "slow-wall-attached"):
-        for kind in ("give", "stop"):
-            v = [x for c in consoles for x in c.latency.get(phase, {}).get(kind, [])]
+        for kind in ("give", "stop", "echo"):
+            v = echo.get(phase, []) if kind == "echo" else [
+                x for c in consoles for x in c.latency.get(phase, {}).get(kind, [])]
             out.setdefault(phase, {})[kind] = {"n": len(v), "p50_ms": round(percentile(v, 50), 2),
                                                "p99_ms": round(percentile(v, 99), 2),
                                                "max_ms": round(max(v), 2) if v else float("nan")}
@@ -232,9 +274,10 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         reg_s = wait_registered(ref, per * len(TEAMS), 180.0)
         print(f"{per * len(TEAMS)} robots registered in {reg_s:.1f} s", flush=True)
         walls_out = state / "walls.json"
-        procs.append(subprocess.Popen(
+        walls_proc = subprocess.Popen(
             [sys.executable, __file__, "--walls-role", ref.url, str(ref.info["pub_port"]), str(total),
-             str(warm + half), str(walls_out)], stdin=subprocess.DEVNULL))
+             str(warm + half), str(walls_out)], stdin=subprocess.DEVNULL)
+        procs.append(walls_proc)
         t0 = time.monotonic()
         stop_at = t0 + total
 
@@ -250,14 +293,22 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
             tags = [r["tag"] for r in c.robots()]
             consoles.append(Console(team, c, tags, free_cells(c.arena()), args.rate, random.Random(i)))
         threads = [threading.Thread(target=c.run, args=(phase_of, stop_at), daemon=True) for c in consoles]
+        echo_port = state / "echo.port"
+        echo_proc = subprocess.Popen([sys.executable, __file__, "--echo-role", str(echo_port)],
+                                     stdin=subprocess.DEVNULL)
+        procs.append(echo_proc)
+        wait_file(echo_port, 20.0)
+        echo: dict[str, list[float]] = {}
+        threads.append(threading.Thread(target=echo_probe, daemon=True, args=(
+            f"tcp://127.0.0.1:{echo_port.read_text()}", phase_of, stop_at, echo)))
         for t in threads:
             t.start()
         pids = {"core": core.pid, **{f"robots-{t}": p.pid for t, p in zip(TEAMS, procs[1:1 + len(TEAMS)])},
-                "walls": procs[-1].pid, "consoles (this process)": os.getpid()}
+                "walls": walls_proc.pid, "echo": echo_proc.pid, "consoles (this process)": os.getpid()}
         samples = sample_loop(ref, pids, t0, stop_at, args.sample, phase_of)
         for t in threads:
             t.join(timeout=120)
-        procs[-1].wait(timeout=60)
+        walls_proc.wait(timeout=60)  # the walls process writes its counts and ends
         walls = json.loads(walls_out.read_text()) if walls_out.exists() else {}
         final = ref.request("stats")
         waiting = set().union(*(c.waiting() for c in consoles))  # first: what finishes later is logged
@@ -265,7 +316,7 @@ def run(args: argparse.Namespace) -> dict[str, Any]:
         for c in consoles:
             c.client.close()
         ref.close()
-        return report(args, reg_s, warm, half, samples, consoles, walls, final, check)
+        return report(args, reg_s, warm, half, samples, consoles, walls, final, check, echo)
     finally:
         stop_all(procs)
 
@@ -312,7 +363,7 @@ def sample_loop(ref: Client, pids: dict[str, int], t0: float, stop_at: float, ev
 
 def report(args: argparse.Namespace, reg_s: float, warm: float, half: float, samples: list[dict[str, Any]],
            consoles: list[Console], walls: dict[str, Any], final: dict[str, Any],
-           check: dict[str, Any]) -> dict[str, Any]:
+           check: dict[str, Any], echo: dict[str, list[float]]) -> dict[str, Any]:
     """Turn the samples into the figures of docs/perf-soak.md."""
     first = next(s for s in samples if s["t"] >= warm)
     last = samples[-1]
@@ -335,7 +386,7 @@ def report(args: argparse.Namespace, reg_s: float, warm: float, half: float, sam
                     "max": round(max(rss_after) / 1024, 1), "growth_pct": round(growth, 2),
                     "growth_pct_fast_only_phase": round(growth_a, 2)},
         "rss_series": [(s["t"], round(s["rss_kib"] / 1024, 1)) for s in samples],
-        "latency": summarize_latency(consoles), "command_errors": errors,
+        "latency": summarize_latency(consoles, echo), "command_errors": errors,
         "acked_check": check, "walls": walls,
     }
 
@@ -343,6 +394,9 @@ def report(args: argparse.Namespace, reg_s: float, warm: float, half: float, sam
 def main(argv: list[str] | None = None) -> int:
     """Parse options and run the soak (or, internally, the walls process)."""
     argv = sys.argv[1:] if argv is None else argv
+    if argv and argv[0] == "--echo-role":
+        echo_role(Path(argv[1]))
+        return 0
     if argv and argv[0] == "--walls-role":
         router, port, seconds, slow_after, out = argv[1:6]
         walls_role(router, int(port), float(seconds), float(slow_after), Path(out))

@@ -50,9 +50,12 @@ _COUNT = {"n": 0, "t0": time.monotonic(), "last": time.monotonic()}
 
 
 def fuzz_decode(data: bytes) -> None:
-    """One decoder execution: a Message or a RoboCompError."""
+    """One decoder execution: a Message or a RoboCompError (a batch of reports is also
+    checked row by row, as the core does)."""
     try:
-        P.decode(data)
+        msg = P.decode(data)
+        if msg.type == "reports":
+            P.check_reports(msg.body)
     except RoboCompError:
         pass
 

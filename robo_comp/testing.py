@@ -488,7 +488,7 @@ class Bench:
 
     def score(self) -> float:
         """The team's score so far (victims found minus penalties)."""
-        return round(sum(ln.points for ln in self.board.lines if ln.team == self.team), 3)
+        return self.board.score_of(self.team)
 
     def true_cell(self, tag: int | None = None) -> tuple[int, int]:
         """Where the robot really is (the arena's ground truth, rounded to a cell)."""

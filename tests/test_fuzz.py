@@ -15,6 +15,7 @@ here as plain tests with the reproducer inline (see docs/fuzzing.md).
 """
 from __future__ import annotations
 
+import math
 import time
 from pathlib import Path
 from typing import Any
@@ -120,6 +121,42 @@ def test_decode_envelopes_with_wrong_fields(env: dict[Any, Any]) -> None:
             if name in out.body and kind in ("int", "str", "bool", "list", "map", "bytes"):
                 want = {"int": int, "str": str, "bool": bool, "list": list, "map": dict, "bytes": bytes}[kind]
                 assert type(out.body[name]) is want
+
+
+@st.composite
+def report_batches(draw: st.DrawFn) -> dict[str, Any]:
+    """A ``reports`` body: lists of mostly good rows, sometimes a bad value or a short list."""
+    n = draw(st.integers(0, 6))
+    good = {"tags": st.integers(101, 200), "x": st.floats(0, 50), "y": st.floats(0, 50),
+            "heading": st.floats(0, 360), "moving": st.booleans(),
+            "sensors": st.one_of(st.none(), st.dictionaries(st.text(max_size=4), scalars, max_size=2))}
+    body: dict[str, Any] = {}
+    for name, good_value in good.items():
+        if name in ("moving", "sensors") and draw(st.booleans()):
+            continue
+        length = n if draw(st.integers(0, 9)) else draw(st.integers(0, 7))
+        body[name] = [draw(st.one_of(good_value, scalars) if draw(st.integers(0, 9)) == 0 else good_value)
+                      for _ in range(length)]
+    return body
+
+
+@FAST
+@given(report_batches())
+def test_a_batch_of_reports_passes_whole_or_names_its_bad_row(body: dict[str, Any]) -> None:
+    """``check_reports`` either accepts every row as the core will use it, or says which is wrong."""
+    frame = packed({"v": P.PROTOCOL_VERSION, "type": "reports", "id": 0, "body": body})
+    msg = decode_ok(frame)
+    assert isinstance(msg, P.Message)
+    try:
+        n = P.check_reports(msg.body)
+    except RoboCompError as e:
+        assert e.code == "E_FIELD" and ("'reports'" in e.message)
+        return
+    assert n == len(body["tags"])
+    for name in ("x", "y", "heading"):
+        assert len(body[name]) == n and all(type(v) in (int, float) and math.isfinite(v) for v in body[name])
+    assert all(type(t) is int for t in body["tags"])
+    assert all(type(m) is bool for m in body.get("moving", ()))
 
 
 def test_decode_oversized_and_deep_frames() -> None:

@@ -115,7 +115,8 @@ def test_finds_with_evidence_score_and_false_reports_are_penalised(match):
     ev = next_event_where(red, lambda e: e["topic"] == "score")
     assert {t["team"] for t in ev["data"]["teams"]} == {"red", "blue"}
     # a team sees only its own score lines
-    assert {ln["team"] for ln in red.request("score")["lines"]} == {"red"}
+    mine = red.request("score")
+    assert {ln["team"] for ln in mine["lines"]} == {"red"} and mine["lines_total"] == len(mine["lines"])
     # pictures: the owner may fetch them, the other team may not
     pic = red.request("picture.get", id=pics[0])
     assert pic["png"][:8] == b"\x89PNG\r\n\x1a\n"
@@ -172,3 +173,25 @@ def test_results_files(match):
     ref.request("match", action="finish")
     rows = list(csv.DictReader(open(match.state / "results.csv")))
     assert [r["team"] for r in rows] == ["red", "blue"] and rows[1]["score"] == "-2.0"
+
+
+def test_a_long_match_keeps_the_newest_score_lines_and_every_line_in_the_results(match):
+    from robo_comp.scoring.board import MAX_LINES_KEPT
+
+    ref = match.client("referee")
+    red = match.client("red")
+    ref.request("match", action="start")
+    n = MAX_LINES_KEPT + 150
+    for i in range(n):
+        ref.request("penalty", team="red" if i % 3 else "blue", points=1, reason=f"foul {i}")
+    score = ref.request("score")
+    assert score["lines_total"] == n and len(score["lines"]) == 500
+    assert score["lines"][-1]["reason"] == f"foul {n - 1}"  # the newest
+    rows = {t["team"]: t for t in score["teams"]}
+    blue_lines = len(range(0, n, 3))
+    assert rows["blue"]["score"] == -blue_lines and rows["red"]["score"] == -(n - blue_lines)
+    mine = red.request("score")
+    assert mine["lines_total"] == n - blue_lines and {ln["team"] for ln in mine["lines"]} == {"red"}
+    ref.request("match", action="finish")
+    res = json.loads((match.state / "results.json").read_text())
+    assert [c["reason"] for c in res["changes"]] == [f"foul {i}" for i in range(n)]  # all, from the log

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from robo_comp.core import protocol as P
+from robo_comp.core.eventlog import read_log
 from robo_comp.errors import FieldError, ForbiddenError, NotYoursError, PhaseError, TooLargeError
 from robo_comp.scoring.board import Scoreboard, ScoreLine
 from robo_comp.scoring.config import ScoringConfig
@@ -26,6 +27,8 @@ if TYPE_CHECKING:
 
 MAX_PICTURE = 256 * 1024
 EVERYONE = "*"
+#: The newest score lines a ``score`` reply carries (all of them are in the results and the log).
+SCORE_LINES_SHOWN = 500
 
 # Which phases allow what (stop is always allowed: it is the safety command).
 _ALLOWED = {
@@ -139,7 +142,10 @@ class Competition:
     def _on_score(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
         who = self.core._session(ident).who
         out = self.scores()
-        out["lines"] = [ln.to_dict() for ln in self.board.lines if who.role == "referee" or ln.team == who.team]
+        team = None if who.role == "referee" else who.team
+        mine = [ln for ln in self.board.lines if team is None or ln.team == team]
+        out["lines"] = [ln.to_dict() for ln in mine[-SCORE_LINES_SHOWN:]]
+        out["lines_total"] = self.board.lines_of(team)
         return out
 
     # ------------------------------------------------------------------ referee powers
@@ -275,4 +281,10 @@ class Competition:
         """Write ``results.json``, ``results.csv`` and ``scores.png`` into ``folder``."""
         from robo_comp.scoring.results import write_results
 
-        return write_results(folder, self.scores(), [ln.to_dict() for ln in self.board.lines], self.finds)
+        board = self.board
+        if board.lines_total == len(board.lines):
+            lines = [ln.to_dict() for ln in board.lines]
+        else:  # the oldest lines were let go from memory: the event log has them all
+            self.core.events.flush()
+            lines = [rec.data for rec in read_log(self.core.events.path, strict=False) if rec.topic == "score.change"]
+        return write_results(folder, self.scores(), lines, self.finds)

@@ -1,9 +1,10 @@
 """The map service behind the protocol: whole map, pieces around robots, pushed deltas.
 
-Robot positions reach the map once per heartbeat (the moved robots), discoveries when a
-team reports a find. Every heartbeat each robot host gets a ``map.delta`` push with what
-changed since the version it has, as its team may see it; a host that is new, or whose
-version the service no longer knows, gets a full snapshot (``type: "full"``).
+Robot positions reach the map with every ``robot.positions`` batch (the robots that
+reported), discoveries when a team reports a find. Every heartbeat each robot host gets a
+``map.delta`` push with what changed since the version it has, as its team may see it, but
+robot positions; a host that is new, or whose version the service no longer knows, gets a
+full snapshot (``type: "full"``).
 """
 from __future__ import annotations
 
@@ -65,16 +66,17 @@ class MapDesk:
                                           evidence=[str(e) for e in evidence])
 
     def push(self) -> None:
-        """Send every robot host the changes since the version it has."""
+        """Send every robot host the changes since the version it has, but robot positions
+        (a host knows where its robots are; ``map`` and ``map.delta`` requests have them all)."""
         frames: dict[tuple[int, str | None], tuple[int, bytes]] = {}  # hosts at one version share a delta
         for ident in self.core.host_sessions():
             sess = self.core.sessions[ident]
             have = self.pushed.get(ident, 0)
-            if have == self.service.version:
+            if have >= self.service.static_version:  # only robots moved since
                 continue
             key = (have, sess.who.team)
             if key not in frames:
-                delta = self.service.delta_since(have, sess.who.team)
+                delta = self.service.delta_since(have, sess.who.team, robots=False)
                 frames[key] = (delta["version"], P.request("map.delta", 0, delta))
             self.pushed[ident], frame = frames[key]
             self.core._send(ident, frame)

@@ -469,6 +469,7 @@ class Core:
         robots = self.registry.robots
         for team in sorted(posed):
             rows = [robots[t] for t in sorted(posed[team])]
+            self.maps.positions(rows)
             self.emit("robot.positions", team, {
                 "team": team, "tags": [r.tag for r in rows], "x": [r.x for r in rows],
                 "y": [r.y for r in rows], "heading": [r.heading for r in rows],
@@ -481,7 +482,6 @@ class Core:
             return
         rows = [self.registry.robots[t] for t in sorted(self._moved)]
         self._moved.clear()
-        self.maps.positions(rows)
         self.events.append("robot.positions", None, {
             "tags": [r.tag for r in rows], "x": [r.x for r in rows], "y": [r.y for r in rows],
             "heading": [r.heading for r in rows]})

@@ -1,12 +1,18 @@
 """The scoreboard: applies the scoring plugins' changes and ranks the teams."""
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass
 from typing import Any
 
 import pluggy
 
 from robo_comp.scoring.config import ScoringConfig
+
+#: Score lines kept in memory, newest last. A long match with many robots bumping makes many
+#: lines; all of them stay in the event log (``score.change``), from which the results are
+#: written when some were forgotten, so the core's memory stays flat.
+MAX_LINES_KEPT = 2_000
 
 
 @dataclass(slots=True)
@@ -33,7 +39,10 @@ class Scoreboard:
         self.teams = list(teams)
         self.pm = pm
         self.config = config
-        self.lines: list[ScoreLine] = []
+        self.lines: deque[ScoreLine] = deque(maxlen=MAX_LINES_KEPT)  # the newest
+        self.lines_total = 0  # lines ever recorded (``lines`` keeps the newest of them)
+        # running totals per team (score, penalties, last change, lines): the table costs O(teams)
+        self._totals: dict[str, list[float]] = {t: [0.0, 0.0, 0.0, 0] for t in teams}
         self.found: dict[str, set[str]] = {t: set() for t in teams}
         self.first_finder: dict[str, str] = {}
         self.disqualified: set[str] = set()
@@ -62,19 +71,33 @@ class Scoreboard:
     def restore_line(self, line: ScoreLine) -> None:
         """Record a change (also used when recovering from the event log)."""
         self.lines.append(line)
+        self.lines_total += 1
+        total = self._totals.get(line.team)
+        if total is not None:
+            total[0] += line.points
+            if line.points < 0:
+                total[1] -= line.points
+            total[2] = max(total[2], line.t)
+            total[3] += 1
         if line.kind == "victim" and line.victim:
             self.found[line.team].add(line.victim)
             self.first_finder.setdefault(line.victim, line.team)
+
+    def score_of(self, team: str) -> float:
+        """``team``'s score now."""
+        return round(self._totals[team][0], 3)
+
+    def lines_of(self, team: str | None) -> int:
+        """How many score lines ``team`` (all teams for None) has had."""
+        return self.lines_total if team is None else int(self._totals[team][3])
 
     def table(self) -> list[dict[str, Any]]:
         """Ranked rows ``{team, score, victims, penalties, last_change, disqualified, rank}``."""
         rows = []
         for team in self.teams:
-            mine = [ln for ln in self.lines if ln.team == team]
-            rows.append({"team": team, "score": round(sum(ln.points for ln in mine), 3),
-                         "victims": len(self.found[team]),
-                         "penalties": round(-sum(ln.points for ln in mine if ln.points < 0), 3),
-                         "last_change": max((ln.t for ln in mine), default=0.0),
+            score, penalties, last, _ = self._totals[team]
+            rows.append({"team": team, "score": round(score, 3), "victims": len(self.found[team]),
+                         "penalties": round(penalties, 3), "last_change": last,
                          "disqualified": team in self.disqualified})
         ranked = self.pm.hook.robo_comp_rank(rows=rows)
         if ranked is None:

@@ -282,6 +282,18 @@ class Arena:
             self.odo_dist[s] = self.odo_turn[s] = 0.0
         return out
 
+    def slots(self, tags: list[str]) -> np.ndarray:
+        """The array slots of robots ``tags`` (for the vectorised reads below)."""
+        slot = self._slot
+        return np.fromiter((slot[t] for t in tags), dtype=np.intp, count=len(tags))
+
+    def take_odometry(self, slots: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`odometry` of many robots at once (by :meth:`slots`), reset to zero."""
+        dist, turn = self.odo_dist[slots], self.odo_turn[slots]
+        self.odo_dist[slots] = 0.0
+        self.odo_turn[slots] = 0.0
+        return dist, turn
+
     def _cell(self, s: int) -> tuple[int, int]:
         return math.floor(self.x[s] + 0.5), math.floor(self.y[s] + 0.5)
 

@@ -262,21 +262,29 @@ class Localization:
         return r
 
     def update(self) -> list[Fix]:
-        """Advance every estimate by odometry, then correct with the fixes now due."""
-        tags = self.arena.tags
-        for gone in set(self.reckoners) - set(tags):
-            del self.reckoners[gone]
-            self.system.forget(gone)
-        xs = np.empty(len(tags))
-        ys = np.empty(len(tags))
-        for i, t in enumerate(tags):
-            r = self._reckoner(t)
-            dist, turn = self.arena.odometry(t, reset=True)
-            r.advance(dist, turn)
-            r.time = self.arena.time
-            p = self.arena.pose(t)
-            xs[i], ys[i] = p.x, p.y
-        fixes = self.system.poll(self.arena.time, tags, xs, ys)
+        """Advance every estimate by odometry, then correct with the fixes now due.
+
+        Vectorised over the arena's arrays: only the robots that drove or turned since the
+        last update advance their estimate (a robot standing still has nothing to add)."""
+        arena = self.arena
+        tags = arena.tags
+        if len(self.reckoners) != len(tags) or not all(t in self.reckoners for t in tags):
+            for gone in set(self.reckoners) - set(tags):
+                del self.reckoners[gone]
+                self.system.forget(gone)
+            for t in tags:
+                self._reckoner(t)
+        slots = arena.slots(tags)
+        dist, turn = arena.take_odometry(slots)
+        moved = np.flatnonzero((dist != 0.0) | (turn != 0.0))
+        if moved.size:
+            reckoners = self.reckoners
+            now = arena.time
+            for i, d, a in zip(moved.tolist(), dist[moved].tolist(), turn[moved].tolist()):
+                r = reckoners[tags[i]]
+                r.advance(d, a)
+                r.time = now
+        fixes = self.system.poll(arena.time, tags, arena.x[slots], arena.y[slots])
         for f in fixes:
             self.reckoners[f.tag].correct(f)
         return fixes

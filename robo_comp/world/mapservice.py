@@ -78,6 +78,8 @@ class MapService:
         self.shared_discoveries = shared_discoveries
         self.share_robot_positions = share_robot_positions
         self.version = 1
+        #: The version of the newest change that is not a robot's position.
+        self.static_version = 1
         # key -> (version, visibility, value or None when deleted)
         self._ent: dict[tuple, tuple[int, str | None, Any]] = {}
         self._log_v: list[int] = []
@@ -105,6 +107,8 @@ class MapService:
 
     def _touch(self, key: tuple, value: Any, visibility: str | None) -> None:
         self.version += 1
+        if key[0] != "robot":
+            self.static_version = self.version
         self._ent[key] = (self.version, visibility, value)
         self._by_kind.setdefault(key[0], {})[key] = None
         self._log_v.append(self.version)
@@ -242,9 +246,10 @@ class MapService:
             "discoveries": [dict(d, evidence=list(d["evidence"])) for d in self._items("discovery", team)],
         }
 
-    def delta_since(self, version: int, team: str | None = None) -> dict[str, Any]:
-        """Changes after ``version`` as ``team`` sees them. A version of 0 (or one the
-        service does not know, e.g. after a restart) gets a full snapshot instead."""
+    def delta_since(self, version: int, team: str | None = None, robots: bool = True) -> dict[str, Any]:
+        """Changes after ``version`` as ``team`` sees them (without robot positions when
+        ``robots`` is false). A version of 0 (or one the service does not know, e.g. after a
+        restart) gets a full snapshot instead."""
         if not isinstance(version, int) or version <= 0 or version > self.version:
             return self.snapshot(team)
         i = bisect.bisect_right(self._log_v, version)
@@ -259,6 +264,8 @@ class MapService:
             if v <= version or not self._visible(vis, team):
                 continue
             kind = key[0]
+            if kind == "robot" and not robots:
+                continue
             if kind == "cell":
                 out["cells"].append(list(val))
             elif kind == "robot":
