@@ -132,3 +132,28 @@ def test_a_batch_of_reports_is_checked_row_by_row_and_keeps_the_good_rows(core):
     finally:
         red.close()
         blue.close()
+
+
+@pytest.mark.core_args("--pose-hz", "2")
+def test_a_robot_that_left_is_not_in_the_next_positions_batch(core):
+    url = json.loads((core.state / "core.json").read_text())["router"]
+    red = Host(url, core.token("red"))
+    feed = core.client("referee").subscribe()
+    try:
+        stays, leaves = red.register("r0"), red.register("r1")
+        time.sleep(0.6)  # the subscription is up and the registrations' batch is out
+        while feed.poll(0):
+            recv_event(feed)
+        red.report(stays, 4.0)
+        red.report(leaves, 5.0)
+        reply = red.ask("leave", 2, {"tag": leaves})  # within the same pose period
+        assert reply is not None and reply["ok"], reply
+        seen = []
+        while feed.poll(1500):
+            seen.append(recv_event(feed))
+    finally:
+        red.close()
+    topics = [t for t, _ in seen]
+    assert "robot.left" in topics and "robot.positions" in topics
+    batch = next(d for t, d in seen if t == "robot.positions")
+    assert batch["tags"] == [stays] and batch["x"] == [4.0]

@@ -12,7 +12,8 @@ with ``ip link set ... down``: its robots are marked lost, halt, and after ``up`
 with the same tags and carry on, while blue's robots keep playing throughout.
 
 Needs root and ``ip netns``; skipped (with the failing command's message) where namespaces
-cannot be created. Namespaces are deleted in the fixture's teardown, also on failure.
+cannot be created. Namespaces are deleted in the fixture's teardown, also on failure. It is
+part of the default run (about 14 s).
 """
 from __future__ import annotations
 
@@ -29,8 +30,6 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-
-pytestmark = pytest.mark.slow
 
 HEARTBEAT = 0.5
 SPEED = 1.0  # cells per second: a robot that did not halt would drive on during the outage

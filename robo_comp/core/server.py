@@ -464,11 +464,14 @@ class Core:
     def _publish_positions(self) -> None:
         """Publish the newest pose of every robot that reported since the last batch, one
         ``robot.positions`` event per team: however often robots report, subscribers get at
-        most ``pose_hz`` position events per team per second (conflation)."""
+        most ``pose_hz`` position events per team per second (conflation). A robot that was
+        lost or left since it reported is left out: its ``robot.lost``/``robot.left`` went first."""
         posed, self._posed = self._posed, {}
         robots = self.registry.robots
         for team in sorted(posed):
-            rows = [robots[t] for t in sorted(posed[team])]
+            rows = [r for r in (robots[t] for t in sorted(posed[team])) if r.status == "connected"]
+            if not rows:
+                continue
             self.maps.positions(rows)
             self.emit("robot.positions", team, {
                 "team": team, "tags": [r.tag for r in rows], "x": [r.x for r in rows],

@@ -247,6 +247,8 @@ class WallModel:
 
 
 def _on_positions(m: WallModel, d: dict[str, Any]) -> None:
+    """A batch of poses (the live feed's per team, or a log's for all teams). It moves robots
+    but does not change their status: ``robot.returned`` says when a lost robot is back."""
     team = d.get("team")
     xs, ys, hs = d["x"], d["y"], d["heading"]
     moving = d.get("moving") or [True] * len(xs)
@@ -254,8 +256,6 @@ def _on_positions(m: WallModel, d: dict[str, Any]) -> None:
         r = m._robot(tag, team)
         r.move(float(xs[i]), float(ys[i]), float(hs[i]))
         r.moving = bool(moving[i])
-        if r.status in ("lost", "left"):
-            r.status = "connected"
 
 
 def _on_registered(m: WallModel, d: dict[str, Any]) -> None:
