@@ -82,6 +82,7 @@ class Client:
         self.sock: zmq.Socket | None = None
         self.next_id = 1
         self.events: deque[dict[str, Any]] = deque(maxlen=10_000)
+        self._asked: dict[int, dict[str, Any] | None] = {}  # request id sent with ask() -> its reply
         self.info: dict[str, Any] = {}
         self._last_sent = 0.0
         self._watching = False
@@ -92,6 +93,7 @@ class Client:
         """(Re)open the socket and say hello; returns the core's hello reply."""
         if self.sock is not None:
             self.sock.close(0)
+        self._asked = {}  # what was asked on the old socket is not answered on the new one
         self.sock = self.ctx.socket(zmq.DEALER)
         self.sock.setsockopt(zmq.LINGER, 0)
         secure_client(self.sock, self.curve)
@@ -163,6 +165,37 @@ class Client:
     def _keep(self, msg: dict[str, Any]) -> None:
         if msg.get("type") == "event":
             self.events.append(msg.get("body") or {})
+        elif msg.get("type") == "reply" and msg.get("id") in self._asked:
+            self._asked[msg["id"]] = msg
+
+    def ask(self, type_: str, **body: Any) -> int:
+        """Send a request without waiting (for loops that must not block, like the wall's
+        frames); return its id for :meth:`answer`."""
+        assert self.sock is not None, "client is closed"
+        rid = self._id()
+        self.sock.send(P.request(type_, rid, body))
+        self._last_sent = time.monotonic()
+        self._asked[rid] = None
+        return rid
+
+    def answer(self, rid: int) -> dict[str, Any] | None:
+        """The reply body of request ``rid`` sent with :meth:`ask` if it has come (raising the
+        matching error on an error reply), else None. Never waits."""
+        assert self.sock is not None, "client is closed"
+        while self._asked.get(rid) is None and self.sock.poll(0):
+            self._keep(P.unpack(self.sock.recv()))
+        msg = self._asked.get(rid)
+        if msg is None:
+            return None
+        del self._asked[rid]
+        if msg.get("ok"):
+            return msg.get("body") or {}
+        err = msg.get("error") or {}
+        raise error_from_code(err.get("code", "E_INTERNAL"), err.get("message", "unknown error"), err.get("details"))
+
+    def forget(self, rid: int) -> None:
+        """Stop waiting for request ``rid`` (a late reply is dropped)."""
+        self._asked.pop(rid, None)
 
     def robots(self) -> list[dict[str, Any]]:
         """The robots this client may see (its team's; all for the referee)."""

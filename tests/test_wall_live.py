@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -130,7 +131,7 @@ def test_clicks_give_goto_and_followpath_and_double_click_opens_the_monitor(core
     post_click(app, robot_px(app, tag))
     assert app.view.monitors == [tag]
     clock.t += 2
-    app.step(wait=False)
+    wait_for(lambda: (app.step(wait=False), tag in app.monitor_data)[1], 5, "the monitor's answer")
     assert app.monitor_data[tag]["tag"] == tag and app.monitor_data[tag]["advertised"]
     assert ("monitor", tag) in app.renderer.boxes
     # a find reported with a picture as evidence: click it, see what is known and the picture
@@ -181,7 +182,7 @@ def test_a_team_wall_cannot_command_another_teams_robot_and_shows_the_refusal(co
     clock.t += 0.1
     post_click(app, robot_px(app, tag))
     clock.t += 2
-    app.step(wait=False)
+    wait_for(lambda: (app.step(wait=False), tag in app.monitor_data)[1], 5, "the monitor's answer")
     assert str(app.monitor_data[tag]).startswith("refused:")
     # several walls at once: the referee's wall beside blue's sees the same robot
     ref_model = WallModel()
@@ -191,6 +192,31 @@ def test_a_team_wall_cannot_command_another_teams_robot_and_shows_the_refusal(co
     assert tag in ref_model.robots and ref_model.robots[tag].team == "red"
     app.step(wait=False)
     assert app.model.robots[tag].status == "connected"
+
+
+def test_a_core_that_does_not_answer_never_holds_up_the_frames(core, walls_open):
+    core.robots("red", 1)
+    tag = wait_robots(core.client("red"), 1)[0]["tag"]
+    clock = FakeClock()
+    app = open_wall(core, "red", walls_open, clock)
+    app.view.monitors.append(tag)
+    wait_for(lambda: (app.step(wait=False), isinstance(app.monitor_data.get(tag), dict))[1], 5, "the monitor")
+    os.kill(core.proc.pid, signal.SIGSTOP)  # a core that answers nothing
+    try:
+        clock.t += 2  # a refresh is due: the wall asks, and draws on without the answer
+        frames = app.frames
+        for _ in range(5):
+            app.step(wait=False)
+        assert app.frames == frames + 5
+        assert isinstance(app.monitor_data[tag], dict)  # the last answer stays up meanwhile
+        clock.t += 4  # longer than the client's timeout (3 s)
+        app.step(wait=False)
+        assert str(app.monitor_data[tag]).startswith("no answer from the core")
+    finally:
+        os.kill(core.proc.pid, signal.SIGCONT)
+    clock.t += 2
+    wait_for(lambda: (app.step(wait=False), isinstance(app.monitor_data.get(tag), dict))[1], 5,
+             "the monitor once the core answers again")
 
 
 def wall_cli(*args: str) -> subprocess.Popen[bytes]:

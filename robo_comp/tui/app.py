@@ -19,6 +19,7 @@ from typing import Any, Protocol
 from textual.app import App, SystemCommand
 from textual.binding import Binding
 from textual.command import DiscoveryHit, Hit, Hits, Provider
+from textual.css.query import NoMatches
 from textual.screen import Screen
 
 from robo_comp.errors import RoboCompError
@@ -153,7 +154,10 @@ class ConsoleApp(App[None]):
         screen = self.main()
         if screen is not None and (force or self.model.version != self._drawn):
             self._drawn = self.model.version
-            screen.refresh_views()
+            try:
+                screen.refresh_views()
+            except NoMatches:  # the app is closing: the screen's widgets went before the screen
+                pass
 
     # ------------------------------------------------------------------ link state
     async def on_link_changed(self, msg: LinkChanged) -> None:

@@ -125,6 +125,7 @@ class WallApp:
         self.frames = 0
         self._next_frame = 0.0
         self._monitor_at = 0.0
+        self._monitor_asks: dict[int, tuple[int, float]] = {}  # tag -> (request id, sent at)
         self._view_sent: tuple[Any, float] = (None, 0.0)
         self._ctx = zmq.Context.instance()
         self.view_pub = self.view_sub = None
@@ -273,16 +274,19 @@ class WallApp:
         self.model.note(f"robot {tag}: {task} {args} given (task {reply.get('task_id')})")
 
     def refresh(self, now: float) -> None:
-        """Ask for the open monitors' data (once a second)."""
+        """Ask for the open monitors' data (once a second) and take the answers that came.
+
+        A live core is asked without waiting: a slow core delays the monitor boxes, never a
+        frame (an answer that takes longer than the client's timeout is given up)."""
+        if isinstance(self.source, LiveSource):
+            self._take_monitor_answers(now)
         if not self.view.monitors or now - self._monitor_at < MONITOR_REFRESH:
             return
         self._monitor_at = now
         for tag in list(self.view.monitors):
             if isinstance(self.source, LiveSource):
-                try:
-                    self.monitor_data[tag] = self.source.request(self.source.client.monitor, tag)
-                except RoboCompError as e:
-                    self.monitor_data[tag] = f"refused: {e.message}"
+                if tag not in self._monitor_asks:
+                    self._monitor_asks[tag] = (self.source.client.ask("monitor", tag=tag), now)
             else:
                 r = self.model.robots.get(tag)
                 self.monitor_data[tag] = ({"tag": tag, "team": r.team, "status": r.status, "x": r.x, "y": r.y,
@@ -290,6 +294,27 @@ class WallApp:
                                           if r else "not in this replay")
         if self.view.info:
             self._fetch_pictures()
+
+    def _take_monitor_answers(self, now: float) -> None:
+        assert isinstance(self.source, LiveSource)
+        client = self.source.client
+        for tag, (rid, sent) in list(self._monitor_asks.items()):
+            try:
+                data = client.answer(rid)
+            except AuthError:  # the core forgot this idle session: say hello again, ask anew
+                self._monitor_asks.clear()
+                client.connect()
+                return
+            except RoboCompError as e:
+                data = f"refused: {e.message}"
+            if data is None:
+                if now - sent < client.timeout:
+                    continue
+                client.forget(rid)
+                data = f"no answer from the core within {client.timeout:.0f} s"
+            del self._monitor_asks[tag]
+            if tag in self.view.monitors:
+                self.monitor_data[tag] = data
 
     def _fetch_details(self) -> None:
         """A find's evidence and verdict are not public: ask the core what this token may know."""
