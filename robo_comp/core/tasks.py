@@ -78,7 +78,7 @@ def check_specs(specs: Any) -> dict[str, dict[str, Any]]:
 
 def signature(spec: dict[str, Any]) -> str:
     """A one-line human signature such as ``goTo(x: int, y: int)``."""
-    return f"{spec['name']}({', '.join(a['name'] + ': ' + a['type'] for a in spec['args'])})"
+    return f"{spec['name']}({', '.join(a['name'] + ': ' + a['type'] for a in spec.get('args') or ())})"
 
 
 def check_args(spec: dict[str, Any], args: list[Any]) -> list[Any]:

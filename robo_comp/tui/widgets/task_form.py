@@ -17,6 +17,8 @@ from textual.containers import Vertical
 from textual.validation import ValidationResult, Validator
 from textual.widgets import Checkbox, Input, Label
 
+from robo_comp.core.tasks import signature  # the core's own wording of a task (re-exported)
+
 #: What to type, by argument type (placeholder text).
 HINTS = {
     "int": "a whole number, e.g. 12",
@@ -131,11 +133,6 @@ class ArgField(Vertical):
         if self.spec.get("type") == "bool":
             return self.query_one(Checkbox).value
         return parse_arg(self.spec, self.query_one(Input).value)
-
-
-def signature(spec: dict[str, Any]) -> str:
-    """``goTo(x: int, y: int)``."""
-    return f"{spec['name']}({', '.join(a['name'] + ': ' + a['type'] for a in spec.get('args') or [])})"
 
 
 __all__ = ["ArgField", "ArgValidator", "HINTS", "parse_arg", "signature"]
