@@ -79,3 +79,23 @@ class MatchClock:
         self.elapsed_before = elapsed
         self.duration = math.inf if duration is None else duration
         self.running_since = now if phase == "running" else None
+
+
+@dataclass
+class HeardClock:
+    """The match clock as a console or a wall last heard it (``match.phase``, ``score``), with
+    the local monotonic time it was heard: :meth:`now` runs it on while the match runs."""
+
+    phase: str = ""
+    elapsed: float = 0.0
+    remaining: float | None = None
+    heard_at: float | None = None
+
+    def now(self, at: float | None) -> tuple[float, float | None]:
+        """``(elapsed, remaining)`` extrapolated to local time ``at`` while running (``at`` None:
+        as heard)."""
+        if at is None or self.heard_at is None or self.phase != "running":
+            return self.elapsed, self.remaining
+        d = max(0.0, at - self.heard_at)
+        return self.elapsed + d, None if self.remaining is None else max(0.0, self.remaining - d)
+

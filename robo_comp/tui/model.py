@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from robo_comp.core.protocol import unpack_walls
+from robo_comp.scoring.match import HeardClock
 
 #: Events kept for the log pane and the monitor's "recent events".
 MAX_EVENTS = 2000
@@ -39,23 +40,6 @@ class LogEntry:
 
 
 @dataclass
-class MatchInfo:
-    """Phase and clock as last reported, with the local time of the report."""
-
-    phase: str = "?"
-    elapsed: float = 0.0
-    remaining: float | None = None
-    at: float = 0.0
-
-    def now(self, clock: float) -> tuple[float, float | None]:
-        """``(elapsed, remaining)`` at local monotonic time ``clock`` (the clock runs only while running)."""
-        if self.phase != "running":
-            return self.elapsed, self.remaining
-        d = max(0.0, clock - self.at)
-        return self.elapsed + d, None if self.remaining is None else max(0.0, self.remaining - d)
-
-
-@dataclass
 class ConsoleModel:
     """Robots, match, scores, finds and events as one console sees them."""
 
@@ -63,7 +47,7 @@ class ConsoleModel:
     team: str | None = None
     robots: dict[int, dict[str, Any]] = field(default_factory=dict)
     details: dict[int, dict[str, Any]] = field(default_factory=dict)
-    match: MatchInfo = field(default_factory=MatchInfo)
+    match: HeardClock = field(default_factory=lambda: HeardClock("?"))
     scores: list[dict[str, Any]] = field(default_factory=list)
     teams: list[str] = field(default_factory=list)
     finds: list[dict[str, Any]] = field(default_factory=list)
@@ -109,7 +93,7 @@ class ConsoleModel:
         """Take a phase/clock report (``match`` reply, ``match.phase`` or ``score`` event)."""
         if "phase" not in m:
             return
-        self.match = MatchInfo(m.get("phase", "?"), float(m.get("elapsed") or 0.0),
+        self.match = HeardClock(m.get("phase", "?"), float(m.get("elapsed") or 0.0),
                                None if m.get("remaining") is None else float(m["remaining"]), self.clock())
         self.touch()
 
@@ -306,4 +290,4 @@ def describe_event(e: LogEntry) -> str:
     return f"{who} {rest}"
 
 
-__all__ = ["ConsoleModel", "LogEntry", "MatchInfo", "describe_event", "fmt_clock", "task_label"]
+__all__ = ["ConsoleModel", "LogEntry", "describe_event", "fmt_clock", "task_label"]

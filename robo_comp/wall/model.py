@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from robo_comp.core.protocol import unpack_walls
+from robo_comp.scoring.match import HeardClock
 
 #: Trail points kept per robot (the last N positions at least ``TRAIL_STEP`` cells apart).
 TRAIL_LEN = 48
@@ -110,23 +111,6 @@ class Message:
     t: float
 
 
-@dataclass
-class MatchState:
-    """Phase and clock as last heard, with the local monotonic time it was heard."""
-
-    phase: str = ""
-    elapsed: float = 0.0
-    remaining: float | None = None
-    heard_at: float | None = None
-
-    def now(self, at: float | None) -> tuple[float, float | None]:
-        """(elapsed, remaining) extrapolated to ``at`` while running (``at`` None: as heard)."""
-        if at is None or self.heard_at is None or self.phase != "running":
-            return self.elapsed, self.remaining
-        d = max(0.0, at - self.heard_at)
-        return self.elapsed + d, None if self.remaining is None else max(0.0, self.remaining - d)
-
-
 class WallModel:
     """Everything the wall draws. ``version`` changes whenever something visible changes."""
 
@@ -136,7 +120,7 @@ class WallModel:
         self.arena_version = 0
         self.robots: dict[int, Robot] = {}
         self.things: dict[str, Thing] = {}
-        self.match = MatchState()
+        self.match = HeardClock()
         self.score: list[dict[str, Any]] = []
         self.messages: deque[Message] = deque(maxlen=MESSAGES_KEPT)
         self.version = 0
