@@ -3,47 +3,21 @@ from __future__ import annotations
 
 import os
 from collections.abc import Iterator
-from dataclasses import dataclass, field
 from pathlib import Path
-from subprocess import Popen
-from typing import Any
 
 import pytest
 
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 
-from robo_comp.client import Client  # noqa: E402
-from robo_comp.launch import start_core, start_robots, stop_all  # noqa: E402
-from robo_comp.testing import next_event_where, wait_for, wait_robots  # noqa: E402,F401  (tests import them from here)
+from robo_comp.launch import start_core  # noqa: E402
+from robo_comp.testing import Match, next_event_where, wait_for, wait_robots  # noqa: E402,F401  (tests import them from here)
 
 HEARTBEAT = 0.2
 
 
-@dataclass
-class CoreHandle:
-    """A running core process and how to reach it."""
-
-    state: Path
-    proc: Popen[bytes]
-    procs: list[Popen[bytes]] = field(default_factory=list)
-    clients: list[Client] = field(default_factory=list)
-
-    def token(self, team: str) -> str:
-        """A team's token (``referee`` for the referee's)."""
-        path = self.state / ("referee.token" if team == "referee" else f"teams/{team}.token")
-        return path.read_text().strip()
-
-    def client(self, team: str, **kw: Any) -> Client:
-        """A connected client for ``team`` (closed at teardown)."""
-        c = Client(str(self.state), self.token(team), **kw)
-        self.clients.append(c)
-        return c
-
-    def robots(self, team: str, count: int, *extra: str) -> Popen[bytes]:
-        """Start a robot host process (stopped at teardown)."""
-        p = start_robots(self.state, team, count, *extra)
-        self.procs.append(p)
-        return p
+#: A running core process, its robot hosts and clients: the pytest plugin's :class:`Match`
+#: (``CoreHandle(state, None, proc)``; ``close()`` stops it all).
+CoreHandle = Match
 
 
 @pytest.fixture(scope="session", autouse=True)
@@ -67,11 +41,9 @@ def core(tmp_path: Path, request: pytest.FixtureRequest) -> Iterator[CoreHandle]
     hb = mark.args[0] if mark else HEARTBEAT
     extra = request.node.get_closest_marker("core_args")
     proc = start_core(state, "--heartbeat", str(hb), "--teams", "red,blue", *(extra.args if extra else ()))
-    h = CoreHandle(state, proc)
+    h = CoreHandle(state, None, proc)
     yield h
-    for c in h.clients:
-        c.close()
-    stop_all([h.proc, *h.procs])
+    h.close()
 
 
 def pytest_configure(config: pytest.Config) -> None:

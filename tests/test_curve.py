@@ -23,7 +23,7 @@ from conftest import CoreHandle, wait_for, wait_robots
 from robo_comp.client import Client
 from robo_comp.core.curve import ENV_CERT, ENV_CORE_KEY, create_keys
 from robo_comp.errors import AuthError, FieldError, TimeoutError_
-from robo_comp.launch import start_core, start_robots, stop_all
+from robo_comp.launch import start_core, start_robots
 
 
 def robo_comp(*args: str, timeout: float = 30.0) -> subprocess.CompletedProcess[str]:
@@ -41,11 +41,9 @@ def curve_core(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Core
     out = robo_comp("keys", "--state", str(state), "--teams", "red,blue")
     assert out.returncode == 0, out.stderr
     proc = start_core(state, "--heartbeat", "0.2", "--teams", "red,blue", "--curve")
-    h = CoreHandle(state, proc)
+    h = CoreHandle(state, None, proc)
     yield h
-    for c in h.clients:
-        c.close()
-    stop_all([h.proc, *h.procs])
+    h.close()
 
 
 def test_keys_are_made_once_with_private_secrets(tmp_path: Path) -> None:

@@ -14,7 +14,7 @@ import robo_comp.world.scenario as scen
 from conftest import CoreHandle, wait_for
 from robo_comp.core import protocol as P
 from robo_comp.errors import FieldError, NotYoursError
-from robo_comp.launch import start_core, stop_all
+from robo_comp.launch import start_core
 from robo_comp.world.mapservice import MapView
 
 DEMO = Path(scen.__file__).parent / "scenarios" / "demo_room.toml"
@@ -24,11 +24,9 @@ DEMO = Path(scen.__file__).parent / "scenarios" / "demo_room.toml"
 def practice(tmp_path):
     state = tmp_path / "state"
     proc = start_core(state, "--heartbeat", "0.3", "--scenario", str(DEMO), "--practice")
-    h = CoreHandle(state, proc)
+    h = CoreHandle(state, None, proc)
     yield h
-    for c in h.clients:
-        c.close()
-    stop_all([h.proc])
+    h.close()
 
 
 class RawHost:

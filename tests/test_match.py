@@ -11,7 +11,7 @@ import pytest
 import robo_comp.world.scenario as scen
 from conftest import CoreHandle, next_event_where, wait_for, wait_robots
 from robo_comp.errors import ForbiddenError, PhaseError
-from robo_comp.launch import start_core, stop_all
+from robo_comp.launch import start_core
 
 DEMO = Path(scen.__file__).parent / "scenarios" / "demo_room.toml"
 
@@ -22,11 +22,9 @@ def match(tmp_path, request):
     mark = request.node.get_closest_marker("rules")
     extra = ["--rules", mark.args[0]] if mark else []
     proc = start_core(state, "--heartbeat", "0.5", "--scenario", str(DEMO), *extra)
-    h = CoreHandle(state, proc)
+    h = CoreHandle(state, None, proc)
     yield h
-    for c in h.clients:
-        c.close()
-    stop_all([h.proc, *h.procs])
+    h.close()
 
 
 def test_phases_are_enforced_and_only_the_referee_changes_them(match):
