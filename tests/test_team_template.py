@@ -35,11 +35,11 @@ def run_pytest(folder: Path, *args: str, timeout: float = 120) -> subprocess.Com
 
 
 # ------------------------------------------------------------------ the template and new-team
-def test_visible_template_is_identical_to_the_shipped_one():
-    shipped, visible = tree(TEMPLATE), tree(VISIBLE)
-    assert sorted(shipped) == sorted(visible), "robo_comp/teams/template and team_templates/ list different files"
-    drifted = [name for name in shipped if shipped[name] != visible[name]]
-    assert not drifted, f"edit robo_comp/teams/template and copy it to team_templates/: {drifted} differ"
+def test_visible_template_is_the_shipped_one():
+    # team_templates/ is a link to the package data: one tree, nothing to keep in step
+    assert VISIBLE.is_symlink() and VISIBLE.resolve() == TEMPLATE.resolve()
+    shipped = tree(TEMPLATE)
+    assert {"README.md", "pyproject.toml", "extensions/explorer.py"} <= set(shipped)
     assert newteam.template_files() == shipped  # what new-team copies is exactly that tree
 
 

@@ -17,9 +17,26 @@ CAPTURE_SECONDS = 0.2
 
 
 class PoseReadings:
-    """``x``, ``y``, ``heading`` and ``cell()`` of a driver, from its ``pose`` (what it believes)."""
+    """``x``, ``y``, ``heading`` and ``cell()`` of a driver, from its ``pose`` (what it believes),
+    and the end of a step, which every driver decides the same way."""
 
     pose: tuple[float, float, float]
+    step: Step | None
+    _timer: float
+
+    def _step_ended(self, moving: bool, dt: float) -> bool:
+        """After ``dt`` seconds: True (and no step any more) when the current step is over. A
+        move or turn is over when the robot no longer ``moving``; a picture or a wait when its
+        time has run out."""
+        if isinstance(self.step, (Move, Turn)):
+            if moving:
+                return False
+        else:
+            self._timer -= dt
+            if self._timer > 0:
+                return False
+        self.step = None
+        return True
 
     @property
     def x(self) -> float:
@@ -90,15 +107,6 @@ class ArenaDriver(PoseReadings):
 
     def update(self, dt: float) -> bool:
         """After the arena stepped: True when the current step finished (or a bump ended it)."""
-        step = self.step
-        if step is None:
+        if self.step is None:
             return False
-        if isinstance(step, (Move, Turn)):
-            if self.bump is None and self.arena.is_moving(self.tag):
-                return False
-        else:
-            self._timer -= dt
-            if self._timer > 0:
-                return False
-        self.step = None
-        return True
+        return self._step_ended(self.bump is None and self.arena.is_moving(self.tag), dt)

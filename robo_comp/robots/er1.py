@@ -171,15 +171,7 @@ class ER1Driver(PoseReadings):
                 return self._fail(f"the robot control center said {line!r}")
         if self.link.closed:
             return self._fail("the connection to the robot control center was lost")
-        if isinstance(self.step, (Move, Turn)):
-            if self._plan:
-                return False
-        else:
-            self._timer -= dt
-            if self._timer > 0:
-                return False
-        self.step = None
-        return True
+        return self._step_ended(bool(self._plan), dt)
 
     def _fail(self, what: str) -> bool:
         self.bump = {"what": what, "x": self._pose[0], "y": self._pose[1]}

@@ -1,8 +1,8 @@
 """``robo-comp new-team NAME [--dest DIR]``: start a team folder from the shipped template.
 
 The template lives in ``robo_comp/teams/template/`` (package data, so it is there however
-robo_comp was installed); the repository's ``team_templates/`` is the same tree kept visible at
-the top level (a test asserts the two are identical). The copy is a small team package:
+robo_comp was installed); the repository's ``team_templates/`` is a link to it, so that the
+template is visible at the top level. The copy is a small team package:
 ``pyproject.toml``, ``README.md``, ``extensions/`` (uploads) and ``tests/`` (run with pytest,
 using the fixtures of :mod:`robo_comp.testing`).
 """
