@@ -151,7 +151,7 @@ def build_parser() -> argparse.ArgumentParser:
                         description="Play STATE/events.log of a match: walls and consoles connect to the "
                                     "replay as to a live core (read-only; commands are refused).")
     rp.add_argument("log", help="the event log (a core's STATE/events.log)")
-    rp.add_argument("--speed", type=float, default=1.0, help="times real time (default 1)")
+    rp.add_argument("--speed", type=_positive, default=1.0, help="times real time (default 1)")
     rp.add_argument("--start", type=float, default=0.0, help="start this many seconds into the recording")
     rp.add_argument("--state", help="state folder of the replay (core.json, tokens; default: a new temporary one)")
     rp.add_argument("--host", default="127.0.0.1", help="address to bind")

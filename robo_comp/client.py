@@ -61,6 +61,14 @@ def pub_url(router_url: str, pub_port: int) -> str:
     return f"tcp://{host}:{pub_port}"
 
 
+
+def _reply_body(msg: dict[str, Any]) -> dict[str, Any]:
+    """The body of an ok reply, or the matching :class:`RoboCompError` raised for an error reply."""
+    if msg.get("ok"):
+        return msg.get("body") or {}
+    err = msg.get("error") or {}
+    raise error_from_code(err.get("code", "E_INTERNAL"), err.get("message", "unknown error"), err.get("details"))
+
 class Client:
     """A DEALER connection to the core that has said hello with a token.
 
@@ -155,11 +163,7 @@ class Client:
                     f"the core at {self.url} did not answer {type_!r} within {self.timeout:.1f} s; is it running?")
             msg = P.unpack(self.sock.recv())
             if msg.get("type") == "reply" and msg.get("id") in (rid, 0):
-                if msg.get("ok"):
-                    return msg.get("body") or {}
-                err = msg.get("error") or {}
-                raise error_from_code(err.get("code", "E_INTERNAL"), err.get("message", "unknown error"),
-                                      err.get("details"))
+                return _reply_body(msg)
             self._keep(msg)
 
     def _keep(self, msg: dict[str, Any]) -> None:
@@ -188,10 +192,7 @@ class Client:
         if msg is None:
             return None
         del self._asked[rid]
-        if msg.get("ok"):
-            return msg.get("body") or {}
-        err = msg.get("error") or {}
-        raise error_from_code(err.get("code", "E_INTERNAL"), err.get("message", "unknown error"), err.get("details"))
+        return _reply_body(msg)
 
     def forget(self, rid: int) -> None:
         """Stop waiting for request ``rid`` (a late reply is dropped)."""

@@ -613,7 +613,7 @@ class Bench:
             self._reject(tag, c.call_id, c.name, c.args, getattr(e, "message", None) or str(e))
             return
         except (TypeError, ValueError, IndexError) as e:
-            self._reject(tag, c.call_id, c.name, c.args, f"the host could not do that: {type(e).__name__}")
+            self._reject(tag, c.call_id, c.name, c.args, host_answers.call_failed(c.name, c.args, e))
             return
         self._resolve(tag, c.call_id, c.name, c.args, value)
 
@@ -688,8 +688,7 @@ class Bench:
                 if tag in bumped and tag in self._runs:
                     b = bumped[tag]
                     other = b.get("other")
-                    what = f"robot {other}" if other else b.get("what", "something")
-                    self._stop_run(tag, f"bumped into {what} at ({b['x']:.1f}, {b['y']:.1f}) and stopped")
+                    self._stop_run(tag, host_answers.stop_status(b, f"robot {other}" if other else None))
                     ready.append(tag)
                     continue
                 if self.arena.is_moving(str(tag)):

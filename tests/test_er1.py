@@ -108,7 +108,7 @@ def test_halt_sends_stop_at_once_and_errors_end_the_step_like_a_bump():
     try:
         d = ER1Driver(RCCLink(rcc.address), cell_cm=25, x=0, y=0, heading=0)
         run_step(d, Move(1, 0))
-        assert d.bump is not None and "motor stalled" in d.bump["what"]
+        assert d.bump is not None and "motor stalled" in d.bump["error"]
     finally:
         rcc.close()
     with pytest.raises(UnavailableError, match="HOST:PORT"):

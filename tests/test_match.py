@@ -143,6 +143,9 @@ def test_referee_penalties_disqualify_and_broadcast(match):
         red.give(tags[0], "goTo", [3, 3])
     red.give(tags[1], "goTo", [3, 3])  # the other robot plays on
     assert {r["tag"]: r["status"] for r in red.robots()}[tags[0]] == "disqualified"
+    time.sleep(1.5)  # its host still reports it (idle robots once a second): it stays out
+    assert {r["tag"]: r["status"] for r in red.robots()}[tags[0]] == "disqualified"
+    assert not [e for e in match.logged_events("robot.returned") if e["data"]["tag"] == tags[0]]
     with pytest.raises(ForbiddenError):
         red.request("penalty", team="blue", points=1, reason="x")
     ref.request("disqualify", team="red", reason="cheating")

@@ -186,7 +186,7 @@ class Competition:
             self.disqualified_robots[tag] = reason
             self.core.halt_and_remove(tag, reason)
         self.core.emit("disqualified", EVERYONE, {"team": msg.body.get("team"), "tags": tags, "reason": reason})
-        self.core.emit("score", EVERYONE, {"teams": self.board.table(), **self.state()})
+        self.score_dirty = True  # the board goes out once, with this turn's other changes
         return {"tags": tags}
 
     def _on_broadcast(self, ident: bytes, msg: P.Message) -> dict[str, Any]:

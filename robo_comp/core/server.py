@@ -456,7 +456,7 @@ class Core:
             log.error("could not write the results: %s", traceback.format_exc())
 
     def _mark_returned(self, r: RobotRecord) -> None:
-        if r.status != "connected":
+        if r.status != "connected" and r.tag not in self.competition.disqualified_robots:
             r.status = "connected"
             self.emit("robot.returned", r.team, {"tag": r.tag, "x": r.x, "y": r.y})
 
@@ -712,19 +712,17 @@ class Core:
         b = msg.body
         n = P.check_reports(b)
         self._check_known(ident)
-        robots = self.registry.robots
         xs, ys, hs = b["x"], b["y"], b["heading"]
         moving = b.get("moving") or [False] * n
         sensors = b.get("sensors") or [None] * n
         now = time.time()
         foreign = []
         for i, tag in enumerate(b["tags"]):
-            r = robots.get(tag)
-            if r is None or r.session != ident:
+            try:
+                r = self._hosted(ident, tag)
+            except NotYoursError:
                 foreign.append(tag)
                 continue
-            if r.status != "connected":
-                self._mark_returned(r)
             self._pose(r, xs[i], ys[i], hs[i], moving[i], sensors[i], now)
         if foreign:  # the others' rows were taken
             raise NotYoursError(f"robots {foreign[:10]} are not hosted by this connection; register them first")

@@ -24,6 +24,18 @@ class PoseReadings:
     step: Step | None
     _timer: float
 
+    @property
+    def moving(self) -> bool:
+        """True while a step is in progress."""
+        return self.step is not None
+
+    def _start_timer(self, step: Step) -> None:
+        """A picture or a wait lasts a fixed time (moves and turns end when the robot stops)."""
+        if isinstance(step, Capture):
+            self._timer = CAPTURE_SECONDS
+        elif isinstance(step, Wait):
+            self._timer = max(0.0, step.seconds)
+
     def _step_ended(self, moving: bool, dt: float) -> bool:
         """After ``dt`` seconds: True (and no step any more) when the current step is over. A
         move or turn is over when the robot no longer ``moving``; a picture or a wait when its
@@ -81,11 +93,6 @@ class ArenaDriver(PoseReadings):
         p = self.arena.pose(self.tag)
         return p.x, p.y, p.heading
 
-    @property
-    def moving(self) -> bool:
-        """True while a step is in progress."""
-        return self.step is not None
-
     # commands ----------------------------------------------------------------
     def begin(self, step: Step) -> None:
         """Start ``step``."""
@@ -95,10 +102,8 @@ class ArenaDriver(PoseReadings):
             self.arena.command(self.tag, "goto", (step.x, step.y))
         elif isinstance(step, Turn):
             self.arena.command(self.tag, "turn", step.degrees)
-        elif isinstance(step, Capture):
-            self._timer = CAPTURE_SECONDS
-        elif isinstance(step, Wait):
-            self._timer = max(0.0, step.seconds)
+        else:
+            self._start_timer(step)
 
     def halt(self) -> None:
         """Stop at once."""

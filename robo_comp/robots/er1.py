@@ -21,9 +21,8 @@ from typing import Any
 
 from robo_comp.errors import UnavailableError
 from robo_comp.robots.drivers import PoseReadings
-from robo_comp.robots.steps import Capture, Move, Step, Turn, Wait
+from robo_comp.robots.steps import Move, Step, Turn
 
-CAPTURE_SECONDS = 0.2
 MAX_LINE = 4096
 
 
@@ -113,11 +112,6 @@ class ER1Driver(PoseReadings):
         """A real robot's truth is not known here: the dead-reckoned pose."""
         return self.pose
 
-    @property
-    def moving(self) -> bool:
-        """True while a step is in progress."""
-        return self.step is not None
-
     # commands ---------------------------------------------------------------------------
     def begin(self, step: Step) -> None:
         """Start ``step``: send its first command."""
@@ -137,10 +131,8 @@ class ER1Driver(PoseReadings):
             self._plan.append((f"move {dist:.0f} cm", (float(step.x), float(step.y), face)))
         elif isinstance(step, Turn):
             self._plan.append((f"move {step.degrees:.0f} degrees", (x, y, (h + step.degrees) % 360.0)))
-        elif isinstance(step, Capture):
-            self._timer = CAPTURE_SECONDS
-        elif isinstance(step, Wait):
-            self._timer = max(0.0, step.seconds)
+        else:
+            self._start_timer(step)
         self._next()
 
     def _next(self) -> None:
@@ -174,7 +166,7 @@ class ER1Driver(PoseReadings):
         return self._step_ended(bool(self._plan), dt)
 
     def _fail(self, what: str) -> bool:
-        self.bump = {"what": what, "x": self._pose[0], "y": self._pose[1]}
+        self.bump = {"error": what, "x": self._pose[0], "y": self._pose[1]}
         self.step = None
         self._plan = []
         return True

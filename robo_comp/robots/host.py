@@ -28,7 +28,7 @@ from robo_comp.errors import RoboCompError
 from robo_comp.plugins.manager import get_plugin_manager
 from robo_comp.robots.drivers import ArenaDriver
 from robo_comp.robots.steps import Capture, Step, TaskFailed, TaskSpec
-from robo_comp.robots.teamcode import TeamCode, free_cell, in_bounds
+from robo_comp.robots.teamcode import TeamCode, free_cell, in_bounds, stop_status
 from robo_comp.world.arena import Arena
 from robo_comp.world.localization import Localization
 from robo_comp.world.mapservice import MapView
@@ -304,8 +304,6 @@ class RobotHost:
         free = [(x, y) for y, x in np.argwhere(~self.walls).tolist() if (x, y) not in taken]
         need = max(0, min(self.count - len(start), len(free)))
         cells = start + self.rng.sample(free, need)  # seeded: the same cells for the same seed
-        if self.count > len(start) + len(free):
-            cells = start + free
         prefix = self.prefix or self.team
         if self.count > len(cells):
             raise SystemExit(f"robots: the arena has room for {len(cells)} robots, not {self.count}")
@@ -513,8 +511,7 @@ class RobotHost:
                 if r.driver.bump is not None and r.task is not None:
                     b = r.driver.bump
                     other = self.robots.get(b.get("other") or "")
-                    what = f"robot {other.tag}" if other is not None else b.get("what", "something")
-                    self._done(r, False, f"bumped into {what} at ({b['x']:.1f}, {b['y']:.1f}) and stopped")
+                    self._done(r, False, stop_status(b, f"robot {other.tag}" if other is not None else None))
                 elif r.pending is not None:
                     nxt = r.pending
                     self._done(r, False, f"interrupted by task {nxt['task_id']}")

@@ -85,6 +85,21 @@ def plan_path(walls: Any, start: tuple[int, int], goal: tuple[int, int]) -> list
     return path
 
 
+def call_failed(name: str, args: Any, error: Exception) -> str:
+    """What team code is told when answering ``robot.NAME(*args)`` failed on the host's side."""
+    shown = ", ".join(repr(a) for a in args)
+    return f"robot.{name}({shown:.80}) failed: {error}"
+
+
+def stop_status(bump: dict[str, Any], other: str | None) -> str:
+    """Why a movement stopped, for the task's status: a bump (into ``other``, a robot, or what
+    the arena names), or the driver's own failure (``error``, e.g. a lost link to a real robot)."""
+    if bump.get("error"):
+        return f"stopped at ({bump['x']:.1f}, {bump['y']:.1f}): {bump['error']}"
+    what = other or bump.get("what", "something")
+    return f"bumped into {what} at ({bump['x']:.1f}, {bump['y']:.1f}) and stopped"
+
+
 def map_piece(walls: Any, x: int, y: int, radius: int) -> dict[str, Any]:
     """``robot.map_piece``: the walls within ``radius`` cells of (x, y), outside the map blocked."""
     if not 0 <= radius <= MAX_PIECE_RADIUS:
@@ -305,7 +320,7 @@ class TeamCode:
             sb.reject(c.call_id, e.message)
         except Exception as e:  # a host bug must not hang team code
             log.exception("robot call %s failed", c.name)
-            sb.reject(c.call_id, f"the host could not do that: {type(e).__name__}")
+            sb.reject(c.call_id, call_failed(c.name, c.args, e))
 
     def _immediate(self, r: SimRobot, c: RpcCall) -> Any:
         host = self.host

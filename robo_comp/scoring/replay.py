@@ -32,7 +32,7 @@ from robo_comp.world.public import scenario_from_payload
 
 #: Requests a replay answers; everything else would change the match and is refused.
 READ_ONLY = frozenset({"hello", "heartbeat", "bye", "watch", "robots", "monitor", "tasks", "arena",
-                       "snapshot", "stats", "score", "map", "map.delta", "picture.get", "extensions"})
+                       "snapshot", "stats", "score", "map", "map.delta", "picture.get"})
 #: How often the replay plays what is due (seconds of wall-clock time); also its heartbeat.
 STEP = 0.1
 
@@ -56,8 +56,8 @@ class ReplayCore(Core):
 
     def __init__(self, log: Path, state_dir: Path, *, speed: float = 1.0, start_at: float = 0.0,
                  host: str = "127.0.0.1", port: int = 0, exit_at_end: bool = False, curve: bool = False) -> None:
-        if speed <= 0:
-            raise FieldError("--speed must be above 0")
+        if not 0 < speed < float("inf"):
+            raise FieldError(f"the replay speed must be a number above 0, not {speed!r}")
         log = Path(log)
         self.records, started = read_recording(log)
         state_dir = Path(state_dir)

@@ -41,7 +41,15 @@ OPTIONAL_REQUESTS = {"team": ("upload", "score"),
 
 log = logging.getLogger("robo_comp.tui")
 #: What a student sees when the console itself fails (the details go to the log, never a traceback).
-INTERNAL_PROBLEM = "the console hit a problem of its own (details in its log); the match and your robots are not affected"
+INTERNAL_PROBLEM = "the console hit a problem of its own (details in {log}); the match and your robots are not affected"
+
+
+def log_place() -> str:
+    """Where this process's log goes: the file ``robo-comp team``/``referee`` opened, if any."""
+    for h in logging.getLogger().handlers:
+        if isinstance(h, logging.FileHandler):
+            return h.baseFilename
+    return "the error output of the terminal it was started from"
 
 class Link(Protocol):
     """What a console needs from its link to the core (:class:`CoreLink` or a stand-in)."""
@@ -250,7 +258,7 @@ class ConsoleApp(App[None]):
 
         if event.state is WorkerState.ERROR and self.main() is not None:
             log.error("console task failed", exc_info=event.worker.error)
-            self.notify(INTERNAL_PROBLEM, title="Console error", severity="error")
+            self.notify(INTERNAL_PROBLEM.format(log=log_place()), title="Console error", severity="error")
 
     async def call(self, type_: str, *, quiet: bool = False, title: str | None = None,
                    **body: Any) -> dict[str, Any] | None:
@@ -271,7 +279,7 @@ class ConsoleApp(App[None]):
         except Exception:  # never a traceback on screen
             log.exception("request %r failed in the console", type_)
             if not quiet:
-                self.notify(INTERNAL_PROBLEM, title="Unexpected error", severity="error", timeout=8)
+                self.notify(INTERNAL_PROBLEM.format(log=log_place()), title="Unexpected error", severity="error", timeout=8)
             return None
 
     async def fetch_detail(self, tag: int) -> None:

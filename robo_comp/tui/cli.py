@@ -5,7 +5,9 @@
 from __future__ import annotations
 
 import argparse
+import logging
 import sys
+import tempfile
 from pathlib import Path
 
 from robo_comp.ctl import add_connection_args
@@ -18,6 +20,14 @@ def _check(args: argparse.Namespace, role: str) -> tuple[str, str]:
     token = read_token(args.token, args.token_file)
     resolve_core(args.core)  # clear messages now for a wrong --core or key file, before the screen opens
     client_keys(args.core, token, args.curve_cert, args.core_key)
+    # the full-screen console draws over the terminal: its log goes to a file it can name
+    root = logging.getLogger()
+    for h in list(root.handlers):
+        root.removeHandler(h)
+    log = Path(tempfile.gettempdir()) / f"robo-comp-{role}.log"
+    handler = logging.FileHandler(log, encoding="utf-8")
+    handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
+    root.addHandler(handler)
     if not sys.stdout.isatty():
         print(f"robo-comp {role}: warning: this is not a terminal, the console may not show "
               "(over SSH use 'ssh -t')", file=sys.stderr)

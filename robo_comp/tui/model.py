@@ -134,10 +134,12 @@ class ConsoleModel:
             if "tasks" in data and tag in self.details:
                 self.details[tag]["advertised"] = data["tasks"]
         elif topic == "robot.positions":
+            cols = [(k, data[k]) for k in ("x", "y", "heading", "moving") if k in data]  # once a batch
             for i, t in enumerate(data.get("tags") or ()):
                 pose = self.robots.get(t)
                 if pose is not None:
-                    pose.update({k: data[k][i] for k in ("x", "y", "heading", "moving") if k in data})
+                    for k, col in cols:
+                        pose[k] = col[i]
         elif topic == "robot.lost" and row is not None:
             row.update(status="lost", moving=False)
         elif topic == "robot.left" and row is not None:

@@ -253,7 +253,7 @@ class MapService:
         if not isinstance(version, int) or version <= 0 or version > self.version:
             return self.snapshot(team)
         i = bisect.bisect_right(self._log_v, version)
-        keys = dict.fromkeys(self._log_k[i:])
+        keys = dict.fromkeys(k for k in self._log_k[i:] if robots or k[0] != "robot")
         if len(keys) > self.width * self.height // 2:
             return self.snapshot(team)
         out: dict[str, Any] = {"type": "delta", "from": version, "version": self.version,
