@@ -146,7 +146,8 @@ def log_rate(fsync: bool, seconds: float) -> float:
             t0 = time.perf_counter()
             while time.perf_counter() < t_end:
                 while inflight < 200:
-                    c.sock.send(P.request("give", 1, {"tag": tag, "task": "goTo", "args": [1, 1], "queue": True}))
+                    c.sock.send(P.request("give", 1, {"tag": tag, "task": "goTo", "args": [1, 1], "queue": True},
+                                          c.session))
                     inflight += 1
                 c.sock.recv()
                 inflight -= 1

@@ -62,6 +62,20 @@ def pub_url(router_url: str, pub_port: int) -> str:
 
 
 
+def open_dealer(ctx: zmq.Context, url: str, curve: Any = None, **options: int) -> zmq.Socket:
+    """A DEALER socket connected to the core at ``url`` with a fresh random routing id (see
+    :func:`robo_comp.core.protocol.new_routing_id`), CurveZMQ keys when given, and ``options``
+    (socket option -> value); what every client of the project connects with."""
+    sock = ctx.socket(zmq.DEALER)
+    sock.setsockopt(zmq.LINGER, 0)
+    sock.setsockopt(zmq.ROUTING_ID, P.new_routing_id())
+    for opt, value in options.items():
+        sock.setsockopt(getattr(zmq, opt), value)
+    secure_client(sock, curve)  # plain TCP when there are no keys
+    sock.connect(url)
+    return sock
+
+
 def _reply_body(msg: dict[str, Any]) -> dict[str, Any]:
     """The body of an ok reply, or the matching :class:`RoboCompError` raised for an error reply."""
     if msg.get("ok"):
@@ -92,6 +106,8 @@ class Client:
         self.events: deque[dict[str, Any]] = deque(maxlen=10_000)
         self._asked: dict[int, dict[str, Any] | None] = {}  # request id sent with ask() -> its reply
         self.info: dict[str, Any] = {}
+        #: The session secret the core gave at hello; every later message carries it.
+        self.session: str | None = None
         self._last_sent = 0.0
         self._watching = False
         self.connect()
@@ -102,12 +118,11 @@ class Client:
         if self.sock is not None:
             self.sock.close(0)
         self._asked = {}  # what was asked on the old socket is not answered on the new one
-        self.sock = self.ctx.socket(zmq.DEALER)
-        self.sock.setsockopt(zmq.LINGER, 0)
-        secure_client(self.sock, self.curve)
-        self.sock.connect(self.url)
+        self.session = None  # a new connection opens a new session
+        self.sock = open_dealer(self.ctx, self.url, self.curve)
         try:
             self.info = self.request("hello", token=self.token, client=self.client_name)
+            self.session = self.info.get("session")
         except TimeoutError_ as e:  # a refused CurveZMQ handshake looks the same: say so
             hint = ("If it runs with --curve, give --curve-cert and --core-key." if self.curve is None else
                     "With CurveZMQ, check that --curve-cert is the secret certificate the organiser gave "
@@ -121,7 +136,7 @@ class Client:
         """Say bye (best effort) and close the socket."""
         if self.sock is not None:
             try:
-                self.sock.send(P.request("bye", self._id(), {}), zmq.NOBLOCK)
+                self.sock.send(P.request("bye", self._id(), {}, self.session), zmq.NOBLOCK)
             except zmq.ZMQError:
                 pass
             self.sock.close(0)
@@ -153,7 +168,7 @@ class Client:
         """Send one request and wait for its reply; raise the matching error on an error reply."""
         assert self.sock is not None, "client is closed"
         rid = self._id()
-        self.sock.send(P.request(type_, rid, body))
+        self.sock.send(P.request(type_, rid, body, self.session))
         self._last_sent = time.monotonic()
         deadline = time.monotonic() + self.timeout
         while True:
@@ -177,7 +192,7 @@ class Client:
         frames); return its id for :meth:`answer`."""
         assert self.sock is not None, "client is closed"
         rid = self._id()
-        self.sock.send(P.request(type_, rid, body))
+        self.sock.send(P.request(type_, rid, body, self.session))
         self._last_sent = time.monotonic()
         self._asked[rid] = None
         return rid
@@ -264,7 +279,7 @@ class Client:
             now = time.monotonic()
             hb = self.info.get("heartbeat", 1.0)
             if now - self._last_sent > hb:
-                self.sock.send(P.request("heartbeat", 0, {}))
+                self.sock.send(P.request("heartbeat", 0, {}, self.session))
                 self._last_sent = now
             left = deadline - now
             if left <= 0:
@@ -290,4 +305,4 @@ def recv_event(sub: zmq.Socket) -> tuple[str, dict[str, Any]]:
     return topic.decode(), P.unpack(payload)
 
 
-__all__ = ["Client", "ConnectionLostError", "read_token", "recv_event", "resolve_core"]
+__all__ = ["Client", "ConnectionLostError", "open_dealer", "read_token", "recv_event", "resolve_core"]

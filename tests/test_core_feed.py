@@ -20,17 +20,20 @@ class Host:
     def __init__(self, url: str, token: str) -> None:
         self.s = zmq.Context.instance().socket(zmq.DEALER)
         self.s.setsockopt(zmq.LINGER, 0)
+        self.s.setsockopt(zmq.ROUTING_ID, P.new_routing_id())
         self.s.connect(url)
         self.token = token
+        self.sid = None  # the session secret, from the first register's reply
 
     def ask(self, type_: str, req_id: int, body: dict, timeout: float = 1.0) -> dict | None:
         """The reply to request ``req_id``, or None when none comes within ``timeout`` (what
         else the core sends a host, heartbeats and map deltas, is skipped)."""
-        self.s.send(P.request(type_, req_id, body))
+        self.s.send(P.request(type_, req_id, body, self.sid))
         end = time.monotonic() + timeout
         while self.s.poll(max(0.0, end - time.monotonic()) * 1000):
             msg = msgpack.unpackb(self.s.recv(), raw=False)
             if msg["type"] == "reply" and msg["id"] == req_id:
+                self.sid = self.sid or (msg.get("body") or {}).get("session")
                 return msg
         return None
 
@@ -40,7 +43,7 @@ class Host:
         return reply["body"]["tag"]
 
     def report(self, tag: int, x: float) -> None:
-        self.s.send(P.request("report", 0, {"tag": tag, "x": x, "y": 2.5, "heading": 90.0, "moving": True}))
+        self.s.send(P.request("report", 0, {"tag": tag, "x": x, "y": 2.5, "heading": 90.0, "moving": True}, self.sid))
 
     def close(self) -> None:
         self.s.close(0)

@@ -52,8 +52,8 @@ CASES = [
     ("no version", [msgpack.packb({"type": "robots", "id": 1})], "E_VERSION"),
     ("future version", [msgpack.packb({"v": 99, "type": "robots", "id": 1})], "E_VERSION"),
     ("unknown type", [P.request("fly", 1)], "E_UNKNOWN_TYPE"),
-    ("string id", [msgpack.packb({"v": 1, "type": "robots", "id": "x"})], "E_MALFORMED"),
-    ("body not a map", [msgpack.packb({"v": 1, "type": "give", "id": 1, "body": [1]})], "E_FIELD"),
+    ("string id", [msgpack.packb({"v": 2, "type": "robots", "id": "x"})], "E_MALFORMED"),
+    ("body not a map", [msgpack.packb({"v": 2, "type": "give", "id": 1, "body": [1]})], "E_FIELD"),
     ("missing field", [P.request("hello", 1, {})], "E_FIELD"),
     ("wrong field type", [P.request("hello", 1, {"token": 5})], "E_FIELD"),
     ("bool as int", [P.request("monitor", 1, {"tag": True})], "E_FIELD"),
@@ -105,8 +105,13 @@ def test_wrong_types_on_robot_messages(core, raw):
     ok = raw.ask(P.request("register", 2, {"token": tok, "robot_id": "r1", "tasks": []}))
     assert ok["ok"] and ok["body"]["tag"] >= 101
     tag = ok["body"]["tag"]
+    sid = ok["body"]["session"]  # every later message of this connection carries it
     # a report for someone else's tag, or with bad fields
-    assert _err(raw.ask(P.request("report", 3, {"tag": tag + 50, "x": 1, "y": 1, "heading": 0}))) == "E_NOT_YOURS"
-    assert _err(raw.ask(P.request("report", 4, {"tag": tag, "x": "1", "y": 1, "heading": 0}))) == "E_FIELD"
-    assert _err(raw.ask(P.request("task.done", 5, {"tag": tag, "task_id": 77, "ok": True, "status": ""}))) == "E_FIELD"
-    assert _err(raw.ask(P.request("register", 6, {"token": core.token("referee"), "robot_id": "x"}))) == "E_FIELD"
+    assert _err(raw.ask(P.request("report", 3, {"tag": tag + 50, "x": 1, "y": 1, "heading": 0}, sid))) == "E_NOT_YOURS"
+    assert _err(raw.ask(P.request("report", 4, {"tag": tag, "x": "1", "y": 1, "heading": 0}, sid))) == "E_FIELD"
+    assert _err(raw.ask(P.request("task.done", 5, {"tag": tag, "task_id": 77, "ok": True, "status": ""}, sid))) == "E_FIELD"
+    assert _err(raw.ask(P.request("register", 6, {"token": core.token("referee"), "robot_id": "x"}, sid))) == "E_FIELD"
+    # blue's token on red's host connection: refused (a connection speaks for one principal)
+    assert _err(raw.ask(P.request("register", 8, {"token": core.token("blue"), "robot_id": "x"}, sid))) == "E_AUTH"
+    # without the secret, the same report is refused whatever it says
+    assert _err(raw.ask(P.request("report", 7, {"tag": tag, "x": 1, "y": 1, "heading": 0}))) == "E_AUTH"

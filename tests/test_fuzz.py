@@ -164,11 +164,11 @@ def test_decode_oversized_and_deep_frames() -> None:
     deep: Any = 0
     for _ in range(5000):
         deep = [deep]
-    for frame in (b"\x81" * (P.MAX_FRAME + 1), b"\x91" * 100_000, packed({"v": 1})[:-1],
-                  packed({"v": 1}) + packed({"v": 1}), b"\xc1", b"\xdd\xff\xff\xff\xff"):
+    for frame in (b"\x81" * (P.MAX_FRAME + 1), b"\x91" * 100_000, packed({"v": 2})[:-1],
+                  packed({"v": 2}) + packed({"v": 2}), b"\xc1", b"\xdd\xff\xff\xff\xff"):
         assert isinstance(decode_ok(frame), RoboCompError)
     try:
-        frame = packed({"v": 1, "type": "robots", "id": 1, "body": {"x": deep}})
+        frame = packed({"v": P.PROTOCOL_VERSION, "type": "robots", "id": 1, "body": {"x": deep}})
     except (ValueError, RecursionError):
         return  # msgpack itself refuses to build it
     decode_ok(frame)
@@ -248,13 +248,22 @@ class Raw:
     def __init__(self, url: str) -> None:
         self.sock = zmq.Context.instance().socket(zmq.DEALER)
         self.sock.setsockopt(zmq.LINGER, 0)
+        self.sock.setsockopt(zmq.ROUTING_ID, P.new_routing_id())
         self.sock.connect(url)
         self.marker = 1_000_000
+        self.session: str | None = None  # learnt from the hello/register reply
 
     def call(self, type_: str, body: dict[str, Any], id_: int = 1) -> dict[str, Any]:
-        """Send a well-formed request and return its reply."""
-        self.sock.send(P.request(type_, id_, body))
-        return self.replies_until(id_)[-1]
+        """Send a well-formed request (with the session secret, once there is one) and return its reply."""
+        self.sock.send(P.request(type_, id_, body, self.session))
+        reply = self.replies_until(id_)[-1]
+        if reply.get("ok") and isinstance(reply.get("body"), dict) and "session" in reply["body"]:
+            self.session = reply["body"]["session"]
+        return reply
+
+    def send(self, frame_map: dict[str, Any]) -> None:
+        """Send a hand-made message map, with this connection's session secret added."""
+        self.sock.send(packed(dict(frame_map, s=self.session) if self.session else frame_map))
 
     def replies_until(self, marker: int, timeout: float = 5.0) -> list[dict[str, Any]]:
         """Replies read until the one with id ``marker`` (included); pushes are skipped."""
@@ -275,13 +284,27 @@ class Raw:
         """Send ``frames`` as one message, then a marker ``robots`` request; return the replies
         that came before the marker's."""
         self.marker += 1
+        if self.session and len(frames) == 1:  # a session's own frames carry its secret, so
+            frames = [_with_session(frames[0], self.session)]  # the fuzz reaches the handlers
         self.sock.send_multipart(frames)
-        self.sock.send(P.request("tasks", self.marker, {"tag": -1}))
+        self.sock.send(P.request("tasks", self.marker, {"tag": -1}, self.session))
         return self.replies_until(self.marker)[:-1]
 
     def close(self) -> None:
         """Close the socket."""
         self.sock.close(0)
+
+
+def _with_session(frame: bytes, session: str) -> bytes:
+    """``frame`` with the session secret added, when it is a msgpack map without one."""
+    try:
+        obj = msgpack.unpackb(frame, raw=False, strict_map_key=False)
+    except Exception:
+        return frame
+    if not isinstance(obj, dict) or "s" in obj:
+        return frame
+    obj["s"] = session
+    return packed(obj)
 
 
 #: Types that, when valid, get no reply (notifications and host replies).
@@ -300,7 +323,7 @@ def _may_be_silent(frames: list[bytes]) -> bool:
 
 
 def _is_bye(frames: list[bytes]) -> bool:
-    """A valid ``bye``: accepted from anyone (it ends the session, if there is one)."""
+    """A valid ``bye``: accepted from a connection without a session (it ends nothing)."""
     if len(frames) != 1:
         return False
     try:
@@ -380,8 +403,8 @@ def _stop_request_id(host: Raw, timeout: float = 3.0) -> int:
 
 @pytest.mark.heartbeat(1.0)
 @pytest.mark.parametrize("reply", [
-    {"v": 1, "type": "reply", "ok": False, "error": "boom"},
-    {"v": 1, "type": "reply", "ok": True, "body": [1, 2]},
+    {"v": 2, "type": "reply", "ok": False, "error": "boom"},
+    {"v": 2, "type": "reply", "ok": True, "body": [1, 2]},
 ])
 def test_malformed_stop_confirmation_still_answers_the_requester(core: Any, reply: dict[str, Any]) -> None:
     """Reproducer found by fuzzing host replies: a host confirms a stop with a malformed reply
@@ -391,10 +414,10 @@ def test_malformed_stop_confirmation_still_answers_the_requester(core: Any, repl
     ref = Raw(url)
     try:
         assert ref.call("hello", {"token": core.token("referee")})["ok"]
-        ref.sock.send(P.request("stop", 77, {"tag": tag}))
+        ref.sock.send(P.request("stop", 77, {"tag": tag}, ref.session))
         cid = _stop_request_id(host)
-        host.sock.send(packed(dict(reply, id=cid)))  # e.g. b'\x85\xa1v\x01\xa4type\xa5reply...'
-        host.sock.send(P.request("tasks", 5, {"tag": tag}))
+        host.send(dict(reply, id=cid))  # e.g. b'\x85\xa1v\x02\xa4type\xa5reply...'
+        host.sock.send(P.request("tasks", 5, {"tag": tag}, host.session))
         host_replies = host.replies_until(5)[:-1]
         assert all(r["error"]["code"] != "E_INTERNAL" for r in host_replies), host_replies
         answer = ref.replies_until(77, timeout=STOP_WAIT)[-1]  # ok or error, but an answer
@@ -414,10 +437,10 @@ def test_other_team_cannot_confirm_a_stop(core: Any) -> None:
     try:
         assert blue.call("hello", {"token": core.token("blue")})["ok"]
         assert ref.call("hello", {"token": core.token("referee")})["ok"]
-        ref.sock.send(P.request("stop", 77, {"tag": tag}))
+        ref.sock.send(P.request("stop", 77, {"tag": tag}, ref.session))
         cid = _stop_request_id(host)  # blue would guess it: 1, 2, 3, ...
-        blue.sock.send(packed({"v": 1, "type": "reply", "id": cid, "ok": True,
-                               "body": {"x": -999.0, "y": -999.0, "heading": 0.0}}))
+        blue.send({"v": 2, "type": "reply", "id": cid, "ok": True,
+                   "body": {"x": -999.0, "y": -999.0, "heading": 0.0}})
         time.sleep(0.2)
         mon = ref.call("monitor", {"tag": tag}, 78)
         assert (mon["body"]["x"], mon["body"]["y"]) != (-999.0, -999.0)

@@ -36,19 +36,22 @@ class RawHost:
         url = json.loads((core.state / "core.json").read_text())["router"]
         self.s = zmq.Context.instance().socket(zmq.DEALER)
         self.s.setsockopt(zmq.LINGER, 0)
+        self.s.setsockopt(zmq.ROUTING_ID, P.new_routing_id())
         self.s.connect(url)
         self.n = 0
+        self.sid = None  # the session secret, from the register reply
         self.view = MapView()
         self.deltas = 0
         self.tag = self.ask("register", token=core.token(team), robot_id="mapper", x=3, y=3)["body"]["tag"]
 
     def ask(self, type_, **body):
         self.n += 1
-        self.s.send(P.request(type_, self.n, body))
+        self.s.send(P.request(type_, self.n, body, self.sid))
         t_end = time.monotonic() + 5.0
         while time.monotonic() < t_end and self.s.poll(1000):
             m = msgpack.unpackb(self.s.recv(), raw=False)
             if m["type"] == "reply" and m["id"] == self.n:
+                self.sid = self.sid or (m.get("body") or {}).get("session")
                 return m
             self._push(m)
         raise AssertionError("no reply")
@@ -65,7 +68,7 @@ class RawHost:
                 self._push(msgpack.unpackb(self.s.recv(), raw=False))
 
     def report(self, x, y):
-        self.s.send(P.request("report", 0, {"tag": self.tag, "x": x, "y": y, "heading": 0.0}))
+        self.s.send(P.request("report", 0, {"tag": self.tag, "x": x, "y": y, "heading": 0.0}, self.sid))
 
 
 def _same(view, snap):
@@ -82,7 +85,7 @@ def test_pushed_deltas_keep_the_hosts_map_equal_to_the_service(practice):
     assert host.deltas == 1  # the first push is the whole map
     for step in range(6):
         host.report(3 + step, 3)
-        host.s.send(P.request("heartbeat", 0, {}))  # a notification: no reply
+        host.s.send(P.request("heartbeat", 0, {}, host.sid))  # a notification: no reply
         host.pump(0.4)
     assert host.deltas == 1  # robots moving change no host's map: nothing is pushed
     snap = red.request("map")
@@ -115,7 +118,7 @@ def test_discoveries_belong_to_their_team_and_pieces_mark_shared_areas(practice)
 def test_non_finite_positions_are_refused(practice):
     host = RawHost(practice, "red")
     host.n += 1
-    host.s.send(P.request("report", host.n, {"tag": host.tag, "x": float("nan"), "y": 1.0, "heading": 0.0}))
+    host.s.send(P.request("report", host.n, {"tag": host.tag, "x": float("nan"), "y": 1.0, "heading": 0.0}, host.sid))
     assert wait_for(lambda: host.s.poll(200), 3)
     m = msgpack.unpackb(host.s.recv(), raw=False)
     while m["type"] != "reply":

@@ -17,17 +17,20 @@ class Host:
         url = json.loads((core.state / "core.json").read_text())["router"]
         self.s = zmq.Context.instance().socket(zmq.DEALER)
         self.s.setsockopt(zmq.LINGER, 0)
+        self.s.setsockopt(zmq.ROUTING_ID, P.new_routing_id())
         self.s.connect(url)
         self.n = 0
+        self.sid = None  # the session secret, from the first register's reply
         self.inbox: list[dict] = []
         self.tags = [self.ask("register", token=core.token(team), robot_id=i)["body"]["tag"] for i in ids]
 
     def ask(self, type_: str, **body) -> dict:
         self.n += 1
-        self.s.send(P.request(type_, self.n, body))
+        self.s.send(P.request(type_, self.n, body, self.sid))
         while self.s.poll(3000):
             m = msgpack.unpackb(self.s.recv(), raw=False)
             if m["type"] == "reply" and m["id"] == self.n:
+                self.sid = self.sid or (m.get("body") or {}).get("session")
                 return m
             if m["type"] == "radio":
                 self.inbox.append(m["body"])

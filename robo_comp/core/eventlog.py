@@ -49,6 +49,7 @@ class EventLog:
             with open(path, "r+b") as f:
                 f.truncate(good_end)
         self._f: BinaryIO = open(path, "wb" if fresh else "ab", buffering=1 << 16)
+        os.chmod(path, 0o600)  # the log holds every team's tasks and uploads: the organiser's eyes only
         self.seq = seq
         self._dirty = False
         if fresh:

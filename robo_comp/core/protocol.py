@@ -2,9 +2,15 @@
 
 Every message is one msgpack map (one ZeroMQ frame after the ROUTER's identity frame)::
 
-    {"v": 1, "type": "give", "id": 7, "body": {...}}          # request or notification
-    {"v": 1, "type": "reply", "id": 7, "ok": True, "body": {...}}
-    {"v": 1, "type": "reply", "id": 7, "ok": False, "error": {"code": "E_FIELD", "message": "..."}}
+    {"v": 2, "type": "give", "id": 7, "s": "9f2c...", "body": {...}}   # request or notification
+    {"v": 2, "type": "reply", "id": 7, "ok": True, "body": {...}}
+    {"v": 2, "type": "reply", "id": 7, "ok": False, "error": {"code": "E_FIELD", "message": "..."}}
+
+A session belongs to whoever proved it, never to a connection's routing id: ``hello`` (or a
+host's first ``register``) is answered with a random ``session`` secret, and every later message
+of that connection carries it as ``"s"``; a message without it gets ``E_AUTH`` and changes
+nothing. Clients set a random routing id of :data:`ROUTING_ID_BYTES` bytes on every socket they
+open (:func:`new_routing_id`).
 
 Requests get exactly one reply. Notifications (``report``, ``heartbeat``) get a reply only
 when they are rejected, so that a sender learns what was wrong. Events go out on the PUB
@@ -14,6 +20,7 @@ See ``docs/protocol.md`` for every type and field.
 from __future__ import annotations
 
 import math
+import secrets
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -29,7 +36,15 @@ from robo_comp.errors import (
     VersionError,
 )
 
-PROTOCOL_VERSION = 1
+PROTOCOL_VERSION = 2
+#: The envelope key that carries a session's secret on every message after ``hello``.
+SESSION_KEY = "s"
+#: Bytes of a session secret (sent as hex text: twice as many characters).
+SESSION_BYTES = 16
+#: Length of the random routing id every client sets on its sockets (ZMQ_ROUTING_ID).
+ROUTING_ID_BYTES = 16
+#: Messages that may open a session on a connection that has none (a host may register first).
+OPENING = frozenset({"hello", "register"})
 #: Largest frame the core decodes; larger frames get an ``E_TOO_LARGE`` reply.
 MAX_FRAME = 1 << 20
 #: Hard cap set on the sockets (ZMQ_MAXMSGSIZE): peers sending more are disconnected by libzmq.
@@ -150,22 +165,48 @@ def unpack(frame: bytes) -> Any:
     return msgpack.unpackb(frame, raw=False)
 
 
-def request(type_: str, id_: int, body: dict[str, Any] | None = None) -> bytes:
-    """Encode a request or notification frame."""
-    return pack({"v": PROTOCOL_VERSION, "type": type_, "id": id_, "body": body or {}})
+def request(type_: str, id_: int, body: dict[str, Any] | None = None, session: str | None = None) -> bytes:
+    """Encode a request or notification frame; ``session`` is the secret the core gave this
+    connection at ``hello`` (every message after it must carry it)."""
+    if session is None:
+        return pack({"v": PROTOCOL_VERSION, "type": type_, "id": id_, "body": body or {}})
+    return pack({"v": PROTOCOL_VERSION, "type": type_, "id": id_, SESSION_KEY: session, "body": body or {}})
 
 
-def ok_reply(id_: int, body: dict[str, Any] | None = None) -> bytes:
-    """Encode a successful reply to request ``id_``."""
-    return pack({"v": PROTOCOL_VERSION, "type": "reply", "id": id_, "ok": True, "body": body or {}})
+def new_session_secret() -> str:
+    """A fresh, unguessable session secret (hex text)."""
+    return secrets.token_hex(SESSION_BYTES)
 
 
-def error_reply(id_: int, err: RoboCompError) -> bytes:
+def new_routing_id() -> bytes:
+    """A random routing id for a client socket: :data:`ROUTING_ID_BYTES` bytes, the first never
+    zero (libzmq keeps ids that start with a zero byte for the ones it makes up itself).
+
+    A fresh id for every socket means that a reconnecting client never competes with its own old,
+    half-dead connection for one id, and that nobody can guess the id of another's connection."""
+    rid = bytearray(secrets.token_bytes(ROUTING_ID_BYTES))
+    rid[0] = rid[0] | 0x80
+    return bytes(rid)
+
+
+def ok_reply(id_: int, body: dict[str, Any] | None = None, session: str | None = None) -> bytes:
+    """Encode a successful reply to request ``id_`` (a robot host answering the core passes its
+    ``session`` secret: to the core, a reply is a message like any other)."""
+    msg = {"v": PROTOCOL_VERSION, "type": "reply", "id": id_, "ok": True, "body": body or {}}
+    if session is not None:
+        msg[SESSION_KEY] = session
+    return pack(msg)
+
+
+def error_reply(id_: int, err: RoboCompError, session: str | None = None) -> bytes:
     """Encode an error reply carrying the error's stable code and its sentence."""
     error: dict[str, Any] = {"code": err.code, "message": err.message}
     if err.details:  # e.g. an upload's file, line and rule
         error["details"] = err.details
-    return pack({"v": PROTOCOL_VERSION, "type": "reply", "id": id_, "ok": False, "error": error})
+    msg = {"v": PROTOCOL_VERSION, "type": "reply", "id": id_, "ok": False, "error": error}
+    if session is not None:
+        msg[SESSION_KEY] = session
+    return pack(msg)
 
 
 def event_frames(topic: str, payload: dict[str, Any]) -> list[bytes]:
@@ -260,6 +301,12 @@ def validate(raw: dict[str, Any], id_: int) -> Message:
     """Validate a decoded map (version, type, id, body fields)."""
     v = raw.get("v")
     if v != PROTOCOL_VERSION:
+        if type(v) is int and 0 < v < PROTOCOL_VERSION:
+            raise VersionError(
+                f"your program speaks protocol version {v}, and this core speaks version {PROTOCOL_VERSION} "
+                "(sessions are proved with a secret on every message since version 2): update robo_comp "
+                "on this machine (pip install -U robo_comp, or git pull in the team template) and start "
+                "the program again")
         raise VersionError(
             f"protocol version {v!r} is not spoken here; this core speaks version {PROTOCOL_VERSION}")
     type_ = raw.get("type")

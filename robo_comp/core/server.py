@@ -2,13 +2,18 @@
 
 Robot hosts and consoles connect DEALER sockets to the ROUTER. A connection becomes a
 *session* by saying ``hello`` with a token (a team's or the referee's); robot hosts then
-``register`` robots. Every command names a robot tag and is checked against the session's
-principal (``robo_comp.teams.policy``). Events go to the PUB socket (the public view for
+``register`` robots. A session belongs to whoever proved it, never to a routing id: the reply to
+``hello`` carries a random session secret, and every later message must carry it (checked in
+constant time, and under CurveZMQ together with the key the frame came with) or it is refused with
+``E_AUTH`` and changes nothing (see ``docs/security.md``). Every command names a robot tag and is
+checked against the session's principal (``robo_comp.teams.policy``). Events go to the PUB socket (the public view for
 walls) and, in full, to the sessions that ``watch`` and may see them.
 """
 from __future__ import annotations
 
+import ctypes
 import gc
+import hmac
 import json
 import logging
 import os
@@ -75,6 +80,10 @@ class Session:
     who: Principal
     client: str
     last_seen: float
+    #: The secret every message of this session carries (``"s"``); issued at hello/register.
+    secret: str = field(default_factory=P.new_session_secret)
+    #: Under CurveZMQ: the owner of the key the session was opened with (every frame must match).
+    key: str | None = None
     watching: bool = False
     tags: set[int] = field(default_factory=set)
 
@@ -127,6 +136,13 @@ class Core:
         self.core_id = secrets.token_hex(8)  # tells clients when they talk to a restarted core
         self.stats = {"received": 0, "errors": 0, "events": 0, "dropped": 0}
         self._out: list[tuple[zmq.Socket, list[bytes]]] = []
+        # Routes whose connection went away (a send found no peer): nothing is pushed to them until
+        # their session proves itself again there, so whoever takes such an id next gets nothing.
+        self._unproven: set[bytes] = set()
+        self._current: bytes | None = None  # the route whose message is being handled
+        # Refusals of connections without a session, counted per (type, code) and logged once a beat
+        # (a flood of bad hellos must not flood the log and the referee's console).
+        self._refused_anon: dict[tuple[str, str], list[Any]] = {}
         self._moved: set[int] = set()  # moved since the last heartbeat (the log's sample)
         self._posed: dict[str, set[int]] = {}  # team -> robots that reported since the last batch
         self.pose_period = 1.0 / pose_hz
@@ -160,11 +176,20 @@ class Core:
         """Bind the ROUTER and PUB sockets and write ``STATE/core.json``."""
         if self.curve is not None:  # the key check is up before the first handshake can start
             self._zap = ZapHandler(self.ctx, self.curve.allowed)
+        _seed_routing_ids()
         self.router = self.ctx.socket(zmq.ROUTER)
         secure_server(self.router, self.curve)
         self.router.setsockopt(zmq.LINGER, 0)
         self.router.setsockopt(zmq.MAXMSGSIZE, P.SOCKET_MAX_FRAME)
-        self.router.setsockopt(zmq.ROUTER_HANDOVER, 1)
+        # A second connection that presents a routing id in use is ignored by libzmq, never handed
+        # the first one's messages (handover would give it the session's pushes and cut the owner off).
+        self.router.setsockopt(zmq.ROUTER_HANDOVER, 0)
+        # A send to a route with no connection fails (EHOSTUNREACH) instead of vanishing: the core
+        # then stops pushing to that route until its session proves itself there again.
+        self.router.setsockopt(zmq.ROUTER_MANDATORY, 1)
+        # Dead connections (a cut cable) are dropped by ZMTP heartbeats, so that their ids free up.
+        self.router.setsockopt(zmq.HEARTBEAT_IVL, int(max(1.0, self.heartbeat) * 2000))
+        self.router.setsockopt(zmq.HEARTBEAT_TIMEOUT, int(max(1.0, self.heartbeat) * 10_000))
         self.router.setsockopt(zmq.SNDHWM, 100_000)
         self.router.setsockopt(zmq.RCVHWM, 100_000)
         if self.port == 0:
@@ -280,13 +305,13 @@ class Core:
     def _handle(self, ident: bytes, frame: bytes) -> None:
         req_id = 0
         msg_type = "?"
-        sess = self.sessions.get(ident)
+        sess: Session | None = None  # the session this message proved it belongs to
+        self._current = ident
         try:
             raw, req_id = P.decode_envelope(frame)
             msg = P.validate(raw, req_id)
             msg_type = msg.type
-            if sess is not None:
-                sess.last_seen = time.monotonic()
+            sess = self._prove(ident, msg.type, raw.get(P.SESSION_KEY))
             body = self._handlers[msg.type](ident, msg)
             if body is not None:
                 self._send(ident, P.ok_reply(req_id, body))
@@ -297,18 +322,67 @@ class Core:
             self._send_error(ident, req_id, RoboCompError(
                 "the core hit an internal error on this request; it was logged and the core goes on"),
                 sess, msg_type)
+        finally:
+            self._current = None
+
+    def _prove(self, ident: bytes, type_: str, secret: Any) -> Session | None:
+        """The session this message belongs to, or None for a message that may come without one
+        (a ``hello``/``register`` opening a session, a ``bye`` ending none); raise ``E_AUTH``
+        for anything else. A session is proved by its secret (constant-time compare) and, under
+        CurveZMQ, by the key the frame came with; the connection's routing id proves nothing."""
+        sess = self.sessions.get(ident)
+        if sess is None:
+            if type_ in P.OPENING:
+                _check_route(ident)
+                return None
+            if type_ == "bye":
+                return None
+            raise AuthError("this connection has no session: say 'hello' with your team token first "
+                            "(the client does this for you); after a core restart, say hello again")
+        if type(secret) is not str or not secret.isascii() or not hmac.compare_digest(secret, sess.secret):
+            raise AuthError(
+                "this message does not carry the session secret of this connection's session: every "
+                "message after 'hello' must carry the 'session' value the hello reply gave (as \"s\"); "
+                "a program that took another connection's routing id gets nothing")
+        if self.curve is not None and self._key_owner != sess.key:
+            raise AuthError(f"this session was opened with {sess.key}'s CurveZMQ key; a frame sent with "
+                            f"{self._key_owner}'s key does not belong to it")
+        sess.last_seen = time.monotonic()
+        if self._unproven:
+            self._unproven.discard(ident)
+        return sess
 
     def _send_error(self, ident: bytes, req_id: int, err: RoboCompError, sess: Session | None,
                     msg_type: str = "?") -> None:
         self.stats["errors"] += 1
         self._send(ident, P.error_reply(req_id, err))
-        team = sess.who.team if sess else None
-        self.emit("refused", team, {"by": sess.who.name if sess else "unknown", "type": msg_type,
-                                    "code": err.code, "message": err.message}, public=False)
+        if sess is None:  # counted, and logged once a beat (see _log_refused)
+            row = self._refused_anon.get((msg_type, err.code))
+            if row is None:
+                self._refused_anon[(msg_type, err.code)] = [1, err.message]
+            else:
+                row[0] += 1
+            return
+        self.emit("refused", sess.who.team, {"by": sess.who.name, "type": msg_type,
+                                             "code": err.code, "message": err.message}, public=False)
+
+    def _log_refused(self) -> None:
+        """One ``refused`` event per (type, code) for the refusals of connections without a
+        session since the last beat, with their ``count``."""
+        rows, self._refused_anon = self._refused_anon, {}
+        for (msg_type, code), (count, message) in sorted(rows.items()):
+            self.emit("refused", None, {"by": "unknown", "type": msg_type, "code": code, "message": message,
+                                        "count": count}, public=False)
 
     # ------------------------------------------------------------------ output
     def _send(self, ident: bytes, frame: bytes) -> None:
-        """Queue a frame for ``ident``; it leaves in :meth:`_commit`, after the log flush."""
+        """Queue a frame for ``ident``; it leaves in :meth:`_commit`, after the log flush.
+
+        A route whose connection went away gets nothing but the replies to its own new messages
+        until its session proves itself there again (see :meth:`_prove`)."""
+        if self._unproven and ident in self._unproven and ident != self._current:
+            self.stats["dropped"] += 1
+            return
         self._out.append((self.router, [ident, frame]))
 
     def _commit(self) -> None:
@@ -325,7 +399,10 @@ class Core:
                 sock.send_multipart(frames, zmq.NOBLOCK)
             except zmq.Again:  # a peer's queue is full (slow consumer): drop, never block the loop
                 self.stats["dropped"] += 1
-            except zmq.ZMQError as e:  # e.g. EHOSTUNREACH for a vanished peer
+            except zmq.ZMQError as e:
+                if e.errno == zmq.EHOSTUNREACH and frames[0] in self.sessions:
+                    # the session's connection is gone: whoever presents this id next must prove it
+                    self._unproven.add(frames[0])
                 log.debug("send failed: %s", e)
 
     # ------------------------------------------------------------------ events
@@ -363,6 +440,7 @@ class Core:
         s = self.sessions.pop(ident, None)
         if s is not None:
             self._set_watch(s, False)
+        self._unproven.discard(ident)
         return s
 
     # ------------------------------------------------------------------ helpers
@@ -492,6 +570,8 @@ class Core:
     def _tick(self, now: float) -> None:
         """Heartbeats out, lost detection, idle sessions forgotten, the match clock, map deltas."""
         self._log_positions()
+        if self._refused_anon:
+            self._log_refused()
         self.maps.push()
         self.competition.tick(now)
         hb = P.request("heartbeat", 0, {"t": time.time(), "core_id": self.core_id})
@@ -531,17 +611,30 @@ class Core:
     def _on_hello(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
         who = self.tokens.lookup(msg.body["token"])
         self._check_key(who)
-        old = self._forget(ident)
-        sess = Session(ident, who, str(msg.body.get("client", "client"))[:64], time.monotonic())
+        old = self._forget(ident)  # only a proved hello gets here with a session (see _prove)
+        sess = Session(ident, who, str(msg.body.get("client", "client"))[:64], time.monotonic(),
+                       key=self._key_owner)
         self.sessions[ident] = sess
         if old is not None and old.who == who:
             sess.tags = old.tags
             self._set_watch(sess, old.watching)
-        return {"role": who.role, "team": who.team, "protocol": P.PROTOCOL_VERSION, "core_id": self.core_id,
+        elif old is not None:  # the same program, now someone else: its robots are not the new one's
+            self._release_robots(old, "its host's connection now speaks for someone else")
+        return {"session": sess.secret, "role": who.role, "team": who.team, "protocol": P.PROTOCOL_VERSION,
+                "core_id": self.core_id,
                 "match": self.competition.state(),
                 "pub_port": self.pub_port, "heartbeat": self.heartbeat, "teams": self.tokens.teams,
                 "arena": {"name": self.scenario.name, "width": self._arena_payload["width"],
                           "height": self._arena_payload["height"]}}
+
+    def _release_robots(self, s: Session, why: str) -> None:
+        """Detach the robots of session ``s`` from its connection (they are lost until they register again)."""
+        for tag in s.tags:
+            r = self.registry.robots[tag]
+            if r.session == s.ident:
+                self._mark_lost(r, why)
+                r.session = None
+        s.tags = set()
 
     def _on_heartbeat(self, ident: bytes, msg: P.Message) -> None:
         s = self.sessions.get(ident)
@@ -664,8 +757,11 @@ class Core:
         specs = check_specs(b.get("tasks", []))
         sess = self.sessions.get(ident)
         if sess is None:
-            sess = Session(ident, who, "robots", time.monotonic())
+            sess = Session(ident, who, "robots", time.monotonic(), key=self._key_owner)
             self.sessions[ident] = sess
+        elif sess.who != who:
+            raise AuthError(f"this connection's session speaks for {sess.who.name}; robots of "
+                            f"{who.name} register on a connection of their own")
         r = self.registry.lookup(who.team, robot_id)  # type: ignore[arg-type]
         returning = r is not None
         if r is None:
@@ -697,7 +793,8 @@ class Core:
             r.pending = None
         elif r.current is None and r.queue:
             self._start(r, r.queue.popleft())
-        return {"tag": r.tag, "team": r.team, "returning": returning, "heartbeat": self.heartbeat,
+        return {"session": sess.secret, "tag": r.tag, "team": r.team, "returning": returning,
+                "heartbeat": self.heartbeat,
                 "task": r.current.wire() if r.current else None,
                 "hold": self.competition.phase in ("paused", "finished")}
 
@@ -847,3 +944,28 @@ class Core:
         self._send(p.ident, P.ok_reply(p.req_id, {
             "tag": r.tag, "x": r.x, "y": r.y, "heading": r.heading, "cancelled": cancelled, "ms": ms}))
         return None
+
+
+#: Shortest routing id a client may choose (ids made by libzmq itself start with a zero byte).
+MIN_ROUTING_ID = 16
+
+
+def _check_route(ident: bytes) -> None:
+    """A session opens only on a connection whose routing id cannot be guessed: one that libzmq
+    made up (a zero byte, then a number from a counter seeded at random by :func:`_seed_routing_ids`)
+    or a random one of :data:`MIN_ROUTING_ID` bytes or more chosen by the client."""
+    if ident[:1] != b"\x00" and len(ident) < MIN_ROUTING_ID:
+        raise AuthError(f"this connection's routing id has {len(ident)} bytes; a client that chooses its "
+                        f"own must make it random and at least {MIN_ROUTING_ID} bytes long "
+                        "(robo_comp.core.protocol.new_routing_id), or set none at all")
+
+
+def _seed_routing_ids() -> None:
+    """libzmq numbers the connections that set no routing id with a counter that starts at C's
+    ``rand()``, which nothing seeds: every core would hand out the same ids (``0x006b8b4567``,
+    ...), so that anyone could claim the id the next connection will get, and an id taken that way
+    makes libzmq abort the core when it hands it out. Seed it at random before the ROUTER exists."""
+    try:
+        ctypes.CDLL(None).srand(secrets.randbits(32))
+    except (OSError, AttributeError):  # no C library to reach (not Linux/macOS): nothing to seed
+        log.debug("could not seed libzmq's routing id counter")

@@ -13,6 +13,8 @@ referee's ``approve``; its verdict then reaches the team as an ``upload.done`` e
 """
 from __future__ import annotations
 
+import os
+
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -309,7 +311,11 @@ class UploadDesk:
     def _keep(self, team: str, filename: str, sha: str, source: str) -> None:
         """A copy of every uploaded source, by hash, for the organisers and recovery."""
         folder = self.folder / team
-        folder.mkdir(parents=True, exist_ok=True)
+        folder.mkdir(mode=0o700, parents=True, exist_ok=True)
+        for d in (self.folder, folder):  # a team's code is its own: private, like the tokens
+            os.chmod(d, 0o700)
         path = folder / f"{sha[:16]}-{filename}"
         if not path.exists():
-            path.write_text(source, encoding="utf-8", errors="surrogatepass")
+            fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+            with os.fdopen(fd, "w", encoding="utf-8", errors="surrogatepass") as f:
+                f.write(source)

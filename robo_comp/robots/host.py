@@ -22,7 +22,8 @@ import numpy as np
 import zmq
 
 from robo_comp.core import protocol as P
-from robo_comp.core.curve import ClientKeys, secure_client
+from robo_comp.client import open_dealer
+from robo_comp.core.curve import ClientKeys
 from robo_comp.core.tasks import check_args
 from robo_comp.errors import RoboCompError
 from robo_comp.plugins.manager import get_plugin_manager
@@ -138,6 +139,8 @@ class RobotHost:
         self.rng = random.Random(seed)
         self.seed = seed
         self.sock: zmq.Socket | None = None
+        #: The session secret the core gave at hello; every later message carries it.
+        self.session: str | None = None
         self.poller = zmq.Poller()
         self.robots: dict[str, SimRobot] = {}
         self.by_tag: dict[int, SimRobot] = {}
@@ -170,12 +173,12 @@ class RobotHost:
         self.next_id += 1
         if on_reply is not None:
             self.replies[rid] = on_reply
-        self.sock.send(P.request(type_, rid, body))
+        self.sock.send(P.request(type_, rid, body, self.session))
         self.last_tx = time.monotonic()
 
     def _answer(self, rid: int, body: dict[str, Any]) -> None:
         assert self.sock is not None
-        self.sock.send(P.ok_reply(rid, body))
+        self.sock.send(P.ok_reply(rid, body, self.session))
         self.last_tx = time.monotonic()
 
     # ------------------------------------------------------------------ connection
@@ -184,12 +187,8 @@ class RobotHost:
         if self.sock is not None:
             self.poller.unregister(self.sock)
             self.sock.close(0)
-        self.sock = self.ctx.socket(zmq.DEALER)
-        self.sock.setsockopt(zmq.LINGER, 0)
-        self.sock.setsockopt(zmq.SNDHWM, 100_000)
-        self.sock.setsockopt(zmq.RCVHWM, 100_000)
-        secure_client(self.sock, self.curve)  # plain TCP when there are no keys
-        self.sock.connect(self.url)
+        self.session = None  # a new connection opens a new session
+        self.sock = open_dealer(self.ctx, self.url, self.curve, SNDHWM=100_000, RCVHWM=100_000)
         self.poller.register(self.sock, zmq.POLLIN)
         self.replies.clear()
         self._set_state("hello")
@@ -203,6 +202,7 @@ class RobotHost:
         if not ok:
             raise SystemExit(f"robots: the core refused us: {body.get('message')}")
         self.team = body["team"]
+        self.session = body.get("session")
         self.heartbeat = float(body.get("heartbeat", 1.0))
         self.core_id = body.get("core_id")
         self._set_state("arena")
@@ -255,7 +255,7 @@ class RobotHost:
         """Forward a line team code printed (or a sandbox notice) to the team's consoles."""
         if self.state == "up" and self.sock is not None:
             self.sock.send(P.request("log", 0, {"tag": tag if tag in self.by_tag else None,
-                                                "stream": stream, "text": text[:2000]}))
+                                                "stream": stream, "text": text[:2000]}, self.session))
 
     def code_request(self, type_: str, body: dict[str, Any], on_reply: Reply) -> None:
         """A request to the core on behalf of team code (a find, the radio)."""
@@ -398,7 +398,8 @@ class RobotHost:
         r = self.by_tag.get(body.get("tag", -1))
         if type_ == "stop":
             if r is None:
-                self.sock.send(P.error_reply(rid, RoboCompError("no such robot on this host")))  # type: ignore[union-attr]
+                self.sock.send(P.error_reply(rid, RoboCompError("no such robot on this host"),  # type: ignore[union-attr]
+                                             self.session))
                 return
             self._halt(r)
             self._answer(rid, {"tag": r.tag, "x": r.driver.x, "y": r.driver.y, "heading": r.driver.heading})
@@ -526,7 +527,7 @@ class RobotHost:
         if now - r.last_sensed >= self.sensor_interval and self.world is not None:
             sensors = self.world.sense(r.robot_id)
         body = self._pose_rows([r], now, {r.tag: sensors} if sensors is not None else {})
-        self.sock.send(P.request("reports", 0, body))  # type: ignore[union-attr]
+        self.sock.send(P.request("reports", 0, body, self.session))  # type: ignore[union-attr]
         self.last_tx = now
 
     def _pose_rows(self, robots: list[SimRobot], now: float,
@@ -570,7 +571,7 @@ class RobotHost:
                     return
             chunk = due[start:start + REPORT_CHUNK]
             body = self._pose_rows(chunk, now, {r.tag: readings[r.tag] for r in chunk if r.tag in readings})
-            sock.send(P.request("reports", 0, body))  # type: ignore[union-attr]
+            sock.send(P.request("reports", 0, body, self.session))  # type: ignore[union-attr]
         self.last_tx = now
 
     def _drain(self) -> None:

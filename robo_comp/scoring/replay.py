@@ -93,6 +93,8 @@ class ReplayCore(Core):
         """Play what is due, then heartbeats to watchers (a replay has no robots to lose and no
         clock of its own to run)."""
         self.advance()
+        if self._refused_anon:
+            self._log_refused()
         hb = P.request("heartbeat", 0, {"t": time.time(), "core_id": self.core_id})
         for ident, s in list(self.sessions.items()):
             if s.watching or s.tags:

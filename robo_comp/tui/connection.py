@@ -26,9 +26,9 @@ from typing import Any
 import zmq
 import zmq.asyncio
 
-from robo_comp.client import resolve_core
+from robo_comp.client import open_dealer, resolve_core
 from robo_comp.core import protocol as P
-from robo_comp.core.curve import client_keys, secure_client
+from robo_comp.core.curve import client_keys
 from robo_comp.errors import (
     ConnectionLostError,
     RoboCompError,
@@ -86,6 +86,8 @@ class CoreLink:
         self.sock: zmq.asyncio.Socket | None = None
         self.url = ""
         self.info: dict[str, Any] = {}
+        #: The session secret of the current connection (from the hello reply).
+        self.session: str | None = None
         self.state = LinkState.CLOSED
         self.reconnects = 0
         self._next_id = 1
@@ -127,7 +129,7 @@ class CoreLink:
         self._closing = True
         if self.sock is not None and self.connected:
             with contextlib.suppress(zmq.ZMQError):
-                await self.sock.send(P.request("bye", self._id(), {}), zmq.NOBLOCK)
+                await self.sock.send(P.request("bye", self._id(), {}, self.session), zmq.NOBLOCK)
         if self._task is not None:
             self._task.cancel()
             with contextlib.suppress(asyncio.CancelledError, Exception):
@@ -147,7 +149,7 @@ class CoreLink:
         fut: asyncio.Future[dict[str, Any]] = asyncio.get_running_loop().create_future()
         self._pending[rid] = fut
         try:
-            await self.sock.send(P.request(type_, rid, body))
+            await self.sock.send(P.request(type_, rid, body, self.session))
             self._last_tx = time.monotonic()
             return await asyncio.wait_for(fut, timeout)
         except asyncio.TimeoutError:
@@ -201,10 +203,8 @@ class CoreLink:
         self._drop_socket(ConnectionLostError("the connection to the core was replaced"))
         self.url = resolve_core(self.core)
         keys = client_keys(self.core, self.token, self.curve_cert, self.core_key)
-        sock = self.ctx.socket(zmq.DEALER)
-        sock.setsockopt(zmq.LINGER, 0)
-        secure_client(sock, keys)
-        sock.connect(self.url)
+        self.session = None  # a new connection opens a new session
+        sock = open_dealer(self.ctx, self.url, keys)
         self.sock = sock
         rid = self._id()
         await sock.send(P.request("hello", rid, {"token": self.token, "client": self.client_name}))
@@ -218,7 +218,9 @@ class CoreLink:
                 if not msg.get("ok"):
                     err = msg.get("error") or {}
                     raise error_from_code(err.get("code", "E_INTERNAL"), err.get("message", "refused"))
-                return msg.get("body") or {}
+                body = msg.get("body") or {}
+                self.session = body.get("session")
+                return body
 
     async def _run(self) -> None:
         """Connect, serve, and reconnect whenever the core goes away; until :meth:`close`."""
@@ -277,7 +279,7 @@ class CoreLink:
                 return
             if now - self._last_tx >= hb and self.sock is not None:
                 try:
-                    await self.sock.send(P.request("heartbeat", 0, {}), zmq.NOBLOCK)
+                    await self.sock.send(P.request("heartbeat", 0, {}, self.session), zmq.NOBLOCK)
                     self._last_tx = now
                 except zmq.ZMQError:
                     return
