@@ -66,7 +66,7 @@ def demo_data(role: str = "team", team: str | None = "red") -> dict[str, Any]:
               {"team": "blue", "score": 20.0, "victims": 1, "penalties": 0.0, "rank": 2, "disqualified": False}]
     match = {"phase": "paused", "elapsed": 154.0, "remaining": 446.0, "duration": 600.0}
     return {
-        "hello": {"role": role, "team": team, "protocol": 1, "heartbeat": 1.0, "teams": ["red", "blue"],
+        "hello": {"role": role, "team": team, "protocol": 2, "session": "0" * 32, "heartbeat": 1.0, "teams": ["red", "blue"],
                   "match": match},
         "snapshot": {"arena": {"name": "Default arena", "width": w, "height": h,
                                "walls": np.packbits(walls, axis=None).tobytes()},
