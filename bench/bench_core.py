@@ -1,16 +1,24 @@
-"""Core figures (issue 2): report throughput vs a raw ROUTER echo, stop latency, registration.
+"""Core figures (issue 2): report throughput vs a raw ROUTER echo, stop latency, registration;
+and (issue 14) the cost of proving the session on every message, before/after in one run.
 
-    .venv/bin/python bench/bench_core.py [--seconds 3] [--robots 200]
+    .venv/bin/python bench/bench_core.py [--seconds 3] [--robots 200] [--baseline REV] [--reps 3]
 
 Everything runs as real processes over TCP on localhost: the core (``robo-comp core``) in
 its own process, the load in this one. Prints each figure beside its target.
+
+Before/after: the core of git revision ``--baseline`` (default: the last one of protocol 1,
+before session secrets) is exported to a temporary folder, and the report-throughput and stop
+measurements run ``--reps`` times against it and against this tree, interleaved, each in a fresh
+process whose ``robo_comp`` is that tree's (``--tree DIR``, the child mode).
 """
 from __future__ import annotations
 
 import argparse
 import json
 import multiprocessing as mp
+import os
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -18,7 +26,12 @@ from pathlib import Path
 
 import zmq
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+ROOT = Path(__file__).resolve().parents[1]
+# Child mode (--tree DIR) measures the robo_comp of DIR: it must come first on the path.
+TREE = Path(sys.argv[sys.argv.index("--tree") + 1]).resolve() if "--tree" in sys.argv else ROOT
+sys.path.insert(0, str(TREE))
+#: The last revision of protocol 1 (sessions keyed by routing id, no secret): the "before".
+BASELINE_REV = "a7f9924"
 
 from robo_comp.client import Client  # noqa: E402
 from robo_comp.core import protocol as P  # noqa: E402
@@ -102,6 +115,14 @@ def raw_echo_rate(robots: int, seconds: float) -> float:
     return rate
 
 
+def _frame(type_: str, id_: int, body: dict, session: str | None) -> bytes:
+    """A request of the protocol of the tree under test (with the session secret where it has one)."""
+    msg = {"v": P.PROTOCOL_VERSION, "type": type_, "id": id_, "body": body}
+    if session is not None:
+        msg["s"] = session
+    return P.pack(msg)
+
+
 def _register_raw(url: str, token: str, robots: int) -> tuple[list[zmq.Socket], list[int]]:
     ctx = zmq.Context.instance()
     socks, tags = [], []
@@ -109,7 +130,7 @@ def _register_raw(url: str, token: str, robots: int) -> tuple[list[zmq.Socket], 
         d = ctx.socket(zmq.DEALER)
         d.setsockopt(zmq.LINGER, 0)
         d.connect(url)
-        d.send(P.request("register", 1, {"token": token, "robot_id": f"bench-{i}"}))
+        d.send(_frame("register", 1, {"token": token, "robot_id": f"bench-{i}"}, None))
         socks.append(d)
     for d in socks:
         assert d.poll(10_000), "no register reply"
@@ -136,12 +157,13 @@ def core_rate(state: Path, robots: int, seconds: float) -> tuple[float, int]:
     tok = (state / "teams/red.token").read_text().strip()
     for i, d in enumerate(senders):
         d.connect(url)
-        d.send(P.request("register", 1, {"token": tok, "robot_id": f"bench-{i}"}))
+        d.send(_frame("register", 1, {"token": tok, "robot_id": f"bench-{i}"}, None))
+    sessions = []
     for d in senders:
         d.poll(10_000)
-        d.recv()
-    frames = [P.request("report", 0, {"tag": t, "x": 1.5, "y": 2.5, "heading": 90.0, "moving": True})
-              for t in tags]
+        sessions.append(P.unpack(d.recv())["body"].get("session"))  # None before protocol 2
+    frames = [_frame("report", 0, {"tag": t, "x": 1.5, "y": 2.5, "heading": 90.0, "moving": True}, sid)
+              for t, sid in zip(tags, sessions)]
     ref = Client(str(state), (state / "referee.token").read_text().strip(), timeout=30)
     sub = ref.subscribe("robot.position")
     time.sleep(0.3)
@@ -246,13 +268,66 @@ def pct(xs: list[float], q: float) -> float:
     return s[min(len(s) - 1, int(round(q / 100 * (len(s) - 1))))]
 
 
+def measure_tree(robots: int, seconds: float, stop_samples: int) -> dict:
+    """Child mode: report throughput and stop latency of this process's robo_comp."""
+    with tempfile.TemporaryDirectory() as tmp:
+        state = Path(tmp)
+        core = start_core(state, "--teams", "red,blue", "--heartbeat", "1")
+        try:
+            rate, _ = core_rate(state, robots, seconds)
+            lat = stop_latency(state, robots, stop_samples)
+        finally:
+            stop_all([core])
+    return {"rate": rate, "stop_p50": statistics.median(lat), "stop_p99": pct(lat, 99), "protocol": P.PROTOCOL_VERSION}
+
+
+def before_after(a: argparse.Namespace) -> None:
+    """The session proof's cost: --baseline's core against this tree's, interleaved, same run."""
+    with tempfile.TemporaryDirectory() as tmp:
+        old = Path(tmp) / "baseline"
+        old.mkdir()
+        try:
+            archive = subprocess.run(["git", "-C", str(ROOT), "archive", a.baseline, "robo_comp"],
+                                     capture_output=True, check=True).stdout
+        except (OSError, subprocess.CalledProcessError) as e:
+            print(f"before/after: skipped, cannot export revision {a.baseline} ({e})")
+            return
+        subprocess.run(["tar", "-x", "-C", str(old)], input=archive, check=True)
+        runs: dict[str, list[dict]] = {"before": [], "after": []}
+        for rep in range(a.reps):
+            order = [("before", old), ("after", ROOT)] if rep % 2 == 0 else [("after", ROOT), ("before", old)]
+            for name, tree in order:
+                env = dict(os.environ, PYTHONPATH=str(tree))
+                out = subprocess.run([sys.executable, __file__, "--tree", str(tree), "--robots", str(a.robots),
+                                      "--seconds", str(a.seconds), "--stop-samples", str(a.stop_samples)],
+                                     capture_output=True, text=True, env=env, cwd=str(tree), timeout=600)
+                if out.returncode != 0:
+                    raise RuntimeError(f"{name} run failed: {out.stderr[-2000:]}")
+                runs[name].append(json.loads(out.stdout.strip().splitlines()[-1]))
+        b = {k: statistics.median(r[k] for r in runs["before"]) for k in ("rate", "stop_p50", "stop_p99")}
+        n = {k: statistics.median(r[k] for r in runs["after"]) for k in ("rate", "stop_p50", "stop_p99")}
+        print(f"before/after ({a.reps} interleaved runs each, medians; before = {a.baseline}, "
+              f"protocol {runs['before'][0]['protocol']}; after = this tree, protocol {runs['after'][0]['protocol']}):")
+        print(f"  reports absorbed: {b['rate']:10,.0f} -> {n['rate']:10,.0f} msg/s  "
+              f"({n['rate'] / b['rate'] - 1:+.1%}; target: the check costs < 2%)")
+        print(f"  stop p50 {b['stop_p50']:.2f} -> {n['stop_p50']:.2f} ms; p99 {b['stop_p99']:.2f} -> "
+              f"{n['stop_p99']:.2f} ms (target: nothing measurable)")
+        print("  every run: " + "; ".join(f"{k} " + ", ".join(f"{r['rate']:,.0f}" for r in v) for k, v in runs.items()))
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=3.0)
     ap.add_argument("--robots", type=int, default=200)
     ap.add_argument("--stop-samples", type=int, default=300)
     ap.add_argument("--register", type=int, default=1000)
+    ap.add_argument("--baseline", default=BASELINE_REV, help="git revision of the 'before' core ('' to skip)")
+    ap.add_argument("--reps", type=int, default=3, help="interleaved before/after runs")
+    ap.add_argument("--tree", help="child mode: measure the robo_comp of this folder and print JSON")
     a = ap.parse_args()
+    if a.tree:
+        print(json.dumps(measure_tree(a.robots, a.seconds, a.stop_samples)))
+        return 0
     print(f"robots={a.robots} seconds={a.seconds}")
     raw = raw_echo_rate(a.robots, a.seconds)
     print(f"raw pyzmq ROUTER echo:           {raw:10,.0f} msg/s")
@@ -278,6 +353,8 @@ def main() -> int:
             print(f"{a.register} robots registered in {reg:.2f} s (target < 2 s)")
         finally:
             stop_all([core])
+    if a.baseline:
+        before_after(a)
     return 0
 
 
