@@ -134,7 +134,7 @@ class Core:
         self._running = False
         self.started = time.monotonic()
         self.core_id = secrets.token_hex(8)  # tells clients when they talk to a restarted core
-        self.stats = {"received": 0, "errors": 0, "events": 0, "dropped": 0}
+        self.stats = {"received": 0, "errors": 0, "events": 0, "dropped": 0, "unrouted": 0}
         self._out: list[tuple[zmq.Socket, list[bytes]]] = []
         # Routes whose connection went away (a send found no peer): nothing is pushed to them until
         # their session proves itself again there, so whoever takes such an id next gets nothing.
@@ -381,7 +381,7 @@ class Core:
         A route whose connection went away gets nothing but the replies to its own new messages
         until its session proves itself there again (see :meth:`_prove`)."""
         if self._unproven and ident in self._unproven and ident != self._current:
-            self.stats["dropped"] += 1
+            self.stats["unrouted"] += 1
             return
         self._out.append((self.router, [ident, frame]))
 
