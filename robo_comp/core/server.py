@@ -11,6 +11,7 @@ walls) and, in full, to the sessions that ``watch`` and may see them.
 """
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import gc
 import hmac
@@ -19,6 +20,7 @@ import logging
 import os
 import secrets
 import signal
+import socket
 import time
 import traceback
 from collections.abc import Callable
@@ -132,6 +134,7 @@ class Core:
         self.router: zmq.Socket | None = None
         self.pub: zmq.Socket | None = None
         self._running = False
+        self._stop_asked = False  # a SIGTERM during start-up must not be lost when the loop starts
         self.started = time.monotonic()
         self.core_id = secrets.token_hex(8)  # tells clients when they talk to a restarted core
         self.stats = {"received": 0, "errors": 0, "events": 0, "dropped": 0, "unrouted": 0}
@@ -222,7 +225,8 @@ class Core:
         self._commit()
 
     def stop(self) -> None:
-        """Ask the loop to end after the current turn."""
+        """Ask the loop to end after the current turn (or, before it started, not to start)."""
+        self._stop_asked = True
         self._running = False
 
     def run(self) -> None:
@@ -230,11 +234,21 @@ class Core:
         if self.router is None:
             self.bind()
         assert self.router is not None
+        # A signal wakes the poller through this pair (Python writes a byte to it), so SIGTERM
+        # ends the loop at once instead of after the poll's timeout (up to a heartbeat).
+        wake, wake_w = socket.socketpair()
+        wake.setblocking(False)
+        wake_w.setblocking(False)
+        old_wakeup: int | None = None
         for sig in (signal.SIGINT, signal.SIGTERM):
             try:
                 signal.signal(sig, lambda *_: self.stop())
             except ValueError:  # not in the main thread (tests may run a core in a thread)
                 pass
+        try:
+            old_wakeup = signal.set_wakeup_fd(wake_w.fileno(), warn_on_full_buffer=False)
+        except ValueError:  # not in the main thread: stop() is called by the owner, between polls
+            pass
         # What exists now (modules, the arena, recovered state) lives as long as the core: keep it
         # out of the collector's generations, and collect young objects less often, so that
         # a full collection does not stall a stop behind it.
@@ -245,7 +259,8 @@ class Core:
         poller.register(self.router, zmq.POLLIN)
         if self._zap is not None:
             poller.register(self._zap.sock, zmq.POLLIN)
-        self._running = True
+        poller.register(wake, zmq.POLLIN)
+        self._running = not self._stop_asked
         next_tick = time.monotonic() + self.heartbeat
         next_pose = time.monotonic() + self.pose_period
         try:
@@ -259,6 +274,8 @@ class Core:
                     if self._zap is not None:
                         self._zap.serve()
                     self._drain()
+                    with contextlib.suppress(BlockingIOError):
+                        wake.recv(4096)
                 now = time.monotonic()
                 if self.pending_stops:
                     self._expire_stops(now)
@@ -272,6 +289,10 @@ class Core:
                     next_tick = now + self.heartbeat
                 self._commit()
         finally:
+            if old_wakeup is not None:
+                signal.set_wakeup_fd(old_wakeup)
+            wake.close()
+            wake_w.close()
             self._commit()
             self.events.close()
             self.router.close(0)
