@@ -139,7 +139,7 @@ CORE_TO_HOST = ("heartbeat", "task.start", "task.interrupt", "stop", "radio", "h
 #: Event topics; the PUB socket uses them as the first frame.
 TOPICS = (
     "robot.registered", "robot.positions", "robot.lost", "robot.returned", "robot.left",
-    "task.given", "task.started", "task.done", "robot.stopped", "radio", "refused", "core.started",
+    "task.given", "task.started", "task.done", "robot.stopped", "radio", "refused", "core.started", "core.recovered",
     "match.phase", "score", "score.change", "penalty", "disqualified", "broadcast", "find.reported",
     "picture", "robot.bump", "robot.tasks", "robot.log", "upload.pending", "upload.sent", "upload.done",
     "upload.unloaded",
