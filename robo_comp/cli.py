@@ -179,6 +179,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     tui_cli.add_parsers(sub)
     wall_cli.add_parser(sub)
+    from robo_comp.web import cli as web_cli
+
+    web_cli.add_parser(sub)
     return parser
 
 
