@@ -78,6 +78,7 @@ def run(args: argparse.Namespace) -> int:
         sock = socket.socket(socket.AF_INET6 if ":" in args.host else socket.AF_INET, socket.SOCK_STREAM)
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         sock.bind((args.host, args.port))
+        sock.listen(2048)  # browsers that come before the server is up wait in the backlog
     except OSError as e:
         raise FieldError(f"cannot serve on {args.host}:{args.port} ({e.strerror}); is another server using "
                          "that port? (--port 0 picks a free one)") from None
@@ -87,7 +88,6 @@ def run(args: argparse.Namespace) -> int:
     server = uvicorn.Server(config)
     what = f"replay of {args.replay}" if args.replay else f"live match at {args.core}"
     print(f"web: serving the {what} on http://{host}:{port}/", flush=True)
-    logging.basicConfig(level=logging.WARNING)
     asyncio.run(server.serve(sockets=[sock]))
     return 0
 

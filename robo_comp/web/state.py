@@ -44,9 +44,17 @@ def public_event(topic: str, data: dict[str, Any]) -> dict[str, Any] | None:
 def public_snapshot(snap: dict[str, Any]) -> dict[str, Any]:
     """A ``snapshot`` reply cut down to what the PUB feed would show anyone (the public view)."""
     out = dict(snap)
-    out["robots"] = [{k: r[k] for k in PUBLIC_ROBOT if k in r} for r in snap.get("robots") or []]
+    out["robots"] = [{**{k: r[k] for k in PUBLIC_ROBOT if k in r}, "task": _task_name(r.get("task"))}
+                     for r in snap.get("robots") or []]
     out["finds"] = [{k: f[k] for k in PUBLIC_FIND if k in f} for f in snap.get("finds") or []]
     return out
+
+
+def _task_name(task: Any) -> dict[str, Any] | None:
+    """A task as the PUB feed names it (``task.started`` carries its name and id, not its arguments)."""
+    if isinstance(task, dict) and task.get("name"):
+        return {"name": task["name"], "task_id": task.get("task_id")}
+    return None
 
 
 def jsonable(v: Any) -> Any:
