@@ -20,6 +20,8 @@ from typing import Any
 
 import pytest
 
+pytest.importorskip("starlette", reason="the web extra is not installed (pip install -e '.[web]')")
+
 from conftest import wait_for, wait_robots
 from robo_comp.core.eventlog import EventLog
 from robo_comp.testing import start_match

@@ -43,7 +43,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 def _gateway(args: argparse.Namespace) -> Any:
     from robo_comp.client import read_token
-    from robo_comp.web.server import LiveGateway, ReplayGateway
+
+    try:
+        from robo_comp.web.server import LiveGateway, ReplayGateway
+    except ImportError as e:
+        raise FieldError(f"robo-comp web needs the 'web' extra ({e.name} is missing): "
+                         "pip install -e '.[web]' (make test installs it)") from None
 
     if args.replay:
         if args.core:
@@ -67,13 +72,13 @@ def _gateway(args: argparse.Namespace) -> Any:
 
 def run(args: argparse.Namespace) -> int:
     """Serve until interrupted."""
+    if not 0 <= args.port <= 65535:
+        raise FieldError(f"--port must be 0..65535, not {args.port}")
+    gw = _gateway(args)
     import uvicorn
 
     from robo_comp.web.server import make_app
 
-    if not 0 <= args.port <= 65535:
-        raise FieldError(f"--port must be 0..65535, not {args.port}")
-    gw = _gateway(args)
     try:
         sock = socket.socket(socket.AF_INET6 if ":" in args.host else socket.AF_INET, socket.SOCK_STREAM)
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
