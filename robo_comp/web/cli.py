@@ -89,7 +89,8 @@ def run(args: argparse.Namespace) -> int:
                          "that port? (--port 0 picks a free one)") from None
     port = sock.getsockname()[1]
     host = "127.0.0.1" if args.host in ("0.0.0.0", "::") else args.host
-    config = uvicorn.Config(make_app(gw), log_level="warning", ws_max_size=1 << 20, lifespan="on")
+    config = uvicorn.Config(make_app(gw), log_level="warning", ws_max_size=1 << 20, lifespan="on",
+                            ws_per_message_deflate=False)  # one text for all browsers: never compress it per browser
     server = uvicorn.Server(config)
     what = f"replay of {args.replay}" if args.replay else f"live match at {args.core}"
     print(f"web: serving the {what} on http://{host}:{port}/", flush=True)

@@ -56,6 +56,18 @@ def dumps(msg: dict[str, Any]) -> str:
         return json.dumps(jsonable(msg), separators=(",", ":"))
 
 
+def compact(topic: str, d: dict[str, Any]) -> dict[str, Any]:
+    """Poses rounded for the page (1/100 cell, 1/10 degree): half the bytes of a position batch."""
+    if topic != "robot.positions":
+        return d
+    out = dict(d)
+    for k, n in (("x", 2), ("y", 2), ("heading", 1)):
+        v = d.get(k)
+        if isinstance(v, list):
+            out[k] = [round(float(a), n) for a in v]
+    return out
+
+
 class Subscriber:
     """One browser's WebSocket: a bounded queue of messages and the task that sends them."""
 
@@ -148,7 +160,7 @@ class Hub:
         if resync:  # a new arena: everyone starts again from a state
             text = self.state_text()
         else:
-            text = dumps({"type": "ev", "e": [[t, d] for t, d in events]})
+            text = dumps({"type": "ev", "e": [[t, compact(t, d)] for t, d in events]})
         for s in list(self.subs):
             s.offer(text)
 

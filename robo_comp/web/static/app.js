@@ -13,7 +13,7 @@ const S = {
   ws: null, mode: null, view: { name: "public", kind: "public" }, token: sessionStorage.getItem("robo_comp.token") || "",
   replay: { t: 0, at: perf(), playing: false, speed: 1, duration: 0 },
   nextId: 1, pending: new Map(), follow: null, info: null, lastHud: 0, hudVersion: -1, dragging: false,
-  stats: { frames: 0, drawn: 0, drawMs: 0, since: perf(), states: 0, evs: 0, lastState: 0 },
+  stats: { frames: 0, drawn: 0, drawMs: 0, since: perf(), states: 0, evs: 0, lastState: 0, gaps: [], draws: [], last: 0 },
 };
 // for tests and the bench: the page's model, renderer and counters
 window.robo = { model, renderer, S };
@@ -326,6 +326,8 @@ window.addEventListener("hashchange", () => {
 function frame() {
   const t = perf(), st = S.stats;
   st.frames++;
+  if (st.last) { st.gaps.push(t - st.last); if (st.gaps.length > 2000) st.gaps.shift(); }
+  st.last = t;
   renderer.resize();
   if (S.follow != null) {
     const r = model.robots.get(S.follow);
@@ -333,7 +335,9 @@ function frame() {
   }
   const t0 = performance.now();
   renderer.draw(t);
-  st.drawMs += performance.now() - t0;
+  const took = performance.now() - t0;
+  st.drawMs += took;
+  st.draws.push(took); if (st.draws.length > 2000) st.draws.shift();
   st.drawn++;
   if (t - S.lastHud > 0.25) { S.lastHud = t; hud(); }
   requestAnimationFrame(frame);
