@@ -11,7 +11,7 @@ What runs (real processes, TCP on loopback):
    --core``; Debian's chromium (Playwright, headless, 1280×800) on the page. The page counts
    its ``requestAnimationFrame`` frames and times each draw; reported: frames per second over
    ``--seconds``, draw time p50/p99, the longest gap between two frames, robots on the page
-   and the position events it applied per second (the core sends 10 per team per second).
+   and the events it applied per second (the core sends 10 position batches per team per second).
 2. **Fan-out** — the same match; this process reads the core's PUB feed directly on a SUB
    socket (the baseline) while a child process holds ``--browsers`` WebSocket clients on the
    gateway's public view. For the first position event of every WebSocket message, the added
@@ -120,7 +120,7 @@ def start_live(state: Path, robots: int) -> tuple[Any, list[Any], Client]:
     cells = free_cells(ref)
     rng = random.Random(16)
     for r in ref.robots():  # every robot drives a long path for the whole bench
-        ref.give(r["tag"], "followPath", [list(rng.choice(cells)) for _ in range(12)])
+        ref.give(r["tag"], "followPath", [[list(rng.choice(cells)) for _ in range(12)]])
     return core, hosts, ref
 
 
@@ -140,7 +140,7 @@ def measure_draw(url: str, seconds: float) -> dict[str, Any]:
         dt = (s1["t"] - s0["t"]) / 1000
         return {"fps": (s1["f"] - s0["f"]) / dt, "draw_ms_p50": pct(s1["draws"], 50), "draw_ms_p99": pct(s1["draws"], 99),
                 "longest_gap_ms": max(s1["gaps"]) * 1000 if s1["gaps"] else float("nan"),
-                "robots": s1["robots"], "position_events_per_s": (s1["e"] - s0["e"]) / dt}
+                "robots": s1["robots"], "events_per_s": (s1["e"] - s0["e"]) / dt}
     finally:
         b.close()
         pw.stop()
@@ -159,7 +159,9 @@ def sub_times(router: str, pub_port: int, seconds: float, out: dict[str, float])
         t = time.monotonic()
         d = P.unpack(payload)
         if d.get("tags"):
-            out.setdefault(f'{d.get("team")}|{d["tags"][0]}|{json.dumps(round(float(d["x"][0]), 2))}', t)
+            key = (f'{d.get("team")}|{d["tags"][0]}|{json.dumps(round(float(d["x"][0]), 2))}|'
+                   f'{json.dumps(round(float(d["x"][-1]), 2))}')
+            out[key] = -1.0 if key in out else t  # a key seen twice is ambiguous: left out
     sub.close(0)
 
 
@@ -172,6 +174,7 @@ def clients_role(ws_url: str, n: int, seconds: float, conn: Any) -> None:
 
     samples: list[tuple[str, float]] = []
     joined = [0]
+    seen: list[set[str]] = [set() for _ in range(n)]
 
     async def one(i: int) -> None:
         async with websockets.connect(ws_url, max_size=None, compression=None) as ws:
@@ -191,10 +194,14 @@ def clients_role(ws_url: str, n: int, seconds: float, conn: Any) -> None:
                 m = _KEY.search(text, 0, 200)
                 if m:
                     j = text.find('"x":[', m.end())
-                    k = text.find(",", j + 5)
                     k2 = text.find("]", j + 5)
-                    x0 = text[j + 5:min(k, k2) if k > 0 else k2]
-                    samples.append((f"{m.group(1)}|{m.group(2)}|{x0}", t))
+                    k = text.find(",", j + 5, k2)
+                    x0 = text[j + 5:k if k > 0 else k2]
+                    xn = text[text.rfind(",", j + 5, k2) + 1 if k > 0 else j + 5:k2]
+                    key = f"{m.group(1)}|{m.group(2)}|{x0}|{xn}"
+                    if key not in seen[i]:  # a pose batch that repeats (robots standing) counts once
+                        seen[i].add(key)
+                        samples.append((key, t))
 
     async def main() -> None:
         await asyncio.gather(*(one(i) for i in range(n)))
@@ -204,9 +211,8 @@ def clients_role(ws_url: str, n: int, seconds: float, conn: Any) -> None:
     conn.close()
 
 
-def measure_fanout(state: Path, core_pid: int, url: str, browsers: int, seconds: float) -> dict[str, Any]:
-    info = json.loads((state / "core.json").read_text())
-    router, pub_port = info["router"], info["pub_port"]
+def measure_fanout(ref: Client, core_pid: int, url: str, browsers: int, seconds: float) -> dict[str, Any]:
+    router, pub_port = ref.url, int(ref.info["pub_port"])
     parent, child = mp.Pipe()
     proc = mp.get_context("spawn").Process(target=clients_role, args=(url.replace("http", "ws") + "ws", browsers,
                                                                       seconds + 6, child))
@@ -219,7 +225,7 @@ def measure_fanout(state: Path, core_pid: int, url: str, browsers: int, seconds:
     core_cpu = (cpu_seconds(core_pid) - c0) / (time.monotonic() - t0)
     joined, samples = parent.recv()
     proc.join(30)
-    added = [(t - sub[k]) * 1000 for k, t in samples if k in sub]
+    added = [(t - sub[k]) * 1000 for k, t in samples if sub.get(k, -1.0) >= 0]
     return {"browsers": joined, "samples": len(added), "unmatched": len(samples) - len(added),
             "added_ms_p50": pct(added, 50), "added_ms_p99": pct(added, 99), "added_ms_max": max(added, default=float("nan")),
             "core_cpu_with_gateway": core_cpu}
@@ -336,7 +342,7 @@ def main() -> int:
             web, url = start_web("--core", str(tmp / "state"))
             res["draw"] = measure_draw(url, args.seconds)
             print("draw:", json.dumps(res["draw"], indent=1), flush=True)
-            res["fanout"] = measure_fanout(tmp / "state", core.pid, url, args.browsers, args.seconds)
+            res["fanout"] = measure_fanout(ref, core.pid, url, args.browsers, args.seconds)
             res["fanout"]["core_cpu_without_gateway"] = res["core_cpu_without_gateway"]
             print("fanout:", json.dumps(res["fanout"], indent=1), flush=True)
             ok &= res["draw"]["fps"] >= 30 and res["fanout"]["added_ms_p99"] < 50
