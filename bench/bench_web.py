@@ -6,7 +6,7 @@
 
 What runs (real processes, TCP on loopback):
 
-1. **Drawing** — a core (4 teams, practice mode) and 4 ``robo-comp robots`` hosts with
+1. **Drawing** — a core (4 teams, practice mode, the 512×512 ``big_rooms`` scenario) and 4 ``robo-comp robots`` hosts with
    ``--robots`` robots in all, every robot driving a long ``followPath``; ``robo-comp web
    --core``; Debian's chromium (Playwright, headless, 1280×800) on the page. The page counts
    its ``requestAnimationFrame`` frames and times each draw; reported: frames per second over
@@ -56,10 +56,13 @@ from robo_comp.client import Client, pub_url  # noqa: E402
 from robo_comp.core import protocol as P  # noqa: E402
 from robo_comp.core.eventlog import EventLog  # noqa: E402
 from robo_comp.launch import start_core, start_robots, stop_all  # noqa: E402
+from robo_comp.world.scenario import bundled_scenario_path  # noqa: E402
 
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
                  "--disable-component-update", "--disable-sync", "--no-first-run"]
 TEAMS = ["a", "b", "c", "d"]
+#: The live match's arena: 512×512 cells of rooms, room for 1,000 robots to drive.
+SCENARIO = "big_rooms"
 
 
 def pct(values: list[float], q: float) -> float:
@@ -109,7 +112,7 @@ def free_cells(c: Client) -> list[tuple[int, int]]:
 
 
 def start_live(state: Path, robots: int) -> tuple[Any, list[Any], Client]:
-    core = start_core(state, "--teams", ",".join(TEAMS), "--practice")
+    core = start_core(state, "--teams", ",".join(TEAMS), "--practice", "--scenario", str(bundled_scenario_path(SCENARIO)))
     hosts = [start_robots(state, t, robots // len(TEAMS)) for t in TEAMS]
     ref = Client(str(state), (state / "referee.token").read_text().strip(), timeout=10)
     t_end = time.monotonic() + 120
@@ -117,10 +120,16 @@ def start_live(state: Path, robots: int) -> tuple[Any, list[Any], Client]:
         if time.monotonic() > t_end:
             raise SystemExit("the robots did not all register within 120 s")
         time.sleep(0.5)
-    cells = free_cells(ref)
-    rng = random.Random(16)
-    for r in ref.robots():  # every robot drives a long path for the whole bench
-        ref.give(r["tag"], "followPath", [[list(rng.choice(cells)) for _ in range(12)]])
+    cells = np.array(free_cells(ref))
+    rng = np.random.default_rng(16)
+    for r in ref.robots():  # every robot drives a long path near where it is, for the whole bench
+        x, y = r["x"], r["y"]
+        pts = []
+        for _ in range(12):
+            near = cells[(np.abs(cells[:, 0] - x) <= 8) & (np.abs(cells[:, 1] - y) <= 8)]
+            x, y = (int(v) for v in near[rng.integers(len(near))])
+            pts.append([x, y])
+        ref.give(r["tag"], "followPath", [pts])
     return core, hosts, ref
 
 

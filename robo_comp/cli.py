@@ -88,7 +88,7 @@ def _replay(args: argparse.Namespace) -> int:
 def _demo(args: argparse.Namespace) -> int:
     from robo_comp.demo import run_demo
 
-    return run_demo(duration=args.duration, robots=args.robots)
+    return run_demo(duration=args.duration, robots=args.robots, web=args.web)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -165,6 +165,8 @@ def build_parser() -> argparse.ArgumentParser:
     d = sub.add_parser("demo", help="run a demo match on localhost (what 'make demo' runs)")
     d.add_argument("--duration", type=float, default=20.0, help="seconds of match")
     d.add_argument("--robots", type=int, default=3, help="robots per team")
+    d.add_argument("--web", type=int, metavar="PORT",
+                   help="also show the match in a browser: serve the page on this port (see docs/web.md)")
     d.set_defaults(func=_demo)
 
     plan_cli.add_parser(sub)

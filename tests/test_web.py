@@ -398,6 +398,8 @@ def test_websocket_protocol_errors(tmp_path: Path) -> None:
 
     log = tmp_path / "m" / "events.log"
     write_log(log, seconds=30)
+    (log.parent / "teams").mkdir()
+    (log.parent / "teams" / "red.token").write_text("red-secret\n")
     web, url = start_web("--replay", str(log))
 
     async def talk() -> list[dict[str, Any]]:
@@ -417,10 +419,17 @@ def test_websocket_protocol_errors(tmp_path: Path) -> None:
                 if m.get("type") == "reply":
                     out.append(m)
                     break
+            # a token of the recorded match (beside the log) opens that team's view of the replay
+            await ws.send(json.dumps({"op": "join", "token": "red-secret", "t": 20}))
+            while True:
+                m = json.loads(await ws.recv())
+                if m.get("type") == "state":
+                    out.append(m)
+                    break
         return out
 
     try:
-        hello, bad_json, early, bad_token, state, speed = in_thread(lambda: asyncio.run(talk()))
+        hello, bad_json, early, bad_token, state, speed, red = in_thread(lambda: asyncio.run(talk()))
     finally:
         stop(web)
     assert hello["mode"] == "replay" and hello["duration"] == pytest.approx(30, abs=0.01)
@@ -429,3 +438,7 @@ def test_websocket_protocol_errors(tmp_path: Path) -> None:
     assert bad_token["type"] == "error" and "token" in bad_token["message"]
     assert state["type"] == "state" and state["t"] == pytest.approx(12)
     assert not speed["ok"] and "between 0.25 and 16" in speed["error"]["message"]
+    assert {r[0] for r in state["state"]["robots"]} == {101, 201}  # the public view: both teams
+    assert red["view"] == {"name": "red", "kind": "private"}
+    robots = red["state"]["robots"] + [[t] for _, d, _ in red["after"] for t in d.get("tags", [d.get("tag")])]
+    assert {r[0] for r in robots} == {101}  # red's view of the replay: nothing of blue
