@@ -314,6 +314,12 @@ def write_log(path: Path, seconds: int = 95) -> list[tuple[float, float]]:
             log.append("robot.lost", "red", {"tag": 101, "x": x, "y": 8.0, "message": "silent"}, t=t0 + s + 0.2)
         if s == 60:
             log.append("robot.returned", "red", {"tag": 101, "x": x, "y": 8.0}, t=t0 + s + 0.2)
+        if s == 30:  # red's robot photographs a victim and reports it with the picture as evidence
+            log.append("picture", "red", {"id": 1, "tag": 101, "team": "red", "x": 4, "y": 8, "heading": 0,
+                                          "t": t0 + s, "victims": ["v1"], "sha256": "00"}, t=t0 + s + 0.3)
+            log.append("find.reported", "red", {"id": 1, "team": "red", "tag": 101, "x": 5, "y": 8, "kind": "victim",
+                                                "state": "confirmed", "evidence": [1],
+                                                "message": "victim v1 confirmed"}, t=t0 + s + 0.4)
     log.close()
     return track
 
@@ -368,6 +374,56 @@ def test_replay_seek_lands_on_the_right_state(browser, tmp_path: Path) -> None:
             assert page.input_value("#speed") == "8"
             page.click("#btn-play")
             page.wait_for_function("() => !robo.S.replay.playing", timeout=5000)
+        finally:
+            page.close()
+    finally:
+        stop(web)
+
+
+def click_thing(page, key: str) -> None:
+    sx, sy = page.evaluate("""(key) => {
+      const th = robo.model.things.get(key);
+      const [sx, sy] = robo.renderer.camera.toScreen(th.x + 0.5, th.y + 0.5);
+      const box = document.getElementById('map').getBoundingClientRect();
+      return [box.left + sx, box.top + sy];
+    }""", key)
+    page.mouse.click(sx, sy)
+    page.wait_for_function(f"() => robo.renderer.selectedThing === {json.dumps(key)}", timeout=5000)
+
+
+def test_replay_find_evidence_needs_the_team_token(browser, tmp_path: Path) -> None:
+    from robo_comp.web.state import png_rgb
+    import numpy as np
+
+    log = tmp_path / "match" / "events.log"
+    write_log(log)
+    (log.parent / "pictures").mkdir()
+    img = np.zeros((24, 32, 3), np.uint8)
+    img[..., 0] = np.arange(32, dtype=np.uint8)[None, :] * 8
+    (log.parent / "pictures" / "1.png").write_bytes(png_rgb(img))
+    (log.parent / "teams").mkdir()
+    (log.parent / "teams" / "red.token").write_text("red-secret\n")
+    web, url = start_web("--replay", str(log))
+    try:
+        page = open_page(browser, url + "#t=40")
+        try:
+            page.wait_for_function("() => robo.model.things.has('find:1')", timeout=15000)
+            click_thing(page, "find:1")
+            page.wait_for_function("() => document.getElementById('info-fields').innerText.includes('private')")
+            assert page.inner_text("#info-title") == "Find 1"
+            assert "confirmed" in page.inner_text("#info-fields")
+            assert page.locator("#info-pictures img").count() == 0
+            page.click("#btn-token")
+            page.fill("#token-input", "red-secret")
+            page.click("#btn-token-ok")
+            page.wait_for_function("() => robo.S.view.kind === 'private'", timeout=15000)
+            assert page.evaluate("() => robo.S.replay.t") == pytest.approx(40, abs=0.5)  # the view changed, not the time
+            click_thing(page, "find:1")
+            page.wait_for_function("() => { const i = document.querySelector('#info-pictures img'); "
+                                   "return i && i.complete && i.naturalWidth === 32; }", timeout=10000)
+            assert "victim v1 confirmed" in page.inner_text("#info-fields")
+            page.screenshot(path=str(tmp_path / "evidence.png"))
+            assert not page.errors
         finally:
             page.close()
     finally:

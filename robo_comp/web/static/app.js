@@ -130,7 +130,7 @@ function hud(force = false) {
   const t = matchNow();
   const [el, rem] = model.clock(t);
   $("phase").textContent = model.match.phase || (S.mode === "replay" ? "replay" : "live");
-  $("elapsed").textContent = fmt(el);
+  $("elapsed").textContent = fmt(!model.match.phase && S.mode === "replay" ? t : el);  // no phases: the recording's time
   $("remaining").textContent = rem != null ? `(${fmt(rem)} left)` : "";
   if (S.mode === "replay") {
     $("t-now").textContent = fmt(t); $("t-end").textContent = fmt(S.replay.duration);
