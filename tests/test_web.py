@@ -258,12 +258,12 @@ def test_private_view_shows_nothing_of_the_other_team(browser, live, tmp_path: P
         tag = page.evaluate("() => [...robo.model.robots.keys()][0]")
         body = page.evaluate("(tag) => new Promise((ok, no) => { const id = 9999; "
                              "robo.S.pending.set(id, {resolve: ok, reject: e => ok({refused: e.message})}); "
-                             "robo.S.ws.send(JSON.stringify({op: 'monitor', id, tag})); })", tag)
+                             "robo.S.ws.send(JSON.stringify({op: 'monitor', req: id, tag})); })", tag)
         assert "sensors" in body
         blue = sorted(blue_tags)[0]
         body = page.evaluate("(tag) => new Promise((ok) => { const id = 9998; "
                              "robo.S.pending.set(id, {resolve: ok, reject: e => ok({refused: e.message})}); "
-                             "robo.S.ws.send(JSON.stringify({op: 'monitor', id, tag})); })", blue)
+                             "robo.S.ws.send(JSON.stringify({op: 'monitor', req: id, tag})); })", blue)
         assert "not one of team red's robots" in body.get("refused", "")  # the core's refusal, word for word
         page.screenshot(path=str(tmp_path / "private.png"))
         # a wrong token is refused by the core, and the page says so
@@ -462,14 +462,14 @@ def test_websocket_protocol_errors(tmp_path: Path) -> None:
         out = []
         async with websockets.connect(url.replace("http", "ws") + "ws") as ws:
             out.append(json.loads(await ws.recv()))  # hello
-            for msg in ("not json", json.dumps({"op": "seek", "id": 1, "t": 3})):
+            for msg in ("not json", json.dumps({"op": "seek", "req": 1, "t": 3})):
                 await ws.send(msg)
                 out.append(json.loads(await ws.recv()))
             await ws.send(json.dumps({"op": "join", "token": "wrong"}))
             out.append(json.loads(await ws.recv()))
             await ws.send(json.dumps({"op": "join", "t": 12}))
             out.append(json.loads(await ws.recv()))
-            await ws.send(json.dumps({"op": "speed", "id": 2, "value": 100}))
+            await ws.send(json.dumps({"op": "speed", "req": 2, "value": 100}))
             while True:
                 m = json.loads(await ws.recv())
                 if m.get("type") == "reply":
@@ -488,7 +488,7 @@ def test_websocket_protocol_errors(tmp_path: Path) -> None:
         hello, bad_json, early, bad_token, state, speed, red = in_thread(lambda: asyncio.run(talk()))
     finally:
         stop(web)
-    assert hello["mode"] == "replay" and hello["duration"] == pytest.approx(30, abs=0.01)
+    assert hello["mode"] == "replay" and hello["duration"] == pytest.approx(30.4, abs=0.01)
     assert "JSON" in bad_json["message"]
     assert not early["ok"] and "join" in early["error"]["message"]
     assert bad_token["type"] == "error" and "token" in bad_token["message"]
@@ -498,3 +498,53 @@ def test_websocket_protocol_errors(tmp_path: Path) -> None:
     assert red["view"] == {"name": "red", "kind": "private"}
     robots = red["state"]["robots"] + [[t] for _, d, _ in red["after"] for t in d.get("tags", [d.get("tag")])]
     assert {r[0] for r in robots} == {101}  # red's view of the replay: nothing of blue
+
+
+def test_gateway_follows_a_core_restart(tmp_path: Path) -> None:
+    """The core stops and starts again (recovering from its state folder): the gateway
+    reconnects on its own, pages get a fresh state, and new robots show (no browser needed)."""
+    import asyncio
+
+    import websockets
+
+    from robo_comp.launch import start_core
+
+    state = tmp_path / "state"
+    m = start_match(state, teams=["red", "blue"])
+    web = None
+    try:
+        web, url = start_web("--core", str(state))
+
+        async def talk() -> list[str]:
+            seen: list[str] = []
+            async with websockets.connect(url.replace("http", "ws") + "ws") as ws:
+                await ws.recv()  # hello
+                await ws.send(json.dumps({"op": "join"}))
+                first = json.loads(await ws.recv())
+                seen.append(first["type"])
+                m.proc.terminate()
+                m.proc.wait(10)
+                m.proc = start_core(state, "--heartbeat", "0.2", "--scenario", str(m.scenario), "--teams", "red,blue",
+                                    "--practice")
+                deadline = time.monotonic() + 40
+                restarted = False
+                while time.monotonic() < deadline:
+                    try:
+                        msg = json.loads(await asyncio.wait_for(ws.recv(), 1.0))
+                    except asyncio.TimeoutError:
+                        continue
+                    if msg["type"] == "state" and not restarted:
+                        restarted = True
+                        seen.append("state after restart")
+                        m.robots("red", 1)
+                    elif restarted and msg["type"] == "ev" and any(t == "robot.registered" for t, *_ in msg["e"]):
+                        seen.append("robot registered")
+                        break
+            return seen
+
+        seen = in_thread(lambda: asyncio.run(talk()))
+        assert seen == ["state", "state after restart", "robot registered"]
+    finally:
+        if web is not None:
+            stop(web)
+        m.close()

@@ -91,7 +91,14 @@ class Subscriber:
             self.queue.put_nowait("")  # wake the sender
 
     async def run(self) -> None:
-        """Send queued messages until cancelled; a browser that fell behind gets a fresh state."""
+        """Send queued messages until cancelled or the browser is gone; a browser that fell
+        behind gets a fresh state."""
+        try:
+            await self._run()
+        except Exception as e:  # the socket closed under us: the connection's reader ends it
+            log.debug("sending to a browser stopped: %s", e)
+
+    async def _run(self) -> None:
         while True:
             text = await self.queue.get()
             if self.behind:
@@ -209,6 +216,11 @@ class Hub:
 
     async def close(self) -> None:
         """Leave the core."""
+
+
+def whole(body: dict[str, Any], key: str) -> int:
+    """``body[key]`` as a whole number, or a :class:`FieldError` naming the field."""
+    return _int(body, key)
 
 
 def _int(body: dict[str, Any], key: str) -> int:

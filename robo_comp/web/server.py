@@ -3,8 +3,8 @@
 A browser opens ``/ws`` and sends ``{"op": "join"}`` (the public view), ``{"op": "join",
 "token": T}`` (the view of that token, as the core shows it to that token) or ``{"op": "join",
 "view": NAME}`` (a private view whose token the server was given). Then it may ask
-``monitor``/``find``/``picture`` questions (``{"op", "id", ...}`` answered by ``{"type": "reply",
-"id", "ok", "body" | "error"}``) and, for a replay, ``play``, ``pause``, ``speed`` and ``seek``.
+``monitor``/``find``/``picture`` questions (``{"op", "req", ...}`` answered by ``{"type": "reply",
+"req", "ok", "body" | "error"}``) and, for a replay, ``play``, ``pause``, ``speed`` and ``seek``.
 The server sends ``state`` (everything, when joining or after falling behind), ``ev`` (a batch
 of events) and, for replays, ``clock``.
 """
@@ -25,7 +25,7 @@ from starlette.staticfiles import StaticFiles
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from robo_comp.errors import FieldError, RoboCompError
-from robo_comp.web.hub import JOIN_TIMEOUT, Hub, PublicHub, Subscriber, TeamHub, dumps
+from robo_comp.web.hub import JOIN_TIMEOUT, Hub, PublicHub, Subscriber, TeamHub, dumps, whole
 from robo_comp.web.replay import Playback, Recording
 
 log = logging.getLogger("robo_comp.web")
@@ -151,8 +151,8 @@ class Connection:
             while True:
                 try:
                     msg = json.loads(await self.ws.receive_text())
-                except ValueError:
-                    await self._send(dumps({"type": "error", "message": "messages must be JSON objects"}))
+                except (ValueError, KeyError):  # not JSON, or a binary frame
+                    await self._send(dumps({"type": "error", "message": "messages must be JSON objects as text"}))
                     continue
                 if not isinstance(msg, dict):
                     continue
@@ -169,18 +169,25 @@ class Connection:
     async def handle(self, msg: dict[str, Any]) -> None:
         """One message from the page."""
         op = msg.get("op")
-        rid = msg.get("id")
+        rid = msg.get("req")
         try:
             if op == "join":
                 await self.join(msg)
                 return
             body = await self.question(op, msg)
             if rid is not None:
-                await self._send(dumps({"type": "reply", "id": rid, "ok": True, "body": body}))
+                await self._send(dumps({"type": "reply", "req": rid, "ok": True, "body": body}))
         except RoboCompError as e:
-            await self._send(dumps({"type": "reply" if rid is not None else "error", "id": rid, "ok": False,
+            await self._send(dumps({"type": "reply" if rid is not None else "error", "req": rid, "ok": False,
                                     "op": op, "error": {"code": e.code, "message": e.message},
                                     "message": e.message}))
+        except (WebSocketDisconnect, asyncio.CancelledError):
+            raise
+        except Exception:  # a bug must not end the browser's connection: log it, say so
+            log.exception("web: %r from a page failed", op)
+            await self._send(dumps({"type": "reply" if rid is not None else "error", "req": rid, "ok": False, "op": op,
+                                    "error": {"code": "E_INTERNAL", "message": f"the gateway failed on {op!r}"},
+                                    "message": f"the gateway failed on {op!r}; it was logged"}))
 
     async def join(self, msg: dict[str, Any]) -> None:
         """Switch this browser to the view the message asks for."""
@@ -220,7 +227,7 @@ class Connection:
         elif op == "seek":
             return {"took_ms": round(await pb.seek(msg.get("t")) * 1000, 3)}
         elif op == "picture":
-            return {"id": msg.get("id"), "png": self.gw.recording.picture(pb.view, int(msg.get("id") or 0))}
+            return {"id": msg.get("id"), "png": self.gw.recording.picture(pb.view, whole(msg, "id"))}
         elif op in ("monitor", "find"):
             return {"note": "a replay's page answers from its own state"}
         else:

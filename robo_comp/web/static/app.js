@@ -42,7 +42,7 @@ function connect() {
 function send(msg) { if (S.ws && S.ws.readyState === 1) S.ws.send(JSON.stringify(msg)); }
 function ask(op, body = {}) {
   const id = S.nextId++;
-  return new Promise((resolve, reject) => { S.pending.set(id, { resolve, reject }); send({ op, id, ...body }); });
+  return new Promise((resolve, reject) => { S.pending.set(id, { resolve, reject }); send({ ...body, op, req: id }); });
 }
 function join() {
   const msg = { op: "join" };
@@ -95,8 +95,8 @@ function receive(msg) {
       $("speed").value = String(msg.speed);
       break;
     case "reply": {
-      const p = S.pending.get(msg.id);
-      if (p) { S.pending.delete(msg.id); msg.ok ? p.resolve(msg.body) : p.reject(new Error(msg.error.message)); }
+      const p = S.pending.get(msg.req);
+      if (p) { S.pending.delete(msg.req); msg.ok ? p.resolve(msg.body) : p.reject(new Error(msg.error.message)); }
       break;
     }
     case "error":
