@@ -13,7 +13,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/robo-comp demo
+	$(BIN)/robo-comp demo --web 8080
 
 test: $(STAMP)
 	$(BIN)/python -m pytest

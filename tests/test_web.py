@@ -8,7 +8,6 @@ saying why; the protocol tests without a browser still run.
 from __future__ import annotations
 
 import json
-import os
 import re
 import shutil
 import subprocess
@@ -343,7 +342,7 @@ def test_replay_seek_lands_on_the_right_state(browser, tmp_path: Path) -> None:
                 page.evaluate("(t) => { const tl = document.getElementById('timeline'); tl.value = String(t); "
                               "tl.dispatchEvent(new Event('change')); }", at)
                 page.wait_for_function(f"() => Math.abs(robo.S.replay.t - {at}) < 0.01", timeout=10000)
-                page.wait_for_function(f"() => robo.model.robots.size > 0", timeout=10000)
+                page.wait_for_function("() => robo.model.robots.size > 0", timeout=10000)
                 got = page.evaluate("() => [robo.model.robots.get(101).x, robo.model.robots.get(101).status]")
                 # the reference: the display wall's model fed with the log's public events up to `at`
                 ref = WallModel()
@@ -548,3 +547,52 @@ def test_gateway_follows_a_core_restart(tmp_path: Path) -> None:
         if web is not None:
             stop(web)
         m.close()
+
+
+def test_public_view_filters_and_a_slow_browser_is_resynchronised() -> None:
+    """The public view's rules on logged data, and a browser that cannot keep up gets a fresh
+    state instead of an ever longer queue (pure asyncio, no processes)."""
+    import asyncio
+
+    from robo_comp.web.hub import Hub, Subscriber
+    from robo_comp.web.state import public_snapshot
+
+    assert public_event("radio", {"from": 101, "data": "secret"}) is None
+    assert public_event("task.done", {"tag": 101, "ok": True, "result": {"map": 1}, "status": "x"}) == {"tag": 101, "ok": True}
+    assert public_event("picture", {"id": 3, "tag": 101, "team": "red", "x": 1, "y": 2, "heading": 0, "t": 5.0,
+                                    "victims": ["v1"], "sha256": "ab"}) == {"id": 3, "tag": 101, "team": "red", "x": 1,
+                                                                             "y": 2, "heading": 0, "t": 5.0}
+    snap = public_snapshot({"arena": {}, "robots": [{"tag": 101, "team": "red", "robot_id": "r1", "x": 1, "y": 2,
+                                                     "heading": 0, "status": "connected", "moving": True, "queue": 2,
+                                                     "task": {"name": "goTo", "task_id": 4, "args": [3, 4]}}],
+                            "finds": [{"id": 1, "team": "red", "tag": 101, "x": 3, "y": 3, "kind": "victim",
+                                       "state": "confirmed", "evidence": [7], "verdict": {"valid": True}}]})
+    assert snap["robots"] == [{"tag": 101, "team": "red", "status": "connected", "x": 1, "y": 2, "heading": 0,
+                               "moving": True, "task": {"name": "goTo", "task_id": 4}}]
+    assert snap["finds"] == [{"id": 1, "team": "red", "tag": 101, "x": 3, "y": 3, "kind": "victim", "state": "confirmed"}]
+
+    async def scenario() -> list[str]:
+        sent: list[str] = []
+        gate = asyncio.Event()
+
+        async def slow_send(text: str) -> None:
+            await gate.wait()  # the browser reads nothing until the gate opens
+            sent.append(text)
+
+        hub = Hub("public")
+        sub = Subscriber(slow_send, limit=5)
+        hub.attach(sub)
+        task = asyncio.get_running_loop().create_task(sub.run())
+        for i in range(50):
+            hub.publish([("broadcast", {"message": f"m{i}"})])
+        assert sub.behind  # the queue overflowed: nothing more is queued for this browser
+        gate.set()
+        for _ in range(20):
+            await asyncio.sleep(0.01)
+        task.cancel()
+        return sent
+
+    sent = asyncio.run(scenario())
+    kinds = [json.loads(t)["type"] for t in sent]
+    assert kinds[-1] == "state" and len(sent) <= 3  # after the first, at most one queued message, then a state
+    assert json.loads(sent[-1])["state"]["messages"][-1]["text"] == "m49"  # the state holds the newest
