@@ -592,7 +592,7 @@ def test_public_view_filters_and_a_slow_browser_is_resynchronised() -> None:
         task.cancel()
         return sent
 
-    sent = asyncio.run(scenario())
+    sent = in_thread(lambda: asyncio.run(scenario()))
     kinds = [json.loads(t)["type"] for t in sent]
     assert kinds[-1] == "state" and len(sent) <= 3  # after the first, at most one queued message, then a state
     assert json.loads(sent[-1])["state"]["messages"][-1]["text"] == "m49"  # the state holds the newest
