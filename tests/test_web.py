@@ -362,6 +362,13 @@ def test_replay_seek_lands_on_the_right_state(browser, tmp_path: Path) -> None:
             dpr = page.evaluate("() => robo.renderer.dpr")
             assert n > 10 and abs(cx / dpr - sx) < 4 and abs(cy / dpr - sy) < 4
             page.screenshot(path=str(tmp_path / "replay.png"))
+            # a paused replay is idle: the page stops drawing (no battery spent on equal frames)
+            idle = page.evaluate("""() => new Promise(ok => {
+              const d0 = robo.S.stats.drawn, f0 = robo.S.stats.frames;
+              const wait = () => robo.S.stats.frames - f0 >= 20 ? ok(robo.S.stats.drawn - d0) : requestAnimationFrame(wait);
+              requestAnimationFrame(wait);
+            })""")
+            assert idle == 0
             assert not page.errors
         finally:
             page.close()

@@ -333,12 +333,14 @@ function frame() {
     const r = model.robots.get(S.follow);
     if (r) { const [x, y] = r.pose(t); renderer.camera.centreOn(x, y, renderer.w, renderer.h); }
   }
-  const t0 = performance.now();
-  renderer.draw(t);
-  const took = performance.now() - t0;
-  st.drawMs += took;
-  st.draws.push(took); if (st.draws.length > 2000) st.draws.shift();
-  st.drawn++;
+  if (renderer.needsDraw(t)) {
+    const t0 = performance.now();
+    renderer.draw(t);
+    const took = performance.now() - t0;
+    st.drawMs += took;
+    st.draws.push(took); if (st.draws.length > 2000) st.draws.shift();
+    st.drawn++;
+  }
   if (t - S.lastHud > 0.25) { S.lastHud = t; hud(); }
   requestAnimationFrame(frame);
 }

@@ -64,6 +64,7 @@ export class Model {
     this.messages = [];
     this.version = 0;
     this.events = 0;
+    this.animUntil = 0;  // robots glide until then (the page draws every frame until then)
   }
 
   colour(team) {
@@ -74,7 +75,9 @@ export class Model {
   // A `state` message's body; `t` is the match-clock time it was true at.
   load(s, t) {
     const keepArena = this.arena && s.arena && this.arena.map === s.arena.map ? this.arena : null;
+    const version = this.version;
     this.reset();
+    this.version = version;  // never goes back: the page redraws on every change of it
     this.arena = keepArena || s.arena;
     for (const [tag, team, x, y, h, status, moving, task] of s.robots || []) {
       const r = this.robot(tag, team);
@@ -150,6 +153,7 @@ const HANDLERS = {
       const r = m.robot(tags[i], d.team);
       r.moveTo(+xs[i], +ys[i], +hs[i], animate);
       r.moving = mv ? !!mv[i] : true;
+      if (r.t0 + r.dur > m.animUntil) m.animUntil = r.t0 + r.dur;
     }
   },
   "robot.registered": (m, d) => {
@@ -164,6 +168,7 @@ const HANDLERS = {
     const r = m.robot(d.tag, d.team);
     r.moving = false; r.task = null;
     if (d.x != null && d.y != null) r.moveTo(+d.x, +d.y, r.h, true);
+    if (r.t0 + r.dur > m.animUntil) m.animUntil = r.t0 + r.dur;
   },
   "disqualified": (m, d, t) => {
     for (const tag of d.tags || []) m.robot(tag).status = "disqualified";

@@ -35,6 +35,20 @@ export class Renderer {
     this.selectedThing = null; // thing key
     this.trails = true;
     this.w = 0; this.h = 0; this.dpr = 1;
+    this.dirty = true;   // something not in the model changed (the map image came, a selection)
+    this.drawnKey = "";
+  }
+
+  // Whether a frame at time `t` would differ from the last one drawn: the model changed, the
+  // camera moved, a selection changed or robots are still gliding. An idle page draws nothing.
+  needsDraw(t) {
+    const c = this.camera;
+    const key = `${this.model.version}|${c.scale}|${c.ox}|${c.oy}|${this.w}|${this.h}|${this.selected}|${this.selectedThing}`;
+    if (this.dirty || key !== this.drawnKey || t <= this.model.animUntil + 0.05) {
+      this.dirty = false; this.drawnKey = key;
+      return true;
+    }
+    return false;
   }
 
   resize() {
@@ -61,7 +75,8 @@ export class Renderer {
       this.img = new Image();
       this.img.src = a.map;
     }
-    return this.img.complete ? this.img : null;
+    if (!this.img.complete) { this.img.onload = () => { this.dirty = true; }; return null; }
+    return this.img;
   }
 
   // Draw one frame at animation time `t` (seconds, performance clock).
