@@ -23,7 +23,7 @@ pytest.importorskip("starlette", reason="the web extra is not installed (pip ins
 
 from conftest import wait_for, wait_robots
 from robo_comp.core.eventlog import EventLog
-from robo_comp.testing import start_match
+from robo_comp.testing import Match, start_match
 from robo_comp.wall.model import WallModel
 from robo_comp.web.state import public_event
 from robo_comp.world.public import arena_payload
@@ -603,3 +603,52 @@ def test_public_view_filters_and_a_slow_browser_is_resynchronised() -> None:
     kinds = [json.loads(t)["type"] for t in sent]
     assert kinds[-1] == "state" and len(sent) <= 3  # after the first, at most one queued message, then a state
     assert json.loads(sent[-1])["state"]["messages"][-1]["text"] == "m49"  # the state holds the newest
+
+
+def test_gateway_on_a_curve_core(tmp_path: Path) -> None:
+    """With CurveZMQ the gateway's session and its SUB socket use the referee's keys (found in the
+    state folder), and a team's private view opens with that team's key (no browser needed)."""
+    import asyncio
+
+    import websockets
+
+    from robo_comp.launch import start_core
+
+    state = tmp_path / "state"
+    subprocess.run([sys.executable, "-m", "robo_comp.cli", "keys", "--state", str(state), "--teams", "red,blue"],
+                   check=True, capture_output=True, timeout=60)
+    core = start_core(state, "--heartbeat", "0.2", "--teams", "red,blue", "--curve")
+    m = Match(state, None, core)
+    web = None
+    try:
+        m.robots("red", 1, "--curve-cert", str(state / "keys" / "red.key_secret"),
+                 "--core-key", str(state / "keys" / "core.key"))
+        web, url = start_web("--core", str(state))
+
+        async def talk() -> tuple[dict[str, Any], dict[str, Any]]:
+            async with websockets.connect(url.replace("http", "ws") + "ws") as ws:
+                await ws.recv()
+                await ws.send(json.dumps({"op": "join"}))
+                deadline = time.monotonic() + 30
+                public = None
+                while time.monotonic() < deadline:
+                    msg = json.loads(await asyncio.wait_for(ws.recv(), 30))
+                    if msg["type"] == "ev" and any(t == "robot.positions" for t, *_ in msg["e"]):
+                        public = msg
+                        break
+                    if msg["type"] == "state" and msg["state"]["robots"]:
+                        public = msg
+                        break
+                await ws.send(json.dumps({"op": "join", "token": m.token("blue")}))
+                while True:
+                    msg = json.loads(await asyncio.wait_for(ws.recv(), 30))
+                    if msg["type"] in ("state", "error"):
+                        return public, msg
+
+        public, blue = in_thread(lambda: asyncio.run(talk()))
+        assert public is not None  # red's robot reached the page through the CURVE PUB feed
+        assert blue["type"] == "state" and blue["view"]["name"] == "blue" and blue["state"]["robots"] == []
+    finally:
+        if web is not None:
+            stop(web)
+        m.close()
