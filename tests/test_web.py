@@ -121,7 +121,7 @@ def live(tmp_path_factory: pytest.TempPathFactory):
         for c, goals in ((red, [(5, 12), (6, 12)]), (blue, [(16, 13), (17, 13)])):
             for row, goal in zip(c.robots(), goals):
                 c.give(row["tag"], "goTo", list(goal))
-        web, url = start_web("--core", str(state))
+        web, url = start_web("--core", str(state), "--view-token-file", str(m.token_file("red")))
         yield m, url
     finally:
         if web is not None:
@@ -274,6 +274,30 @@ def test_private_view_shows_nothing_of_the_other_team(browser, live, tmp_path: P
         assert not page.errors
     finally:
         page.close()
+
+
+def test_a_view_the_server_offers(live) -> None:
+    """``--view-token-file``: the server offers red's private view by name; other names are refused."""
+    import asyncio
+
+    import websockets
+
+    m, url = live
+
+    async def talk() -> list[dict[str, Any]]:
+        out = []
+        async with websockets.connect(url.replace("http", "ws") + "ws") as ws:
+            out.append(json.loads(await ws.recv()))
+            for view in ("blue", "red"):
+                await ws.send(json.dumps({"op": "join", "view": view}))
+                out.append(json.loads(await ws.recv()))
+        return out
+
+    hello, blue, red = in_thread(lambda: asyncio.run(talk()))
+    assert hello["views"] == ["red"]
+    assert blue["type"] == "error" and "no view 'blue'" in blue["message"]
+    assert red["type"] == "state" and red["view"]["name"] == "red" and red["view"]["kind"] == "private"
+    assert red["state"]["robots"] and {r[1] for r in red["state"]["robots"]} == {"red"}
 
 
 def test_phone_layout(browser, live, tmp_path: Path) -> None:
