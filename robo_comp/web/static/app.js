@@ -100,12 +100,19 @@ function receive(msg) {
       break;
     }
     case "error":
-      if (msg.op === "join" && S.token) {  // a refused token: back to the public view
+      if (msg.op !== "join") status(msg.message, 6);
+      else if (S.token) {  // a refused token: back to the public view
         S.token = ""; sessionStorage.removeItem("robo_comp.token");
         $("token-error").textContent = msg.message;
         if (!$("token-dialog").open) $("token-dialog").showModal();
         join();
-      } else status(msg.message, 6);
+      } else if (params.get("view")) {  // a view this server does not offer
+        params.delete("view"); history.replaceState(null, "", "#" + params);
+        status(msg.message, 8); join();
+      } else {  // the core is not there yet: try again
+        status(msg.message);
+        setTimeout(join, 2000);
+      }
       break;
   }
 }
