@@ -300,6 +300,13 @@ def test_a_view_the_server_offers(live) -> None:
     assert red["state"]["robots"] and {r[1] for r in red["state"]["robots"]} == {"red"}
 
 
+def test_a_wrong_gateway_token_is_refused_at_start(live) -> None:
+    m, _ = live
+    r = subprocess.run([sys.executable, "-m", "robo_comp.cli", "web", "--core", str(m.state), "--token", "nope",
+                        "--port", "0"], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2 and r.stderr.startswith("robo-comp web: ") and "token" in r.stderr
+
+
 def test_phone_layout(browser, live, tmp_path: Path) -> None:
     m, url = live
     page = open_page(browser, url, width=390, height=844)

@@ -65,8 +65,27 @@ def _gateway(args: argparse.Namespace) -> Any:
     views: dict[str, str] = {}
     for f in args.view_token_file:
         views[Path(f).stem] = read_token(None, f)
-    return LiveGateway(args.core, read_token(args.token, token_file), private_tokens=views,
-                       curve_cert=args.curve_cert, core_key=args.core_key)
+    token = read_token(args.token, token_file)
+    _check_token(args, token)
+    return LiveGateway(args.core, token, private_tokens=views, curve_cert=args.curve_cert, core_key=args.core_key)
+
+
+def _check_token(args: argparse.Namespace, token: str) -> None:
+    """Say hello once before serving: a refused token is an error now, not on every page; a core
+    that is not up yet is only a warning (the gateway keeps trying)."""
+    from robo_comp.client import Client
+    from robo_comp.errors import TimeoutError_
+
+    try:
+        Client(args.core, token, client="web", timeout=2.0, curve_cert=args.curve_cert,
+               core_key=args.core_key).close()
+    except TimeoutError_ as e:
+        print(f"robo-comp web: warning: {e.message} The gateway keeps trying; pages say so meanwhile.",
+              file=sys.stderr)
+    except FieldError as e:
+        if "neither a URL" not in e.message:  # no core.json yet: the core may start later
+            raise
+        print(f"robo-comp web: warning: {e.message}; the gateway keeps looking for it", file=sys.stderr)
 
 
 def run(args: argparse.Namespace) -> int:
