@@ -141,6 +141,18 @@ def open_page(browser, url: str, *, width: int = 1280, height: int = 800, frames
     return page
 
 
+def drive_far(c: Any) -> None:
+    """Give each of the client's robots a goTo to the free cell farthest from where it is (so it
+    drives for seconds whatever it did before)."""
+    from robo_comp.world.public import unpack_walls
+
+    walls = unpack_walls(c.arena())
+    free = [(x, y) for y in range(walls.shape[0]) for x in range(walls.shape[1]) if not walls[y, x]]
+    for i, r in enumerate(c.robots()):
+        far = sorted(free, key=lambda p: -(abs(p[0] - r["x"]) + abs(p[1] - r["y"])))
+        c.give(r["tag"], "goTo", list(far[i]))
+
+
 COLOUR_PIXELS = """(hex) => {
   const c = document.getElementById('map');
   const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
@@ -174,6 +186,8 @@ def test_live_robots_move_on_the_canvas(browser, live, tmp_path: Path) -> None:
         assert view["kind"] == "public"
         before = {team: pixels(page, team) for team in ("red", "blue")}
         assert before["red"][0] > 20 and before["blue"][0] > 20, before  # robots drawn in team colours
+        drive_far(m.client("red"))
+        drive_far(m.client("blue"))
 
         def moved() -> bool:
             now = {team: pixels(page, team) for team in ("red", "blue")}
@@ -236,6 +250,7 @@ def test_private_view_shows_nothing_of_the_other_team(browser, live, tmp_path: P
         start = len(frames)
         assert page.inner_text("#view-label").startswith("red")
         blue_before = {r["tag"]: (r["x"], r["y"]) for r in m.client("blue").robots()}
+        drive_far(m.client("blue"))
         # blue keeps driving while red's page watches
         wait_for(lambda: any(abs(r["x"] - blue_before[r["tag"]][0]) + abs(r["y"] - blue_before[r["tag"]][1]) > 0.5
                              for r in m.client("blue").robots()), 20, "blue's robots to move")
