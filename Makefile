@@ -9,11 +9,11 @@ STAMP := $(VENV)/.installed
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test,bench]'
+	$(BIN)/python -m pip install --quiet -e '.[test,bench,web]'
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/robo-comp demo
+	$(BIN)/robo-comp demo --web 8080
 
 test: $(STAMP)
 	$(BIN)/python -m pytest

@@ -88,7 +88,8 @@ def _replay(args: argparse.Namespace) -> int:
 def _demo(args: argparse.Namespace) -> int:
     from robo_comp.demo import run_demo
 
-    return run_demo(duration=args.duration, robots=args.robots)
+    duration = args.duration if args.duration is not None else (120.0 if args.web is not None else 20.0)
+    return run_demo(duration=duration, robots=args.robots, web=args.web)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -163,8 +164,10 @@ def build_parser() -> argparse.ArgumentParser:
     rp.set_defaults(func=_replay)
 
     d = sub.add_parser("demo", help="run a demo match on localhost (what 'make demo' runs)")
-    d.add_argument("--duration", type=float, default=20.0, help="seconds of match")
+    d.add_argument("--duration", type=float, help="seconds of match (default 20; 120 with --web)")
     d.add_argument("--robots", type=int, default=3, help="robots per team")
+    d.add_argument("--web", type=int, metavar="PORT",
+                   help="also show the match in a browser: serve the page on this port (see docs/web.md)")
     d.set_defaults(func=_demo)
 
     plan_cli.add_parser(sub)
@@ -179,6 +182,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     tui_cli.add_parsers(sub)
     wall_cli.add_parser(sub)
+    from robo_comp.web import cli as web_cli
+
+    web_cli.add_parser(sub)
     return parser
 
 

@@ -25,8 +25,27 @@ def _free_cells(walls: Any) -> list[tuple[int, int]]:
     return [(x, y) for y in range(h) for x in range(w) if not walls[y, x]]
 
 
-def run_demo(duration: float = 20.0, robots: int = 3, out: Any = None) -> int:
-    """Run the demo match; prints a live summary and a final table; returns 0 on success."""
+def _start_web(state: Path, port: int, out: Any) -> Any:
+    """The web gateway on the demo's core (``--web PORT``); prints the URL to open."""
+    from robo_comp.launch import _spawn
+
+    proc = _spawn(["web", "--core", str(state), "--port", str(port)], state / "web.log")
+    t_end = time.monotonic() + 15
+    while time.monotonic() < t_end and proc.poll() is None:
+        text = (state / "web.log").read_text(errors="replace") if (state / "web.log").exists() else ""
+        if "http://" in text:
+            url = text.split("http://", 1)[1].split()[0]
+            print(f"demo: watch the match in a browser: http://{url}", file=out)
+            return proc
+        time.sleep(0.1)
+    log = (state / "web.log").read_text(errors="replace")[-500:] if (state / "web.log").exists() else ""
+    print(f"demo: the web gateway did not start: {log}", file=out)
+    return proc
+
+
+def run_demo(duration: float = 20.0, robots: int = 3, out: Any = None, web: int | None = None) -> int:
+    """Run the demo match; prints a live summary and a final table; returns 0 on success.
+    ``web``: also serve the match on a page at this port (0: a free one)."""
     out = out or sys.stdout
     rng = random.Random(7)
     with tempfile.TemporaryDirectory(prefix="robo-comp-demo-") as tmp:
@@ -35,6 +54,8 @@ def run_demo(duration: float = 20.0, robots: int = 3, out: Any = None) -> int:
         procs = [core]
         try:
             teams = json.loads((state / "core.json").read_text())["teams"][:2]
+            if web is not None:
+                procs.append(_start_web(state, web, out))
             procs += [start_robots(state, t, robots) for t in teams]
             clients = {t: Client(str(state), (state / "teams" / f"{t}.token").read_text().strip(),
                                  client="demo") for t in teams}

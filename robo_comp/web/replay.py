@@ -1,0 +1,263 @@
+"""Recorded matches in the browser: views of an event log with keyframes, played per browser.
+
+A :class:`Recording` reads a core's ``STATE/events.log`` once. Each view of it (the public view,
+or a team's or the referee's when a browser gives a token of the recorded match, found beside
+the log) is a :class:`RecordingView`: the events that view may see, each serialised once, and a
+**keyframe** (the whole state, as the page's ``state`` message holds it) every
+:data:`KEYFRAME_EVERY` seconds of the recording. A seek takes the keyframe at or before the time
+and the events from there to the time: it never replays from the start, whatever the length
+of the match. Every browser has its own :class:`Playback` (play, pause, speed, position).
+"""
+from __future__ import annotations
+
+import asyncio
+import bisect
+import contextlib
+import hmac
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from robo_comp.core.competition import EVERYONE
+from robo_comp.errors import AuthError, FieldError
+from robo_comp.scoring.replay import read_recording
+from robo_comp.wall.model import WallModel
+from robo_comp.web.state import TaskNames, jsonable, map_png, public_event, state_json
+
+#: Seconds of recording between two keyframes.
+KEYFRAME_EVERY = 10.0
+#: Replay speeds a page may choose.
+SPEEDS = (0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0)
+#: Seconds between two sends of a playing replay.
+TICK = 0.05
+
+
+def _dump(obj: Any) -> str:
+    try:
+        return json.dumps(obj, separators=(",", ":"), allow_nan=False)
+    except (TypeError, ValueError):
+        return json.dumps(jsonable(obj), separators=(",", ":"))
+
+
+@dataclass
+class RecordingView:
+    """One view of a recording: its events (JSON fragments) and keyframes."""
+
+    name: str
+    kind: str
+    times: list[float] = field(default_factory=list)
+    frags: list[str] = field(default_factory=list)
+    key_times: list[float] = field(default_factory=list)
+    key_index: list[int] = field(default_factory=list)  # events applied before each keyframe
+    key_json: list[str] = field(default_factory=list)
+    pictures: dict[int, str | None] = field(default_factory=dict)  # picture id -> its team
+
+    def seek_text(self, at: float, duration: float) -> str:
+        """The ``state`` message of the moment ``at``: the keyframe before it plus the events after."""
+        at = min(max(0.0, at), duration)
+        k = max(0, bisect.bisect_right(self.key_times, at) - 1)
+        i = self.key_index[k]
+        j = bisect.bisect_right(self.times, at)
+        info = _dump({"name": self.name, "kind": self.kind})
+        return (f'{{"type":"state","live":false,"view":{info},"t":{at:.3f},"duration":{duration:.3f},'
+                f'"state":{self.key_json[k]},"after":[{",".join(self.frags[i:j])}]}}')
+
+    def between(self, a: float, b: float) -> str:
+        """The events in ``(a, b]`` as a JSON list's inside."""
+        i = bisect.bisect_right(self.times, a)
+        j = bisect.bisect_right(self.times, b)
+        return ",".join(self.frags[i:j])
+
+
+class Recording:
+    """A match's event log, its views (built on first use) and the tokens beside it."""
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        self.records, _ = read_recording(self.path)
+        self.t0 = self.records[0].t if self.records else 0.0
+        self.duration = self.records[-1].t - self.t0 if self.records else 0.0
+        self.tokens = _tokens_beside(self.path)
+        self._views: dict[str, RecordingView] = {}
+        self._lock = asyncio.Lock()
+
+    def view_for_token(self, token: str) -> str:
+        """The view a token of the recorded match opens (a team's name or ``referee``)."""
+        for name, tok in self.tokens.items():
+            if hmac.compare_digest(tok.encode(), token.strip().encode()):
+                return name
+        raise AuthError("this token is not one of the recorded match's (they are read from the teams/ folder "
+                        "and referee.token beside the log)")
+
+    async def view(self, name: str = "public") -> RecordingView:
+        """The view ``name`` (``public``, a team or ``referee``), built once in a worker thread."""
+        async with self._lock:
+            v = self._views.get(name)
+            if v is None:
+                v = self._views[name] = await asyncio.to_thread(self.build, name)
+            return v
+
+    def build(self, name: str) -> RecordingView:
+        """Filter the records for the view and make its keyframes."""
+        kind = "public" if name == "public" else "private"
+        v = RecordingView(name, kind)
+        now = [0.0]
+        model = WallModel(clock=lambda: now[0])
+        model.replay = True
+        tasks = TaskNames()
+        team_of: dict[int, str | None] = {}
+        maps: dict[int, str] = {}
+        next_key = 0.0
+        for rec in self.records:
+            t = rec.t - self.t0
+            while t > next_key and model.arena is not None:
+                self._keyframe(v, model, tasks, maps, next_key, now)
+                next_key += KEYFRAME_EVERY
+            if rec.topic == "robot.registered":
+                team_of[rec.data.get("tag")] = rec.data.get("team")
+            if rec.topic == "picture" and isinstance(rec.data.get("id"), int):
+                v.pictures[rec.data["id"]] = rec.data.get("team") or rec.team
+            data = self._filter(name, rec.topic, rec.team, rec.data, team_of)
+            if data is None:
+                continue
+            now[0] = t
+            model.apply(rec.topic, data)
+            tasks.apply(rec.topic, data)
+            if rec.topic == "core.started":
+                continue  # the page gets the arena from a keyframe
+            v.times.append(t)
+            v.frags.append(_dump([rec.topic, data, round(t, 3)]))
+        while model.arena is not None and (not v.key_times or next_key <= self.duration):
+            self._keyframe(v, model, tasks, maps, next_key, now)
+            next_key += KEYFRAME_EVERY
+        if not v.key_times:
+            raise FieldError(f"{self.path}: the log holds no arena to show")
+        return v
+
+    def _keyframe(self, v: RecordingView, model: WallModel, tasks: TaskNames, maps: dict[int, str],
+                  at: float, now: list[float]) -> None:
+        if model.arena_version not in maps:
+            maps[model.arena_version] = map_png(model)
+        keep = now[0]
+        now[0] = at
+        v.key_times.append(at)
+        v.key_index.append(len(v.frags))
+        v.key_json.append(_dump(state_json(model, at, map_url=maps[model.arena_version], tasks=tasks.names)))
+        now[0] = keep
+
+    @staticmethod
+    def _filter(view: str, topic: str, team: str | None, data: dict[str, Any],
+                team_of: dict[int, str | None]) -> dict[str, Any] | None:
+        if view == "public":
+            return public_event(topic, data)
+        if view == "referee" or topic == "core.started":
+            return data
+        if topic == "robot.positions" and team is None:  # the log's batch holds every team's robots
+            keep = [i for i, tag in enumerate(data.get("tags") or []) if team_of.get(tag) == view]
+            if not keep:
+                return None
+            return {k: ([v[i] for i in keep] if isinstance(v, list) else v) for k, v in data.items()}
+        return data if team in (view, EVERYONE) else None
+
+    def picture(self, view: RecordingView, pid: int) -> str:
+        """Picture ``pid`` as a data URL, if the view may see it and it is beside the log."""
+        if view.kind == "public" or (view.name != "referee" and view.pictures.get(pid) != view.name):
+            raise FieldError("pictures belong to the team that took them: enter that team's token to see them")
+        p = self.path.parent / "pictures" / f"{int(pid)}.png"
+        if not p.is_file():
+            raise FieldError(f"picture {pid} is not beside this log (pictures/{pid}.png)")
+        import base64
+
+        return "data:image/png;base64," + base64.b64encode(p.read_bytes()).decode()
+
+
+def _tokens_beside(log: Path) -> dict[str, str]:
+    out: dict[str, str] = {}
+    with contextlib.suppress(OSError):
+        if (log.parent / "referee.token").is_file():
+            out["referee"] = (log.parent / "referee.token").read_text().strip()
+        for p in sorted((log.parent / "teams").glob("*.token")):
+            out[p.stem] = p.read_text().strip()
+    return {k: v for k, v in out.items() if v}
+
+
+class Playback:
+    """One browser's replay: its view, position, speed and whether it plays."""
+
+    def __init__(self, recording: Recording, send: Any) -> None:
+        self.rec = recording
+        self.send = send  # async callable(text)
+        self.view: RecordingView | None = None
+        self.at = 0.0
+        self.speed = 1.0
+        self.playing = False
+        self._task: asyncio.Task[None] | None = None
+
+    async def open(self, view: RecordingView, at: float, *, play: bool, speed: float) -> None:
+        """Show ``view`` from ``at`` seconds."""
+        self.view = view
+        self.set_speed(speed)
+        await self.seek(at)
+        if play:
+            await self.play()
+
+    def set_speed(self, speed: Any) -> None:
+        """0.25× to 16× (other values are refused)."""
+        if isinstance(speed, bool) or not isinstance(speed, (int, float)) or not 0.25 <= speed <= 16:
+            raise FieldError(f"the replay speed must be between 0.25 and 16, not {speed!r}")
+        self.speed = float(speed)
+
+    async def seek(self, at: Any) -> float:
+        """Jump to ``at`` seconds; returns how long building the message took (seconds)."""
+        if isinstance(at, bool) or not isinstance(at, (int, float)) or at != at:
+            raise FieldError("'t' must be a number of seconds into the match")
+        assert self.view is not None
+        t = time.perf_counter()
+        self.at = min(max(0.0, float(at)), self.rec.duration)
+        text = self.view.seek_text(self.at, self.rec.duration)
+        took = time.perf_counter() - t
+        await self.send(text)
+        await self._clock()
+        return took
+
+    async def play(self) -> None:
+        """Play from the current position (from the start when at the end)."""
+        if self.at >= self.rec.duration:
+            await self.seek(0.0)
+        self.playing = True
+        if self._task is None or self._task.done():
+            self._task = asyncio.get_running_loop().create_task(self._run())
+        await self._clock()
+
+    async def pause(self) -> None:
+        """Stop where it is."""
+        self.playing = False
+        await self._clock()
+
+    async def _clock(self) -> None:
+        await self.send(_dump({"type": "clock", "t": round(self.at, 3), "playing": self.playing,
+                               "speed": self.speed, "duration": self.rec.duration}))
+
+    async def _run(self) -> None:
+        last = time.monotonic()
+        while self.playing and self.view is not None:
+            await asyncio.sleep(TICK)
+            now = time.monotonic()
+            new = min(self.rec.duration, self.at + (now - last) * self.speed)
+            last = now
+            if not self.playing:
+                break
+            chunk = self.view.between(self.at, new)
+            self.at = new
+            await self.send(f'{{"type":"ev","t":{new:.3f},"e":[{chunk}]}}')
+            if new >= self.rec.duration:
+                self.playing = False
+                await self._clock()
+
+    def close(self) -> None:
+        """Stop playing."""
+        self.playing = False
+        if self._task is not None:
+            self._task.cancel()

@@ -1,0 +1,258 @@
+// The canvas: the map image scaled up, trails, finds and robots, drawn for a camera that can
+// zoom, pan, fit the window and follow a robot. Robots are drawn in one path per team colour,
+// so a thousand robots cost a handful of canvas calls.
+
+const FIND_COLOURS = { reported: "#fac828", confirmed: "#28be46", rejected: "#dc2828", duplicate: "#969696" };
+const BG = "#0c0c10";
+
+export class Camera {
+  constructor() { this.scale = 10; this.ox = 0; this.oy = 0; this.fitted = true; }
+  toScreen(x, y) { return [this.ox + x * this.scale, this.oy + y * this.scale]; }
+  toWorld(sx, sy) { return [(sx - this.ox) / this.scale, (sy - this.oy) / this.scale]; }
+  fit(w, h, aw, ah) {
+    this.scale = Math.max(0.05, Math.min(w / aw, h / ah) * 0.96);
+    this.ox = (w - aw * this.scale) / 2; this.oy = (h - ah * this.scale) / 2;
+    this.fitted = true;
+  }
+  zoomAt(sx, sy, f) {
+    const s = Math.min(400, Math.max(0.05, this.scale * f));
+    const [wx, wy] = this.toWorld(sx, sy);
+    this.scale = s; this.ox = sx - wx * s; this.oy = sy - wy * s;
+    this.fitted = false;
+  }
+  pan(dx, dy) { this.ox += dx; this.oy += dy; this.fitted = false; }
+  centreOn(x, y, w, h) { this.ox = w / 2 - (x + 0.5) * this.scale; this.oy = h / 2 - (y + 0.5) * this.scale; }
+}
+
+export class Renderer {
+  constructor(canvas, model) {
+    this.canvas = canvas;
+    this.ctx = canvas.getContext("2d", { alpha: false });
+    this.model = model;
+    this.camera = new Camera();
+    this.img = null; this.imgSrc = "";
+    this.selected = null;     // robot tag
+    this.selectedThing = null; // thing key
+    this.trails = true;
+    this.w = 0; this.h = 0; this.dpr = 1;
+    this.dirty = true;   // something not in the model changed (the map image came, a selection)
+    this.drawnKey = "";
+  }
+
+  // Whether a frame at time `t` would differ from the last one drawn: the model changed, the
+  // camera moved, a selection changed or robots are still gliding. An idle page draws nothing.
+  needsDraw(t) {
+    const c = this.camera;
+    const key = `${this.model.version}|${c.scale}|${c.ox}|${c.oy}|${this.w}|${this.h}|${this.selected}|${this.selectedThing}`;
+    if (this.dirty || key !== this.drawnKey || t <= this.model.animUntil + 0.05) {
+      this.dirty = false; this.drawnKey = key;
+      return true;
+    }
+    return false;
+  }
+
+  resize() {
+    const dpr = window.devicePixelRatio || 1;
+    const w = this.canvas.clientWidth, h = this.canvas.clientHeight;
+    if (w === this.w && h === this.h && dpr === this.dpr) return false;
+    this.w = w; this.h = h; this.dpr = dpr;
+    this.canvas.width = Math.max(1, Math.round(w * dpr));
+    this.canvas.height = Math.max(1, Math.round(h * dpr));
+    if (this.camera.fitted) this.fit();
+    return true;
+  }
+
+  fit() {
+    const a = this.model.arena;
+    if (a) this.camera.fit(this.w, this.h, a.width, a.height);
+  }
+
+  mapImage() {
+    const a = this.model.arena;
+    if (!a || !a.map) return null;
+    if (this.imgSrc !== a.map) {
+      this.imgSrc = a.map;
+      this.img = new Image();
+      this.img.src = a.map;
+    }
+    if (!this.img.complete) { this.img.onload = () => { this.dirty = true; }; return null; }
+    return this.img;
+  }
+
+  // Draw one frame at animation time `t` (seconds, performance clock).
+  draw(t) {
+    const ctx = this.ctx, m = this.model, cam = this.camera, s = cam.scale;
+    ctx.setTransform(this.dpr, 0, 0, this.dpr, 0, 0);
+    ctx.fillStyle = BG;
+    ctx.fillRect(0, 0, this.w, this.h);
+    const a = m.arena;
+    if (!a) return;
+    const img = this.mapImage();
+    ctx.imageSmoothingEnabled = false;
+    if (img) ctx.drawImage(img, cam.ox, cam.oy, a.width * s, a.height * s);
+    if (s >= 14) this.grid(a);
+    // known objects
+    ctx.fillStyle = "#785432";
+    for (const o of a.objects || []) {
+      const [x, y] = cam.toScreen(+o.x + 0.2, +o.y + 0.2);
+      ctx.fillRect(x, y, Math.max(2, 0.6 * s), Math.max(2, 0.6 * s));
+    }
+    const robots = [...m.robots.values()];
+    if (this.trails && robots.length <= 400) this.drawTrails(robots);
+    this.drawThings();
+    this.drawRobots(robots, t);
+  }
+
+  grid(a) {
+    const ctx = this.ctx, cam = this.camera, s = cam.scale;
+    ctx.strokeStyle = "rgba(0,0,0,0.08)";
+    ctx.lineWidth = 1;
+    ctx.beginPath();
+    const x0 = Math.max(0, Math.floor(-cam.ox / s)), x1 = Math.min(a.width, Math.ceil((this.w - cam.ox) / s));
+    const y0 = Math.max(0, Math.floor(-cam.oy / s)), y1 = Math.min(a.height, Math.ceil((this.h - cam.oy) / s));
+    for (let x = x0; x <= x1; x++) { const sx = Math.round(cam.ox + x * s) + 0.5; ctx.moveTo(sx, cam.oy + y0 * s); ctx.lineTo(sx, cam.oy + y1 * s); }
+    for (let y = y0; y <= y1; y++) { const sy = Math.round(cam.oy + y * s) + 0.5; ctx.moveTo(cam.ox + x0 * s, sy); ctx.lineTo(cam.ox + x1 * s, sy); }
+    ctx.stroke();
+  }
+
+  drawTrails(robots) {
+    const ctx = this.ctx, cam = this.camera, s = cam.scale;
+    const byTeam = new Map();
+    for (const r of robots) {
+      if (r.trail.length < 4 || r.status === "left") continue;
+      if (!byTeam.has(r.team)) byTeam.set(r.team, []);
+      byTeam.get(r.team).push(r);
+    }
+    ctx.lineWidth = Math.max(1, s * 0.12);
+    ctx.globalAlpha = 0.35;
+    for (const [team, rs] of byTeam) {
+      ctx.strokeStyle = this.model.colour(team);
+      ctx.beginPath();
+      for (const r of rs) {
+        const tr = r.trail;
+        ctx.moveTo(cam.ox + (tr[0] + 0.5) * s, cam.oy + (tr[1] + 0.5) * s);
+        for (let i = 2; i < tr.length; i += 2) ctx.lineTo(cam.ox + (tr[i] + 0.5) * s, cam.oy + (tr[i + 1] + 0.5) * s);
+      }
+      ctx.stroke();
+    }
+    ctx.globalAlpha = 1;
+  }
+
+  drawThings() {
+    const ctx = this.ctx, cam = this.camera, s = cam.scale;
+    const r = Math.max(5, s * 0.45);
+    for (const [key, th] of this.model.things) {
+      const cx = cam.ox + (th.x + 0.5) * s, cy = cam.oy + (th.y + 0.5) * s;
+      if (cx < -20 || cy < -20 || cx > this.w + 20 || cy > this.h + 20) continue;
+      ctx.beginPath();
+      if (th.kind === "find") {
+        ctx.moveTo(cx, cy - r); ctx.lineTo(cx + r, cy); ctx.lineTo(cx, cy + r); ctx.lineTo(cx - r, cy); ctx.closePath();
+        ctx.fillStyle = FIND_COLOURS[th.state] || FIND_COLOURS.reported;
+      } else if (th.kind === "picture") {
+        const q = r * 0.6;
+        ctx.rect(cx - q, cy - q * 0.75, 2 * q, 1.5 * q);
+        ctx.fillStyle = "#7ab8ff";
+      } else {
+        ctx.arc(cx, cy, r * 0.7, 0, Math.PI * 2);
+        ctx.fillStyle = "#ff8c00";
+      }
+      ctx.fill();
+      ctx.lineWidth = key === this.selectedThing ? 3 : 1.2;
+      ctx.strokeStyle = key === this.selectedThing ? "#ffffff" : "#141418";
+      ctx.stroke();
+    }
+  }
+
+  drawRobots(robots, t) {
+    const ctx = this.ctx, cam = this.camera, s = cam.scale, m = this.model;
+    const rad = Math.max(3, s * 0.42);
+    const groups = new Map();
+    const lost = [], gone = [], dq = [];
+    const poses = new Map();
+    const W = this.w + rad, H = this.h + rad;
+    for (const r of robots) {
+      const [x, y, h] = r.pose(t);
+      const cx = cam.ox + (x + 0.5) * s, cy = cam.oy + (y + 0.5) * s;
+      if (cx < -rad || cy < -rad || cx > W || cy > H) continue;
+      poses.set(r.tag, [cx, cy, h]);
+      const key = r.status === "left" ? "#5a5a64" : r.team;
+      if (!groups.has(key)) groups.set(key, []);
+      groups.get(key).push(r);
+      if (r.status === "lost") lost.push(r);
+      else if (r.status === "left") gone.push(r);
+      else if (r.status === "disqualified") dq.push(r);
+    }
+    // bodies, one path per colour
+    for (const [key, rs] of groups) {
+      ctx.fillStyle = key === "#5a5a64" ? key : m.colour(key);
+      ctx.beginPath();
+      for (const r of rs) {
+        const [cx, cy] = poses.get(r.tag);
+        ctx.moveTo(cx + rad, cy);
+        ctx.arc(cx, cy, rad, 0, Math.PI * 2);
+      }
+      ctx.fill();
+      if (rad >= 5) { ctx.lineWidth = 1; ctx.strokeStyle = "#141418"; ctx.stroke(); }
+    }
+    // headings, one path
+    ctx.beginPath();
+    for (const [, [cx, cy, h]] of poses) {
+      const a = h * Math.PI / 180;
+      ctx.moveTo(cx, cy);
+      ctx.lineTo(cx + Math.cos(a) * rad * 1.25, cy + Math.sin(a) * rad * 1.25);
+    }
+    ctx.lineWidth = Math.max(1.5, rad * 0.3);
+    ctx.strokeStyle = "#ffffff";
+    ctx.stroke();
+    // lost robots: a yellow ring and a question mark
+    if (lost.length) {
+      ctx.beginPath();
+      for (const r of lost) { const [cx, cy] = poses.get(r.tag); ctx.moveTo(cx + rad * 1.6, cy); ctx.arc(cx, cy, rad * 1.6, 0, Math.PI * 2); }
+      ctx.lineWidth = Math.max(2, rad * 0.35);
+      ctx.strokeStyle = "#ffd200";
+      ctx.setLineDash([4, 3]);
+      ctx.stroke();
+      ctx.setLineDash([]);
+      if (rad >= 6) {
+        ctx.fillStyle = "#ffd200"; ctx.font = `bold ${Math.round(rad * 1.4)}px system-ui, sans-serif`;
+        ctx.textAlign = "center"; ctx.textBaseline = "bottom";
+        for (const r of lost) { const [cx, cy] = poses.get(r.tag); ctx.fillText("?", cx + rad * 1.6, cy - rad); }
+      }
+    }
+    if (dq.length) {
+      ctx.beginPath();
+      for (const r of dq) { const [cx, cy] = poses.get(r.tag); ctx.moveTo(cx - rad, cy - rad); ctx.lineTo(cx + rad, cy + rad); ctx.moveTo(cx + rad, cy - rad); ctx.lineTo(cx - rad, cy + rad); }
+      ctx.lineWidth = Math.max(2, rad * 0.4); ctx.strokeStyle = "#141414"; ctx.stroke();
+    }
+    // tags when there is room
+    if (rad >= 9 && poses.size <= 300) {
+      ctx.font = `600 ${Math.round(Math.min(13, rad * 0.9))}px system-ui, sans-serif`;
+      ctx.textAlign = "center"; ctx.textBaseline = "top";
+      ctx.fillStyle = "#141418";
+      for (const [tag, [cx, cy]] of poses) ctx.fillText(String(tag), cx, cy + rad + 2);
+    }
+    if (this.selected != null && poses.has(this.selected)) {
+      const [cx, cy] = poses.get(this.selected);
+      ctx.beginPath(); ctx.arc(cx, cy, rad + 4, 0, Math.PI * 2);
+      ctx.lineWidth = 3; ctx.strokeStyle = "#ffffff"; ctx.stroke();
+    }
+  }
+
+  // What is under screen point (sx, sy): {robot: tag} or {thing: key} or null.
+  hit(sx, sy, t) {
+    const cam = this.camera, s = cam.scale;
+    const reach = Math.max(12, s * 0.6);
+    let best = null, bd = reach * reach;
+    for (const r of this.model.robots.values()) {
+      const [x, y] = r.pose(t);
+      const dx = cam.ox + (x + 0.5) * s - sx, dy = cam.oy + (y + 0.5) * s - sy, d = dx * dx + dy * dy;
+      if (d < bd) { bd = d; best = { robot: r.tag }; }
+    }
+    if (best) return best;
+    for (const [key, th] of this.model.things) {
+      const dx = cam.ox + (th.x + 0.5) * s - sx, dy = cam.oy + (th.y + 0.5) * s - sy, d = dx * dx + dy * dy;
+      if (d < bd) { bd = d; best = { thing: key }; }
+    }
+    return best;
+  }
+}
