@@ -26,7 +26,7 @@ if TYPE_CHECKING:
     from robo_comp.core.server import Core
 
 MAX_PICTURE = 256 * 1024
-EVERYONE = "*"
+EVERYONE = P.EVERYONE
 #: The newest score lines a ``score`` reply carries (all of them are in the results and the log).
 SCORE_LINES_SHOWN = 500
 

@@ -136,6 +136,12 @@ MAX_REPORTS = 1000
 CORE_TO_HOST = ("heartbeat", "task.start", "task.interrupt", "stop", "radio", "hold", "map.delta", "event",
                 "upload", "unload", "extensions")
 
+#: Keys left out of the PUB (public) view of an event: they stay with the owner and referee.
+PRIVATE_KEYS = frozenset({"status", "result", "data", "args", "message", "cancelled", "code", "robot_id",
+                          "tasks", "evidence"})
+#: The ``team`` of an event meant for every watching session (a broadcast).
+EVERYONE = "*"
+
 #: Event topics; the PUB socket uses them as the first frame.
 TOPICS = (
     "robot.registered", "robot.positions", "robot.lost", "robot.returned", "robot.left",

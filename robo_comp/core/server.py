@@ -31,7 +31,7 @@ from typing import Any
 import zmq
 
 from robo_comp.core import protocol as P
-from robo_comp.core.competition import EVERYONE, Competition
+from robo_comp.core.competition import Competition
 from robo_comp.core.curve import ServerKeys, ZapHandler, load_server_keys, secure_server
 from robo_comp.core.mapdesk import MapDesk
 from robo_comp.core.uploads import UploadDesk
@@ -59,9 +59,7 @@ from robo_comp.world.scenario import Scenario
 
 log = logging.getLogger("robo_comp.core")
 
-#: Keys left out of the PUB (public) view of an event: they stay with the owner and referee.
-PRIVATE_KEYS = frozenset({"status", "result", "data", "args", "message", "cancelled", "code", "robot_id",
-                          "tasks", "evidence"})
+PRIVATE_KEYS = P.PRIVATE_KEYS
 #: How long a console session may stay silent before it is forgotten (watchers heartbeat).
 SESSION_IDLE = 300.0
 STOP_TIMEOUT = 2.0
@@ -436,7 +434,7 @@ class Core:
         if public and self.pub is not None:
             view = {k: v for k, v in data.items() if k not in PRIVATE_KEYS} if PRIVATE_KEYS & data.keys() else data
             self._out.append((self.pub, [topic.encode(), P.pack(view)]))
-        if team == EVERYONE:
+        if team == P.EVERYONE:
             targets: list[bytes] = [i for group in self.watchers.values() for i in group]
         else:
             referee = self.watchers.get(None)

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from robo_comp.core.competition import EVERYONE
+from robo_comp.core import protocol as P
 from robo_comp.errors import AuthError, FieldError
 from robo_comp.scoring.replay import read_recording
 from robo_comp.wall.model import WallModel
@@ -159,7 +159,7 @@ class Recording:
             if not keep:
                 return None
             return {k: ([v[i] for i in keep] if isinstance(v, list) else v) for k, v in data.items()}
-        return data if team in (view, EVERYONE) else None
+        return data if team in (view, P.EVERYONE) else None
 
     def picture(self, view: RecordingView, pid: int) -> str:
         """Picture ``pid`` as a data URL, if the view may see it and it is beside the log."""

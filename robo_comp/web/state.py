@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from robo_comp.core.server import PRIVATE_KEYS
+from robo_comp.core.protocol import PRIVATE_KEYS
 from robo_comp.wall.model import WallModel
 
 #: Topics the core never publishes (they reach only the team and the referee).
