@@ -246,6 +246,11 @@ class Client:
         """Take the module ``name`` away from robots ``tags``."""
         return self.request("unload", tags=list(tags), name=name)
 
+    def sandbox_reset(self, tags: list[int]) -> dict[str, Any]:
+        """Referee: restart the team-code sandbox on these robots' hosts now (ends a cool-down
+        after too many limit kills); ``results`` says per robot whether it was resting."""
+        return self.request("sandbox.reset", tags=list(tags))
+
     def match(self, action: str, seconds: float | None = None) -> dict[str, Any]:
         """Referee: ``start``, ``pause``, ``resume``, ``finish`` or ``extend`` (by ``seconds``)."""
         body: dict[str, Any] = {"action": action}

@@ -42,6 +42,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     un = cmds.add_parser("unload", help="take an uploaded module away from robots")
     un.add_argument("tags", help="robot tag, or several separated by commas")
     un.add_argument("name", help="the module's MANIFEST name")
+    sr = cmds.add_parser("sandbox-reset", help="referee: restart the team-code sandbox of robots now",
+                         description="A sandbox whose code hit its limits too often rests (60 s, doubling) "
+                                     "and restarts by itself; this restarts it at once.")
+    sr.add_argument("tags", help="robot tag, or several separated by commas")
     m = cmds.add_parser("match", help="referee: start, pause, resume, finish or extend the match")
     m.add_argument("action", choices=("start", "pause", "resume", "finish", "extend"))
     m.add_argument("--seconds", type=float, help="for extend: seconds to add")
@@ -97,7 +101,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"error: {e.message}", file=sys.stderr)
         return 2
     try:
-        timeout = 30.0 if args.cmd in ("upload", "unload", "extensions") else 5.0  # a sandbox may start first
+        timeout = 30.0 if args.cmd in ("upload", "unload", "extensions", "sandbox-reset") else 5.0  # a sandbox may start first
         with Client(args.core, token, client="ctl", timeout=timeout, curve_cert=args.curve_cert,
                     core_key=args.core_key) as c:
             return _run(c, args)
@@ -139,13 +143,18 @@ def _run(c: Client, args: argparse.Namespace) -> int:
         if not args.json:
             print(f"robot {out['tag']} halted at ({out['x']:.2f}, {out['y']:.2f}) in {out['ms']:.1f} ms; "
                   f"cancelled tasks: {out['cancelled'] or 'none'}")
-    elif args.cmd in ("upload", "unload"):
+    elif args.cmd in ("upload", "unload", "sandbox-reset"):
         try:
             tags = [int(t) for t in args.tags.split(",") if t.strip()]
         except ValueError:
             print(f"error: tags must be numbers separated by commas, got {args.tags!r}", file=sys.stderr)
             return 2
-        if args.cmd == "unload":
+        if args.cmd == "sandbox-reset":
+            out = c.sandbox_reset(tags)
+            if not args.json:
+                for row in out["results"]:
+                    print(f"robot {row.get('tag')}: {row.get('message')}")
+        elif args.cmd == "unload":
             out = c.unload(tags, args.name)
             if not args.json:
                 print(f"{args.name} unloaded from robots {', '.join(map(str, out['tags']))}")

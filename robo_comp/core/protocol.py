@@ -96,6 +96,7 @@ REQUESTS: dict[str, dict[str, tuple[str, bool]]] = {
     "unload": {"tags": (_LIST, True), "name": (_STR, True)},
     "extensions": {"tag": (_INT, True)},
     "approve": {"upload_id": (_INT, True), "ok": (_BOOL, False)},
+    "sandbox.reset": {"tags": (_LIST, True)},
     # robot hosts
     "register": {
         "token": (_STR, True), "robot_id": (_STR, True), "tasks": (_LIST, False),
@@ -134,7 +135,7 @@ MAX_REPORTS = 1000
 
 #: Messages the core sends to robot hosts (requests expect a ``reply``).
 CORE_TO_HOST = ("heartbeat", "task.start", "task.interrupt", "stop", "radio", "hold", "map.delta", "event",
-                "upload", "unload", "extensions")
+                "upload", "unload", "extensions", "sandbox.reset")
 
 #: Keys left out of the PUB (public) view of an event: they stay with the owner and referee.
 PRIVATE_KEYS = frozenset({"status", "result", "data", "args", "message", "cancelled", "code", "robot_id",
@@ -148,7 +149,7 @@ TOPICS = (
     "task.given", "task.started", "task.done", "robot.stopped", "radio", "refused", "core.started", "core.recovered",
     "match.phase", "score", "score.change", "penalty", "disqualified", "broadcast", "find.reported",
     "picture", "robot.bump", "robot.tasks", "robot.log", "upload.pending", "upload.sent", "upload.done",
-    "upload.unloaded",
+    "upload.unloaded", "sandbox.reset",
 )
 
 

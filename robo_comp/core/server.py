@@ -140,7 +140,6 @@ class Core:
         # Routes whose connection went away (a send found no peer): nothing is pushed to them until
         # their session proves itself again there, so whoever takes such an id next gets nothing.
         self._unproven: set[bytes] = set()
-        self._current: bytes | None = None  # the route whose message is being handled
         # Refusals of connections without a session, counted per (type, code) and logged once a beat
         # (a flood of bad hellos must not flood the log and the referee's console).
         self._refused_anon: dict[tuple[str, str], list[Any]] = {}
@@ -325,15 +324,23 @@ class Core:
         req_id = 0
         msg_type = "?"
         sess: Session | None = None  # the session this message proved it belongs to
-        self._current = ident
         try:
             raw, req_id = P.decode_envelope(frame)
             msg = P.validate(raw, req_id)
             msg_type = msg.type
-            sess = self._prove(ident, msg.type, raw.get(P.SESSION_KEY))
+            sess = self.sessions.get(ident)
+            secret = raw.get("s")
+            if (sess is not None and type(secret) is str and _same(secret, sess.secret)
+                    and (self.curve is None or self._key_owner == sess.key)):
+                sess.last_seen = time.monotonic()  # proved (the common case, kept short)
+                if self._unproven:
+                    self._unproven.discard(ident)
+            else:
+                sess = None  # not proved (yet): a refusal below is nobody's
+                sess = self._prove(ident, msg.type, secret)
             body = self._handlers[msg.type](ident, msg)
             if body is not None:
-                self._send(ident, P.ok_reply(req_id, body))
+                self._reply(ident, P.ok_reply(req_id, body))
         except RoboCompError as err:
             self._send_error(ident, req_id, err, sess, msg_type)
         except Exception:  # never let one bad message take the core down
@@ -341,8 +348,6 @@ class Core:
             self._send_error(ident, req_id, RoboCompError(
                 "the core hit an internal error on this request; it was logged and the core goes on"),
                 sess, msg_type)
-        finally:
-            self._current = None
 
     def _prove(self, ident: bytes, type_: str, secret: Any) -> Session | None:
         """The session this message belongs to, or None for a message that may come without one
@@ -358,7 +363,7 @@ class Core:
                 return None
             raise AuthError("this connection has no session: say 'hello' with your team token first "
                             "(the client does this for you); after a core restart, say hello again")
-        if type(secret) is not str or not secret.isascii() or not hmac.compare_digest(secret, sess.secret):
+        if type(secret) is not str or not _same(secret, sess.secret):
             raise AuthError(
                 "this message does not carry the session secret of this connection's session: every "
                 "message after 'hello' must carry the 'session' value the hello reply gave (as \"s\"); "
@@ -374,7 +379,7 @@ class Core:
     def _send_error(self, ident: bytes, req_id: int, err: RoboCompError, sess: Session | None,
                     msg_type: str = "?") -> None:
         self.stats["errors"] += 1
-        self._send(ident, P.error_reply(req_id, err))
+        self._reply(ident, P.error_reply(req_id, err))
         if sess is None:  # counted, and logged once a beat (see _log_refused)
             row = self._refused_anon.get((msg_type, err.code))
             if row is None:
@@ -395,13 +400,18 @@ class Core:
 
     # ------------------------------------------------------------------ output
     def _send(self, ident: bytes, frame: bytes) -> None:
-        """Queue a frame for ``ident``; it leaves in :meth:`_commit`, after the log flush.
+        """Queue a frame for session ``ident`` (a push, or a reply that comes later); it leaves in
+        :meth:`_commit`, after the log flush.
 
-        A route whose connection went away gets nothing but the replies to its own new messages
-        until its session proves itself there again (see :meth:`_prove`)."""
-        if self._unproven and ident in self._unproven and ident != self._current:
+        A route whose connection went away gets nothing until its session proves itself there
+        again (see :meth:`_prove`): whoever presents that routing id next gets no push."""
+        if self._unproven and ident in self._unproven:
             self.stats["unrouted"] += 1
             return
+        self._out.append((self.router, [ident, frame]))
+
+    def _reply(self, ident: bytes, frame: bytes) -> None:
+        """Queue the reply to the message that just came from ``ident`` (whoever sent it)."""
         self._out.append((self.router, [ident, frame]))
 
     def _commit(self) -> None:
@@ -963,6 +973,14 @@ class Core:
         self._send(p.ident, P.ok_reply(p.req_id, {
             "tag": r.tag, "x": r.x, "y": r.y, "heading": r.heading, "cancelled": cancelled, "ms": ms}))
         return None
+
+
+def _same(given: str, secret: str) -> bool:
+    """Constant-time comparison of a session secret (text that is not ASCII never matches)."""
+    try:
+        return hmac.compare_digest(given, secret)
+    except TypeError:  # compare_digest takes ASCII text only
+        return False
 
 
 #: Shortest routing id a client may choose (ids made by libzmq itself start with a zero byte).

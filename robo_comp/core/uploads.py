@@ -74,7 +74,8 @@ class UploadDesk:
     def handlers(self) -> dict[str, Callable[[bytes, P.Message], dict[str, Any] | None]]:
         """Request handlers this module adds to the core."""
         return {"upload": self._on_upload, "unload": self._on_unload, "extensions": self._on_extensions,
-                "approve": self._on_approve, "advertise": self._on_advertise, "log": self._on_log}
+                "approve": self._on_approve, "advertise": self._on_advertise, "log": self._on_log,
+                "sandbox.reset": self._on_sandbox_reset}
 
     # ------------------------------------------------------------------ checks
     def _robots(self, ident: bytes, tags: Any) -> list[RobotRecord]:
@@ -160,6 +161,20 @@ class UploadDesk:
             else:
                 self.core._send(ident, P.error_reply(msg.id, UnavailableError(str(row.get("message")))))
         self._ask(robots, "extensions", {}, done)
+        return None
+
+    def _on_sandbox_reset(self, ident: bytes, msg: P.Message) -> dict[str, Any] | None:
+        """Referee: restart the team-code sandbox of these robots' hosts now (ends a cool-down)."""
+        s = self.core._session(ident)
+        if s.who.role != "referee":
+            raise ForbiddenError("only the referee restarts a team's sandbox (it ends a cool-down early)")
+        robots = self._robots(ident, msg.body["tags"])
+
+        def done(results: list[dict[str, Any]]) -> None:
+            self.core.emit("sandbox.reset", robots[0].team, {"tags": [r.tag for r in robots], "by": s.who.name,
+                                                             "results": results}, public=False)
+            self.core._send(ident, P.ok_reply(msg.id, {"results": results}))
+        self._ask(robots, "sandbox.reset", {}, done)
         return None
 
     # ------------------------------------------------------------------ from robot hosts

@@ -20,6 +20,7 @@ for tests, tools and simple hosts.
 from __future__ import annotations
 
 import collections
+import math
 import os
 import select
 import signal
@@ -42,7 +43,7 @@ from robo_comp.plugins.sandbox_child import (
 __all__ = [
     "PENDING", "Limits", "Sandbox", "poll_many",
     "Record", "Ready", "RpcCall", "LogLine", "TaskDone", "TaskFailed", "Loaded", "LoadFailed",
-    "Unloaded", "SandboxStopped",
+    "Unloaded", "SandboxStopped", "SandboxRestarted",
 ]
 
 
@@ -91,8 +92,12 @@ class Limits:
     nice: int = 10
     """Scheduling niceness added to the child: the host's loop wins over team code for CPU."""
     max_respawns: int = 5
-    """Respawns allowed per ``respawn_window`` seconds before the sandbox gives up."""
+    """Respawns allowed per ``respawn_window`` seconds; one more limit kill starts a cool-down."""
     respawn_window: float = 60.0
+    cooldown_seconds: float = 60.0
+    """How long a sandbox that hit its limits too often rests before it restarts by itself with
+    the team's modules; doubled each time it happens again, up to ``max_cooldown``."""
+    max_cooldown: float = 600.0
 
     def wire(self, seed: int) -> dict[str, Any]:
         """The subset the child needs."""
@@ -190,11 +195,20 @@ class Unloaded(Record):
 
 @dataclass
 class SandboxStopped(Record):
-    """The child was killed or died. ``respawned``: a fresh child with the good modules follows."""
+    """The child was killed or died. ``respawned``: a fresh child with the good modules follows;
+    otherwise ``cooldown`` > 0 says in how many seconds one does (0: closed for good)."""
 
     reason: str
     message: str
     respawned: bool
+    cooldown: float = 0.0
+
+
+@dataclass
+class SandboxRestarted(Record):
+    """A cool-down ended (by itself or by :meth:`Sandbox.reset`): a fresh child with the good modules."""
+
+    message: str
 
 
 # --------------------------------------------------------------------------- internal state
@@ -255,6 +269,9 @@ class Sandbox:
         self.ready = False
         self.closed = False
         self.stopped_reason: str | None = None
+        #: While resting after too many limit kills: when the child comes back (time.monotonic()).
+        self.cooldown_until: float | None = None
+        self._cooldowns = 0  # cool-downs so far (each doubles the next), until reset()
         if start:
             self.start()
 
@@ -310,6 +327,8 @@ class Sandbox:
             ds.append(self._spawn_deadline)
         if self._throttled and self.limits.rpc_per_second:
             ds.append(self._token_time + max(0.0, 1.0 - self._tokens) / self.limits.rpc_per_second)
+        if self.cooldown_until is not None:
+            ds.append(self.cooldown_until)
         return min(ds) if ds else None
 
     def wants_write(self) -> bool:
@@ -614,6 +633,10 @@ class Sandbox:
     def check_timers(self, now: float | None = None) -> list[Record]:
         """Enforce wall-clock limits (kill + respawn); returns records."""
         now = time.monotonic() if now is None else now
+        if self.cooldown_until is not None:
+            if now >= self.cooldown_until:
+                self._restart("the sandbox's cool-down is over: it runs again with your loaded modules")
+            return self._take()
         if self._throttled:
             self._release_throttled()
         if self._spawn_deadline is not None and now >= self._spawn_deadline:
@@ -885,15 +908,48 @@ class Sandbox:
         while self._respawns and now - self._respawns[0] > self.limits.respawn_window:
             self._respawns.popleft()
         respawn = not self.closed and len(self._respawns) < self.limits.max_respawns
-        self._out.append(SandboxStopped(reason, message, respawn))
         if not respawn:
+            cooldown = 0.0
+            if not self.closed:
+                cooldown = min(self.limits.max_cooldown, self.limits.cooldown_seconds * 2 ** self._cooldowns)
+                self._cooldowns += 1
+                self.cooldown_until = now + cooldown
+                message = (f"{message}. Your code hit the sandbox's limits {len(self._respawns) + 1} times "
+                           f"within {self.limits.respawn_window:g} s, so the sandbox rests for {cooldown:g} s and "
+                           "then restarts by itself with your loaded modules (the referee can restart it "
+                           "sooner); meanwhile your uploaded tasks do not run. Fix the code that hits the "
+                           "limit (the task named above) and upload it again")
+            self._out.append(SandboxStopped(reason, message, False, cooldown))
             self.stopped_reason = message
             self._spawn_deadline = None
             for r in requeue:
                 self._out.append(LoadFailed(r.id, r.file, contract.upload_error(
                     r.file, "limit", f"sandbox stopped: {message}")))
             return
+        self._out.append(SandboxStopped(reason, message, True))
         self._respawns.append(now)
+        self._respawn(requeue)
+
+    def reset(self) -> bool:
+        """The referee's restart: end a cool-down now and forget the kills counted so far.
+        Returns True when the sandbox was resting (it restarts with the good modules)."""
+        self._cooldowns = 0
+        self._respawns.clear()
+        if self.cooldown_until is None or self.closed:
+            return False
+        self._restart("the referee restarted the sandbox: it runs again with your loaded modules")
+        return True
+
+    def _restart(self, why: str) -> None:
+        """End a cool-down: a fresh child with the good modules."""
+        self.cooldown_until = None
+        self.stopped_reason = None
+        self._respawns.clear()
+        self._out.append(SandboxRestarted(why))
+        self._respawn([])
+
+    def _respawn(self, requeue: list[_Run]) -> None:
+        """Start a fresh child, load the good modules again, then the innocent uploads that waited."""
         self.start()
         for file, source, _info in list(self._good.values()):
             self._begin_load(file, source, replay=True)
@@ -913,6 +969,11 @@ class Sandbox:
         if self.closed:
             raise error(f"team {self.team}'s sandbox is closed")
         if self.sock is None:
+            if self.cooldown_until is not None:
+                left = max(0.0, self.cooldown_until - time.monotonic())
+                raise error(f"team {self.team}'s sandbox is resting after too many limit kills: it restarts by "
+                            f"itself in {math.ceil(left)} s with your loaded modules (sooner if the referee restarts it); "
+                            "try again then")
             raise error(f"team {self.team}'s sandbox is stopped: {self.stopped_reason}")
 
     def _wait(self, pred: Callable[[Record], bool], timeout: float) -> Record | None:

@@ -278,6 +278,8 @@ class RobotHost:
             done = self.code.unload(tags, str(body.get("name")))
             self._answer(rid, {"unloaded": done})
             self.tasks_changed(done)
+        elif type_ == "sandbox.reset":
+            self._answer(rid, {"results": self.code.reset(tags)})
         else:
             self._answer(rid, {"tag": tags[0] if tags else None,
                                "modules": self.code.modules(tags[0]) if tags else []})
@@ -392,7 +394,7 @@ class RobotHost:
                 log.warning("map delta not applied (%s); fetching the whole map", e)
                 self._send("map.delta", {"since": 0}, lambda ok, b: ok and self.map.apply(b))
             return
-        if type_ in ("upload", "unload", "extensions"):
+        if type_ in ("upload", "unload", "extensions", "sandbox.reset"):
             self._on_code_request(type_, rid, body)
             return
         r = self.by_tag.get(body.get("tag", -1))

@@ -27,7 +27,8 @@ from typing import TYPE_CHECKING, Any
 from robo_comp.errors import RoboCompError
 from robo_comp.plugins.contract import source_hash
 from robo_comp.plugins.sandbox import (
-    PENDING, Limits, LoadFailed, Loaded, LogLine, RpcCall, Sandbox, SandboxStopped, TaskDone, TaskFailed as SbFailed,
+    PENDING, Limits, LoadFailed, Loaded, LogLine, RpcCall, Sandbox, SandboxRestarted, SandboxStopped, TaskDone,
+    TaskFailed as SbFailed,
 )
 from robo_comp.robots.steps import Move, Step, TaskFailed, TaskSpec, Turn, Wait
 from robo_comp.world.planner import find_path
@@ -196,6 +197,13 @@ class TeamCode:
             self.sb.unload(name)
         return done
 
+    def reset(self, tags: list[int]) -> list[dict[str, Any]]:
+        """The referee's restart of this host's sandbox (one per team and host): ends a cool-down."""
+        was = self.sb.reset() if self.sb is not None else False
+        message = ("the sandbox was resting and restarts now with the team's modules" if was else
+                   "the sandbox was running; its count of limit kills starts again from zero")
+        return [{"tag": t, "ok": True, "restarted": was, "message": message} for t in tags]
+
     def modules(self, tag: int) -> list[dict[str, Any]]:
         """The modules robot ``tag`` has: name, version, kind, file, sha256, tasks."""
         if self.sb is None:
@@ -297,8 +305,12 @@ class TeamCode:
                 self.host.team_log(rec.tag, rec.stream, rec.text)
             elif isinstance(rec, SandboxStopped):
                 log.warning("team sandbox stopped (%s): %s%s", rec.reason, rec.message,
-                            "; restarted with the good modules" if rec.respawned else "")
+                            "; restarted with the good modules" if rec.respawned else
+                            f"; resting {rec.cooldown:g} s" if rec.cooldown else "")
                 self.host.team_log(None, "sandbox", f"sandbox stopped: {rec.message}")
+            elif isinstance(rec, SandboxRestarted):
+                log.info("team sandbox restarted: %s", rec.message)
+                self.host.team_log(None, "sandbox", rec.message)
 
     def _call(self, c: RpcCall) -> None:
         sb = self.sb
