@@ -35,6 +35,8 @@ from RestrictedPython.Guards import (
 )
 from RestrictedPython.transformer import INSPECT_ATTRIBUTES
 
+from robo_comp.plugins.explain import explain_compile_error
+
 __all__ = [
     "PolicyError", "TaskCancelled", "RobotError", "LimitExceeded", "Namespace",
     "compile_team", "make_globals", "guarded_getattr", "guarded_write", "DENIED_ATTRIBUTES",
@@ -87,16 +89,21 @@ def compile_team(source: str, filename: str) -> _types.CodeType:
     try:
         result = compile_restricted_exec(source, filename)
     except RecursionError:
-        raise PolicyError(None, "policy", "the code is nested too deeply") from None
+        raise PolicyError(None, "policy", "the code is nested too deeply for Python to read (brackets or "
+                                          "blocks inside each other hundreds of times); flatten it") from None
     except (ValueError, TypeError, MemoryError) as exc:  # e.g. NUL bytes in source
-        raise PolicyError(None, "syntax", str(exc)[:200]) from None
+        raise PolicyError(None, "syntax", f"Python cannot read this file ({str(exc)[:200]}); save it as "
+                                          "plain UTF-8 text") from None
     if result.errors:
+        lines = source.splitlines()
         parsed = sorted((_parse_line(e) for e in result.errors), key=lambda p: p[0] or 0)
-        line, text = parsed[0]
-        rule = "syntax" if "SyntaxError" in text or "IndentationError" in text else "policy"
-        texts = [t.split(" at statement:")[0] for _, t in parsed[:3]]
+        explained = [(line, *explain_compile_error(text, lines[line - 1] if line and 0 < line <= len(lines)
+                                                   and line != parsed[0][0] or i == 0 else None))
+                     for i, (line, text) in enumerate(parsed)]
+        line, rule, first = explained[0]
+        others = [text if n == line else f"line {n}: {text}" for n, _, text in explained[1:3]]
         more = f" (and {len(parsed) - 3} more)" if len(parsed) > 3 else ""
-        raise PolicyError(line, rule, "; ".join(texts) + more)
+        raise PolicyError(line, rule, "; also ".join([first, *others]) + more)
     assert result.code is not None
     return result.code
 
@@ -209,10 +216,12 @@ _TEAM_CLASSES: "_weakref.WeakSet[type]" = _weakref.WeakSet()
 def _team_metaclass(name: str, bases: tuple, namespace: dict, **kw: Any) -> type:
     """The ``__metaclass__`` RestrictedPython puts on every team class; records team classes."""
     if kw:
-        raise TypeError("class keywords are not allowed")
+        raise TypeError("class keywords are not allowed in team code; write `class Name(Base):` without "
+                        "`metaclass=` or other keywords")
     for base in bases:
         if not isinstance(base, type):
-            raise TypeError("classes may only derive from classes")
+            raise TypeError("classes may only derive from classes; put a class in the brackets of "
+                            "`class Name(Base):`")
     cls = type(name, bases, namespace)
     _TEAM_CLASSES.add(cls)
     return cls
@@ -232,20 +241,24 @@ def guarded_getattr(obj: Any, name: str, *default: Any) -> Any:
     attributes through format fields) and results that are modules, frames, code or tracebacks.
     """
     if type(name) is not str:
-        raise TypeError("attribute name must be a str")
+        raise TypeError("getattr() needs the attribute's name as text, e.g. getattr(obj, 'speed')")
     if name.startswith("_"):
-        raise AttributeError(f'"{name}" is an invalid attribute name because it starts with "_"')
+        raise AttributeError(f'"{name}" is an invalid attribute name because it starts with "_" (Python\'s '
+                             "internals are not reachable from team code); use the object's public methods instead")
     if name in DENIED_ATTRIBUTES:
         if name not in _STR_ONLY:
-            raise AttributeError(f'"{name}" is a restricted attribute in the sandbox')
+            raise AttributeError(f'"{name}" is a restricted attribute in the sandbox (it reaches the '
+                                 "interpreter's frames and code); keep what you need in your own variables")
         if isinstance(obj, str) or (isinstance(obj, type) and issubclass(obj, str)):
-            raise AttributeError(f'"str.{name}" is not allowed in the sandbox (use f-strings)')
+            raise AttributeError(f'"str.{name}" is not allowed in the sandbox (its fields can reach private '
+                                 'attributes); use an f-string instead, e.g. f"{x} cells"')
     if default:
         value = getattr(obj, name, default[0])
     else:
         value = getattr(obj, name)
     if isinstance(value, _DENIED_RESULT_TYPES):
-        raise AttributeError(f'"{name}" leads to an interpreter object, refused in the sandbox')
+        raise AttributeError(f'"{name}" leads to an interpreter object (a module, frame or code object), '
+                             "refused in the sandbox; use the values you need directly")
     return value
 
 
@@ -258,7 +271,8 @@ class _ReadOnlyProxy:
         object.__setattr__(self, "_ro_what", what)
 
     def _refuse(self, *args: Any) -> None:
-        raise TypeError(f"{object.__getattribute__(self, '_ro_what')} is read-only in the sandbox")
+        raise TypeError(f"{object.__getattribute__(self, '_ro_what')} is read-only in the sandbox; keep your "
+                        "own state in variables, lists, dicts or objects of your own classes")
 
     __setattr__ = __delattr__ = __setitem__ = __delitem__ = _refuse  # type: ignore[assignment]
 
@@ -280,14 +294,16 @@ def guarded_write(obj: Any) -> Any:
 def _guarded_setattr(obj: Any, name: str, value: Any) -> None:
     """The sandbox's ``setattr``: the ``_write_`` rules plus no ``_`` names."""
     if type(name) is not str or name.startswith("_"):
-        raise AttributeError(f'"{name}" is an invalid attribute name')
+        raise AttributeError(f'"{name}" is an invalid attribute name for setattr(); give the name as text '
+                             'that does not start with "_"')
     setattr(guarded_write(obj), name, value)
 
 
 def _guarded_delattr(obj: Any, name: str) -> None:
     """The sandbox's ``delattr``."""
     if type(name) is not str or name.startswith("_"):
-        raise AttributeError(f'"{name}" is an invalid attribute name')
+        raise AttributeError(f'"{name}" is an invalid attribute name for delattr(); give the name as text '
+                             'that does not start with "_"')
     delattr(guarded_write(obj), name)
 
 
@@ -303,7 +319,8 @@ def _guarded_hasattr(obj: Any, name: str) -> bool:
 def _getitem(obj: Any, key: Any) -> Any:
     """The ``_getitem_`` guard: plain subscription (no object reachable here is privileged)."""
     if isinstance(obj, (Namespace, _ReadOnlyProxy)):
-        raise TypeError("namespace objects are not subscriptable")
+        raise TypeError("namespace objects (math, random, heapq) are not subscriptable; use their "
+                        "attributes, e.g. math.sqrt(2), not math['sqrt']")
     return obj[key]
 
 
@@ -319,7 +336,7 @@ def _inplacevar(op: str, x: Any, y: Any) -> Any:
     """The ``_inplacevar_`` guard for ``x op= y`` on names."""
     fn = _INPLACE_OPS.get(op)
     if fn is None:
-        raise SyntaxError(f"operator {op} is not allowed")
+        raise SyntaxError(f"operator {op} is not allowed in team code; write it out: x = x {op[:-1]} y")
     return fn(x, y)
 
 
@@ -332,10 +349,12 @@ def _no_type(*args: Any) -> Any:
     """``type(x)`` is allowed (returns the class); the 3-argument form is refused, and so is
     ``type(cls)`` of a class (it would hand out the real metaclass, i.e. 3-argument ``type``)."""
     if len(args) != 1:
-        raise TypeError("type() with 3 arguments (building classes) is not allowed in the sandbox")
+        raise TypeError("type() with 3 arguments (building classes) is not allowed in the sandbox; write a "
+                        "`class Name:` statement instead")
     t = type(args[0])
     if issubclass(t, type):
-        raise TypeError("type() of a class (the metaclass) is not available in the sandbox")
+        raise TypeError("type() of a class (the metaclass) is not available in the sandbox; compare classes "
+                        "directly, e.g. isinstance(x, Cell) or cls is Cell")
     return t
 
 
@@ -360,13 +379,14 @@ class _Printer:
     def _call_print(self, *objects: Any, sep: Any = " ", end: Any = "\n", file: Any = None,
                     flush: bool = False) -> None:
         if file is not None:
-            raise TypeError("print(file=...) is not allowed in the sandbox")
+            raise TypeError("print(file=...) is not allowed in the sandbox: print() writes to your team's log; "
+                            "leave out file=")
         if sep is None:
             sep = " "
         if end is None:
             end = "\n"
         if type(sep) is not str or type(end) is not str:
-            raise TypeError("sep and end must be str")
+            raise TypeError("print()'s sep and end must be text; write e.g. print(a, b, sep=', ')")
         text = sep.join(str(o) for o in objects) + end
         self._sink(text)
 
@@ -429,8 +449,9 @@ class Policy:
                  level: int = 0) -> Namespace:
         """The sandbox's ``__import__``: only :data:`ALLOWED_IMPORTS`, as read-only namespaces."""
         if level != 0 or type(name) is not str or name not in self.modules:
-            raise ImportError(f"import of {name!r} is not allowed in the sandbox "
-                              f"(allowed: {', '.join(ALLOWED_IMPORTS)})")
+            raise ImportError(f"import of {name!r} is not allowed in the sandbox; import only "
+                              f"{', '.join(ALLOWED_IMPORTS)}, and reach the robot through your tasks' "
+                              "`robot` argument")
         return self.modules[name]
 
     def make_globals(self, module_name: str) -> dict[str, Any]:

@@ -395,7 +395,8 @@ class Sandbox:
         rid = self._new_id()
         budget = self.limits.load_seconds
         run = _Run(rid, "load", self.tags[0] if self.tags else None, "<load>", None,
-                   f"wall-clock limit ({budget:g} s) exceeded while loading {filename}",
+                   f"wall-clock limit ({budget:g} s) exceeded while loading {filename}: its module body "
+                   "computes too long; move slow work into a task or init(robot)",
                    file=filename, source=source, replay=replay, budget=budget, held=True)
         self._runs[rid] = run
         self._loads.append(rid)
@@ -483,12 +484,14 @@ class Sandbox:
         args = contract.check_task_args(spec, list(args))
         if sum(r.kind == "task" for r in self._runs.values()) >= self.limits.max_runs:
             raise BadTaskError(f"too many tasks running in team {self.team}'s sandbox "
-                               f"(limit {self.limits.max_runs})")
+                               f"(limit {self.limits.max_runs}); wait for one to finish, or stop a robot")
         self._require_running(UnavailableError)
         rid = self._new_id()
         budget = self.limits.wall_seconds
         run = _Run(rid, "task", tag, task, time.monotonic() + budget if self.ready else None,
-                   f"wall-clock limit ({budget:g} s) exceeded", budget=budget)
+                   f"wall-clock limit ({budget:g} s) exceeded: task {task} computed that long without calling "
+                   "the robot (an endless loop?); call the robot now and then (each call starts the clock "
+                   "again) or compute less at a time", budget=budget)
         self._runs[rid] = run
         msg = {"t": "run", "r": rid, "g": tag, "task": task, "module": spec["module"], "a": args}
         if self._replaying():
@@ -530,8 +533,9 @@ class Sandbox:
             return False
         if not run.cancelled:
             run.cancelled = True
-            run.limit_text = (f"the task did not stop within {self.limits.cancel_grace:g} s of "
-                              "being cancelled (wall-clock limit)")
+            run.limit_text = (f"task {run.task} did not stop within {self.limits.cancel_grace:g} s of "
+                              "being cancelled (wall-clock limit); let TaskCancelled end your task (do not "
+                              "catch it, or raise it again)")
             for call_id in list(run.calls):
                 self._answer(call_id, ok=False, error="task cancelled", cancelled=True)
             self._send({"t": "cancel", "r": run_id})
@@ -721,7 +725,8 @@ class Sandbox:
             if run is not None and msg.get("phase") == "init":
                 run.deadline = time.monotonic() + self.limits.init_seconds
                 run.limit_text = (f"{run.file}: init: init(robot) did not finish within "
-                                  f"{self.limits.init_seconds:g} s (wall-clock limit)")
+                                  f"{self.limits.init_seconds:g} s (wall-clock limit); keep init short "
+                                  "(set up your state) and do long work in a task")
         elif t == "violation":
             run = self._runs.get(msg["r"])
             if run is not None and run.violation is None:
@@ -813,9 +818,11 @@ class Sandbox:
     def _classify(self, rc: int | None) -> tuple[str, str]:
         L = self.limits
         if rc == -signal.SIGXCPU:
-            return "cpu", f"CPU time limit ({L.cpu_seconds} s) exceeded"
+            return "cpu", (f"CPU time limit ({L.cpu_seconds} s) exceeded: your code computed too long "
+                           "without calling the robot; split the work into steps with robot calls between them")
         if rc == EXIT_MEMORY:
-            return "memory", f"memory limit ({L.memory_mib} MiB) exceeded"
+            return "memory", (f"memory limit ({L.memory_mib} MiB) exceeded: your code kept too much data; "
+                              "keep fewer or smaller lists and dicts (e.g. one set of visited cells)")
         if rc == -signal.SIGXFSZ:
             return "file", "file size limit exceeded (team code may not write files)"
         if rc in (-signal.SIGSEGV, -signal.SIGABRT, -signal.SIGBUS):
@@ -873,7 +880,8 @@ class Sandbox:
         elif reason == "wall" and self._near_memory_limit():
             # team code swallowed its MemoryErrors and spun: name the real cause
             reason = "memory"
-            message = f"memory limit ({self.limits.memory_mib} MiB) exceeded"
+            message = (f"memory limit ({self.limits.memory_mib} MiB) exceeded: your code kept too much data; "
+                       "keep fewer or smaller lists and dicts (e.g. one set of visited cells)")
             for r in self._runs.values():
                 if r.id == culprit and r.violation is None:
                     r.violation = message

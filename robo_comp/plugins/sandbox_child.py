@@ -33,6 +33,8 @@ from typing import Any, Callable
 
 import msgpack
 
+from robo_comp.plugins import explain
+
 HEADER = struct.Struct(">I")
 EXIT_MEMORY = 75
 EXIT_PROTOCOL = 76
@@ -46,6 +48,19 @@ def _default(obj: Any) -> Any:
         return list(obj)
     raise TypeError(f"a {type(obj).__name__} object is not plain data "
                     "(use None, bool, int, float, str, bytes, list, dict)")
+
+
+def _not_plain(task: str, exc: BaseException) -> str:
+    """Why the value task ``task`` returned cannot be sent, and what to return instead."""
+    text = str(exc)
+    if isinstance(exc, ValueError) and "recursion" in text:
+        return (f"the value task {task} returned is nested too deeply (lists or dicts inside each other "
+                "hundreds of levels down); return a flatter value, e.g. a list of [x, y] pairs")
+    if isinstance(exc, OverflowError) or "int too big" in text:
+        return (f"task {task} returned an integer too large to send; return it as text (str(n)) or "
+                "as a float")
+    return (f"task {task} returned something that is not plain data ({_trim(text, 120)}); return "
+            "numbers, text, True/False/None, or lists and dicts of them")
 
 
 def pack(msg: dict) -> bytes:
@@ -126,6 +141,8 @@ class Child:
         self.calls: dict[int, "_Worker"] = {}
         self.runs: dict[int, _Worker] = {}
         self.next_call = 1
+        #: Source lines of every loaded file, so that a refusal quotes the line the student wrote.
+        self.sources: dict[str, list[str]] = {}
         self.local = threading.local()
         self.policy = restricted.Policy(int(limits.get("seed", 0)), self._print_sink)
         self.workers = [_Worker(self, i) for i in range(int(limits["workers"]))]
@@ -366,13 +383,16 @@ class Child:
             text = ""
         name = type(exc).__name__
         if isinstance(exc, MemoryError):
-            return f"memory limit ({self.limits['memory_mib']} MiB) exceeded", line
+            return (f"memory limit ({self.limits['memory_mib']} MiB) exceeded: your code kept too much data; "
+                    "keep fewer or smaller lists and dicts (e.g. one set of visited cells)"), line
         if isinstance(exc, self.restricted.LimitExceeded):
             return text, line
         if isinstance(exc, RecursionError):
             text = "maximum recursion depth exceeded (deep recursion)"
         msg = f"{name}: {_trim(text, 500)}" if text else name
-        where = f"{file}:{line}: " if line else (f"{file}: " if file else "")
+        code = self.sources.get(file, [])[line - 1] if line and 0 < line <= len(self.sources.get(file, [])) else ""
+        quoted = f"{explain.quote(code)}: " if code.strip() else ""
+        where = f"{file}:{line}: {quoted}" if line else (f"{file}: " if file else "")
         return where + msg, line
 
 
@@ -513,7 +533,7 @@ class _Worker:
             data = pack({"t": "done", "r": run.id, "v": result})
         except (TypeError, ValueError, OverflowError) as exc:
             self.finish({"t": "failed", "r": run.id, "why": "error", "line": None,
-                         "m": f"{module.file}: the result is not plain data: {_trim(str(exc), 200)}"})
+                         "m": f"{module.file}: {_not_plain(msg['task'], exc)}"})
             return
         cap = c.limits["result_bytes"]
         if len(data) - 4 > cap:
@@ -537,6 +557,7 @@ class _Worker:
         try:
             C.check_filename(msg.get("file"))
             source = C.check_source(msg.get("src"))
+            self.child.sources[file] = source.splitlines()
             code = R.compile_team(source, file)
             tree = ast.parse(source, file)
             manifest = C.read_manifest(tree)

@@ -1,6 +1,6 @@
 """async functions (event-loop escape)."""
 # expect: upload
-# match: policy: .*AsyncFunctionDef statements are not allowed
+# match: policy: .*async functions are not allowed in team code; write a plain `def`
 MANIFEST = {
     "name": "hostile",
     "version": "1.0",

@@ -1,6 +1,6 @@
 """Read a function's __code__ to build a new function."""
 # expect: upload
-# match: policy: .*"__code__" is an invalid attribute
+# match: policy: .*\(`\.__code__`\) are Python's internals
 MANIFEST = {
     "name": "hostile",
     "version": "1.0",

@@ -1,6 +1,6 @@
 """Reach a function's __globals__ to find real builtins."""
 # expect: upload
-# match: policy: .*"__globals__" is an invalid attribute
+# match: policy: .*\(`\.__globals__`\) are Python's internals
 MANIFEST = {
     "name": "hostile",
     "version": "1.0",

@@ -1,6 +1,6 @@
 """Walk to object.__subclasses__ through a class attribute."""
 # expect: upload
-# match: policy: .*"__class__" is an invalid attribute name
+# match: policy: .*\(`\.__class__`\) are Python's internals
 MANIFEST = {
     "name": "hostile",
     "version": "1.0",

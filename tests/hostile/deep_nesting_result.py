@@ -1,6 +1,6 @@
 """Return a 100000-deep nested list."""
 # expect: run
-# match: (not plain data|recursion)
+# match: nested too deeply .*; return a flatter value
 MANIFEST = {
     "name": "hostile",
     "version": "1.0",

@@ -1,6 +1,6 @@
 """Call __import__ directly."""
 # expect: upload
-# match: policy: .*"__import__" is an invalid variable name
+# match: policy: .*\(`__import__`\) are kept for Python itself
 MANIFEST = {
     "name": "hostile",
     "version": "1.0",

@@ -1,6 +1,6 @@
 """eval() of a string."""
 # expect: upload
-# match: policy: .*Eval calls are not allowed
+# match: policy: .*`eval\(\.\.\.\)` runs text as code
 MANIFEST = {
     "name": "hostile",
     "version": "1.0",

@@ -1,6 +1,6 @@
 """exec() of a string."""
 # expect: upload
-# match: policy: .*Exec calls are not allowed
+# match: policy: .*`exec\(\.\.\.\)` runs text as code
 MANIFEST = {
     "name": "hostile",
     "version": "1.0",

@@ -1,6 +1,6 @@
 """f-string with a conversion on a dunder attribute."""
 # expect: upload
-# match: policy: .*"__class__" is an invalid attribute
+# match: policy: .*\(`\.__class__`\) are Python's internals
 MANIFEST = {
     "name": "hostile",
     "version": "1.0",

@@ -1,6 +1,6 @@
 """Generator gi_frame walk to the caller's frame."""
 # expect: upload
-# match: policy: .*"gi_frame" is a restricted name
+# match: policy: .*`\.gi_frame` reaches into the interpreter's frames
 MANIFEST = {
     "name": "hostile",
     "version": "1.0",

@@ -1,6 +1,6 @@
 """import builtins at module level."""
 # expect: upload
-# match: "builtins" is a reserved name
+# match: `builtins` is reserved in the sandbox
 MANIFEST = {
     "name": "hostile",
     "version": "1.0",

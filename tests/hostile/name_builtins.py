@@ -1,6 +1,6 @@
 """Use the __builtins__ name directly."""
 # expect: upload
-# match: policy: .*"__builtins__" is an invalid variable name
+# match: policy: .*\(`__builtins__`\) are kept for Python itself
 MANIFEST = {
     "name": "hostile",
     "version": "1.0",

@@ -1,6 +1,6 @@
 """Traceback tb_frame / f_back walk from a caught exception."""
 # expect: upload
-# match: policy: .*"__traceback__" is an invalid attribute
+# match: policy: .*\(`\.__traceback__`\) are Python's internals
 MANIFEST = {
     "name": "hostile",
     "version": "1.0",

@@ -1,6 +1,6 @@
 """Hide a dunder behind full-width letters (identifiers are NFKC-normalised)."""
 # expect: upload
-# match: policy: .*"__class__" is an invalid attribute name
+# match: policy: .*\(`\.__class__`\) are Python's internals
 MANIFEST = {
     "name": "hostile",
     "version": "1.0",
