@@ -114,6 +114,12 @@ class UploadError(RoboCompError):
     code = "E_UPLOAD"
 
 
+class StorageError(RoboCompError):
+    """The core cannot write its event log (disk full, I/O error): it refuses what would change the match."""
+
+    code = "E_STORAGE"
+
+
 class ConnectionLostError(RoboCompError):
     """The client lost its connection to the core (raised on the client side only)."""
 
@@ -123,7 +129,7 @@ class ConnectionLostError(RoboCompError):
 ALL_ERRORS: tuple[type[RoboCompError], ...] = (
     RoboCompError, MalformedError, VersionError, UnknownTypeError, FieldError, TooLargeError,
     AuthError, ForbiddenError, NotYoursError, NoSuchRobotError, BadTaskError, UnavailableError,
-    RateLimitError, TimeoutError_, PhaseError, ScenarioError, UploadError, ConnectionLostError,
+    RateLimitError, TimeoutError_, PhaseError, ScenarioError, UploadError, StorageError, ConnectionLostError,
 )
 _BY_CODE = {cls.code: cls for cls in ALL_ERRORS}
 

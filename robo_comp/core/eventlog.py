@@ -14,7 +14,7 @@ import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, BinaryIO
+from typing import Any
 
 import msgpack
 
@@ -35,8 +35,23 @@ class LogRecord:
     data: dict[str, Any]
 
 
+class StorageFault(Exception):
+    """The log cannot be written (no space, I/O error, read-only file system, quota); the records
+    not yet written stay in memory and :meth:`EventLog.flush` tries them again."""
+
+    def __init__(self, path: Path, err: OSError) -> None:
+        super().__init__(f"{path}: {err.strerror or err}")
+        self.path = path
+        self.errno = err.errno
+        self.reason = err.strerror or str(err)
+
+
 class EventLog:
-    """Appends events to ``path``; ``flush()`` pushes them to the OS (and fsyncs if asked)."""
+    """Appends events to ``path``; ``flush()`` hands them to the OS (and fsyncs if asked).
+
+    Records wait in memory until a flush has written them whole; a write that fails (disk
+    full, EIO, ...) raises :class:`StorageFault` and keeps every unwritten byte for the next
+    flush, so that the file, once the fault clears, holds every record in order."""
 
     def __init__(self, path: Path, fsync: bool = False, *, seq: int = 0, good_end: int | None = None) -> None:
         """Open ``path`` for appending. After recovery pass the last ``seq`` and the offset
@@ -48,19 +63,26 @@ class EventLog:
         if good_end is not None and path.exists() and path.stat().st_size > good_end:
             with open(path, "r+b") as f:
                 f.truncate(good_end)
-        self._f: BinaryIO = open(path, "wb" if fresh else "ab", buffering=1 << 16)
-        os.chmod(path, 0o600)  # the log holds every team's tasks and uploads: the organiser's eyes only
+        flags = os.O_WRONLY | os.O_CREAT | os.O_APPEND | (os.O_TRUNC if fresh else 0)
+        # the log holds every team's tasks and uploads: the organiser's eyes only
+        self._fd = os.open(path, flags, 0o600)
+        os.chmod(path, 0o600)
+        self._pending = bytearray()  # records appended and not yet written
+        self._unsynced = False
         self.seq = seq
-        self._dirty = False
+        #: The write error that holds records back (None while the log is healthy).
+        self.fault: StorageFault | None = None
         if fresh:
             self._write({"format": FORMAT, "version": FORMAT_VERSION, "started": time.time()})
-            self.flush()
+            try:
+                self.flush()
+            except StorageFault:
+                pass  # kept in memory: the owner's next flush tries again and reports the fault
 
     def _write(self, obj: dict[str, Any]) -> None:
         blob = msgpack.packb(obj, use_bin_type=True)
-        self._f.write(_LEN.pack(len(blob)))
-        self._f.write(blob)
-        self._dirty = True
+        self._pending += _LEN.pack(len(blob))
+        self._pending += blob
 
     def append(self, topic: str, team: str | None, data: dict[str, Any], t: float | None = None) -> int:
         """Append one event; return its sequence number."""
@@ -69,18 +91,34 @@ class EventLog:
                      "team": team, "data": data})
         return self.seq
 
+    @property
+    def unwritten(self) -> int:
+        """Bytes of records appended and not yet written to the file."""
+        return len(self._pending)
+
     def flush(self) -> None:
-        """Hand buffered records to the OS; with ``fsync`` also force them to disk."""
-        if self._dirty:
-            self._f.flush()
-            if self.fsync:
-                os.fsync(self._f.fileno())
-            self._dirty = False
+        """Write every waiting record; with ``fsync`` also force them to disk. Raises
+        :class:`StorageFault` when the file system refuses (the records wait for the next try)."""
+        try:
+            while self._pending:
+                n = os.write(self._fd, self._pending)
+                del self._pending[:n]
+                self._unsynced = True
+            if self.fsync and self._unsynced:
+                os.fsync(self._fd)
+            self._unsynced = False
+        except OSError as e:
+            self.fault = StorageFault(self.path, e)
+            raise self.fault from None
+        self.fault = None
 
     def close(self) -> None:
-        """Flush and close the file."""
-        self.flush()
-        self._f.close()
+        """Write what waits (as far as the file system lets us) and close the file."""
+        try:
+            self.flush()
+        except StorageFault:
+            pass
+        os.close(self._fd)
 
 
 class LogCorrupt(Exception):

@@ -146,7 +146,7 @@ EVERYONE = "*"
 #: Event topics; the PUB socket uses them as the first frame.
 TOPICS = (
     "robot.registered", "robot.positions", "robot.lost", "robot.returned", "robot.left",
-    "task.given", "task.started", "task.done", "robot.stopped", "radio", "refused", "core.started", "core.recovered",
+    "task.given", "task.started", "task.done", "robot.stopped", "radio", "refused", "core.started", "core.recovered", "core.storage",
     "match.phase", "score", "score.change", "penalty", "disqualified", "broadcast", "find.reported",
     "picture", "robot.bump", "robot.tasks", "robot.log", "upload.pending", "upload.sent", "upload.done",
     "upload.unloaded", "sandbox.reset",

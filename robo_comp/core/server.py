@@ -35,7 +35,7 @@ from robo_comp.core.competition import Competition
 from robo_comp.core.curve import ServerKeys, ZapHandler, load_server_keys, secure_server
 from robo_comp.core.mapdesk import MapDesk
 from robo_comp.core.uploads import UploadDesk
-from robo_comp.core.eventlog import EventLog
+from robo_comp.core.eventlog import EventLog, StorageFault
 from robo_comp.core.recovery import RecoveryReport, recover
 from robo_comp.core.registry import RobotRecord, Registry
 from robo_comp.core.tasks import TaskRecord, check_args, check_specs, find_spec
@@ -46,6 +46,7 @@ from robo_comp.errors import (
     NotYoursError,
     RateLimitError,
     RoboCompError,
+    StorageError,
     TimeoutError_,
     TooLargeError,
     UnavailableError,
@@ -70,6 +71,13 @@ PUB_QUEUE = 2_000
 #: Position batches per second: reports that arrive in between are conflated (the newest pose wins).
 POSE_HZ = 10.0
 MAX_RESULT = 64 * 1024
+#: Frames held back while the log cannot be written, at most (the oldest go first).
+HELD_FRAMES = 50_000
+#: Requests served while the event log cannot be written: they log nothing, or (stop) must never
+#: wait for a disk; everything else gets E_STORAGE and changes nothing.
+STORAGE_FREE = frozenset({"hello", "heartbeat", "bye", "watch", "robots", "monitor", "tasks", "snapshot", "arena",
+                          "stats", "score", "map", "map.delta", "picture.get", "extensions", "stop", "report",
+                          "reports", "reply"})
 
 
 @dataclass(slots=True)
@@ -136,7 +144,14 @@ class Core:
         self.started = time.monotonic()
         self.core_id = secrets.token_hex(8)  # tells clients when they talk to a restarted core
         self.stats = {"received": 0, "errors": 0, "events": 0, "dropped": 0, "unrouted": 0}
-        self._out: list[tuple[zmq.Socket, list[bytes]]] = []
+        # Frames to send after this turn's log flush: (socket, frames, urgent). While the log cannot be
+        # written, only urgent ones leave (heartbeats, stops, refusals, reads, unlogged feed events);
+        # the others wait in _held until the records they acknowledge are in the log.
+        self._out: list[tuple[zmq.Socket, list[bytes], bool]] = []
+        self._held: list[tuple[zmq.Socket, list[bytes], bool]] = []
+        #: Why the event log cannot be written now (None while it can): see _commit.
+        self.storage_fault: str | None = None
+        self._fault_since = 0.0
         # Routes whose connection went away (a send found no peer): nothing is pushed to them until
         # their session proves itself again there, so whoever takes such an id next gets nothing.
         self._unproven: set[bytes] = set()
@@ -265,6 +280,8 @@ class Core:
                 timeout = max(0.0, next_tick - time.monotonic())
                 if self.pending_stops or self.uploads.busy:
                     timeout = min(timeout, 0.05)
+                if self.storage_fault is not None:  # try the log again soon: resume within a fraction of a second
+                    timeout = min(timeout, 0.2)
                 if self._posed:
                     timeout = min(timeout, max(0.0, next_pose - time.monotonic()))
                 if poller.poll(timeout * 1000):
@@ -338,6 +355,8 @@ class Core:
             else:
                 sess = None  # not proved (yet): a refusal below is nobody's
                 sess = self._prove(ident, msg.type, secret)
+            if self.storage_fault is not None and msg.type not in STORAGE_FREE:
+                raise StorageError(self.storage_fault)
             body = self._handlers[msg.type](ident, msg)
             if body is not None:
                 self._reply(ident, P.ok_reply(req_id, body))
@@ -380,6 +399,8 @@ class Core:
                     msg_type: str = "?") -> None:
         self.stats["errors"] += 1
         self._reply(ident, P.error_reply(req_id, err))
+        if self.storage_fault is not None:  # nothing more is logged until the log can be written
+            return
         if sess is None:  # counted, and logged once a beat (see _log_refused)
             row = self._refused_anon.get((msg_type, err.code))
             if row is None:
@@ -399,7 +420,7 @@ class Core:
                                         "count": count}, public=False)
 
     # ------------------------------------------------------------------ output
-    def _send(self, ident: bytes, frame: bytes) -> None:
+    def _send(self, ident: bytes, frame: bytes, urgent: bool = False) -> None:
         """Queue a frame for session ``ident`` (a push, or a reply that comes later); it leaves in
         :meth:`_commit`, after the log flush.
 
@@ -408,11 +429,12 @@ class Core:
         if self._unproven and ident in self._unproven:
             self.stats["unrouted"] += 1
             return
-        self._out.append((self.router, [ident, frame]))
+        self._out.append((self.router, [ident, frame], urgent))
 
     def _reply(self, ident: bytes, frame: bytes) -> None:
-        """Queue the reply to the message that just came from ``ident`` (whoever sent it)."""
-        self._out.append((self.router, [ident, frame]))
+        """Queue the reply to the message that just came from ``ident`` (whoever sent it). During a
+        storage fault it leaves at once: only requests that log nothing are served then."""
+        self._out.append((self.router, [ident, frame], self.storage_fault is not None))
 
     def _commit(self) -> None:
         """Flush the event log, then send every queued reply and event.
@@ -421,9 +443,22 @@ class Core:
         ``--fsync``, forced to disk): an acknowledged event survives ``kill -9`` of the core.
         """
         self.competition.flush_score()
-        self.events.flush()
-        out, self._out = self._out, []
-        for sock, frames in out:
+        try:
+            self.events.flush()
+        except StorageFault as fault:
+            if self.storage_fault is None:
+                self._storage_failed(fault)
+            out = [entry for entry in self._out if entry[2]]
+            self._held.extend(entry for entry in self._out if not entry[2])
+            self._out = []
+            if len(self._held) > HELD_FRAMES:  # bounded: the oldest pushes go (replies time out)
+                self.stats["dropped"] += len(self._held) - HELD_FRAMES
+                del self._held[:len(self._held) - HELD_FRAMES]
+        else:
+            if self.storage_fault is not None:
+                self._storage_restored()
+            out, self._held, self._out = self._held + self._out, [], []
+        for sock, frames, _urgent in out:
             try:
                 sock.send_multipart(frames, zmq.NOBLOCK)
             except zmq.Again:  # a peer's queue is full (slow consumer): drop, never block the loop
@@ -435,15 +470,39 @@ class Core:
                 log.debug("send failed: %s", e)
 
     # ------------------------------------------------------------------ events
+    def _storage_failed(self, fault: StorageFault) -> None:
+        """The log cannot be written: refuse what must be logged until it can (see _handle)."""
+        self.storage_fault = (f"the core cannot write its event log ({fault}): until it can, it refuses what "
+                              "would change the match (E_STORAGE); reads, stops and heartbeats go on. "
+                              "Organiser: free space on the state folder's disk (or fix it); the core goes on "
+                              "by itself")
+        self._fault_since = time.monotonic()
+        self.stats["storage_faults"] = self.stats.get("storage_faults", 0) + 1
+        log.error("%s", self.storage_fault)
+        self.emit("core.storage", None, {"ok": False, "message": self.storage_fault, "errno": fault.errno},
+                  log_it=False)
+
+    def _storage_restored(self) -> None:
+        seconds = time.monotonic() - self._fault_since
+        self.storage_fault = None
+        log.warning("the event log is written again after %.1f s", seconds)
+        self.emit("core.storage", None, {"ok": True, "seconds": round(seconds, 3),
+                                         "message": f"the event log is written again (after {seconds:.1f} s)"})
+        try:
+            self.events.flush()  # the event above
+        except StorageFault:
+            pass  # full again at once: the next turn notices
+
     def emit(self, topic: str, team: str | None, data: dict[str, Any], *, public: bool = True,
              log_it: bool = True) -> None:
-        """Log an event, publish its public view, and push it to watchers who may see it."""
+        """Log an event, publish its public view, and push it to watchers who may see it (an
+        event that is not logged goes out even while the log cannot be written)."""
         self.stats["events"] += 1
         if log_it:
             self.events.append(topic, team, data)
         if public and self.pub is not None:
             view = {k: v for k, v in data.items() if k not in PRIVATE_KEYS} if PRIVATE_KEYS & data.keys() else data
-            self._out.append((self.pub, [topic.encode(), P.pack(view)]))
+            self._out.append((self.pub, [topic.encode(), P.pack(view)], not log_it))
         if team == P.EVERYONE:
             targets: list[bytes] = [i for group in self.watchers.values() for i in group]
         else:
@@ -453,7 +512,7 @@ class Core:
         if targets:
             frame = P.request("event", 0, {"topic": topic, "team": team, "data": data})
             for ident in targets:
-                self._send(ident, frame)
+                self._send(ident, frame, not log_it)
         if topic != "robot.positions":
             self.pm.hook.robo_comp_event(topic=topic, team=team, data=data)
 
@@ -507,8 +566,8 @@ class Core:
         return r
 
     def _send_host(self, r: RobotRecord, type_: str, body: dict[str, Any], req_id: int = 0) -> None:
-        if r.session is not None:
-            self._send(r.session, P.request(type_, req_id, body))
+        if r.session is not None:  # a stop leaves at once, whatever the log's state (safety first)
+            self._send(r.session, P.request(type_, req_id, body), type_ == "stop")
 
     def _new_task(self, r: RobotRecord, name: str, args: list[Any], mode: str, by: str) -> TaskRecord:
         t = TaskRecord(self.next_task_id, r.tag, name, args, mode, by)
@@ -588,7 +647,7 @@ class Core:
     def _log_positions(self) -> None:
         """Log the robots that moved since the last heartbeat as one batched record
         (the feed had a batch every pose period; the log keeps one sample per robot per beat)."""
-        if not self._moved:
+        if not self._moved or self.storage_fault is not None:  # samples: none kept while the log is down
             return
         rows = [self.registry.robots[t] for t in sorted(self._moved)]
         self._moved.clear()
@@ -608,14 +667,14 @@ class Core:
         for ident, s in list(self.sessions.items()):
             silent = now - s.last_seen
             if s.tags:
-                self._send(ident, hb)
+                self._send(ident, hb, True)
                 if silent > limit:
                     for tag in s.tags:
                         r = self.registry.robots[tag]
                         if r.session == ident:
                             self._mark_lost(r, f"no message from its host for {silent:.1f} s")
             elif s.watching:
-                self._send(ident, hb)
+                self._send(ident, hb, True)
                 if silent > max(SESSION_IDLE / 10, limit * 10):
                     self._set_watch(s, False)
             elif silent > SESSION_IDLE:
@@ -628,7 +687,7 @@ class Core:
                 err = P.error_reply(p.req_id, TimeoutError_(
                     f"robot {p.tag} did not confirm the stop within {STOP_TIMEOUT:.0f} s; "
                     "its host may be lost (it halts on its own when it loses the core)"))
-                self._send(p.ident, err)
+                self._send(p.ident, err, True)
 
     # ------------------------------------------------------------------ session requests
     def _check_key(self, who: Principal) -> None:
@@ -713,6 +772,7 @@ class Core:
         for r in self.registry.robots.values():
             by_status[r.status] = by_status.get(r.status, 0) + 1
         return dict(self.stats, robots=by_status, sessions=len(self.sessions), log_seq=self.events.seq,
+                    storage=self.storage_fault, log_unwritten=self.events.unwritten,
                     uptime=time.monotonic() - self.started)
 
     def _on_snapshot(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
@@ -945,12 +1005,12 @@ class Core:
         err, body = raw.get("error"), raw.get("body")
         if not isinstance(err, (dict, type(None))) or not isinstance(body, (dict, type(None))):
             self._send(p.ident, P.error_reply(p.req_id, RoboCompError(
-                f"robot {p.tag}'s host answered the stop with a malformed reply; it may not have halted")))
+                f"robot {p.tag}'s host answered the stop with a malformed reply; it may not have halted")), True)
             raise FieldError("a reply's 'error' and 'body' must be maps")
         if not raw.get("ok"):
             err = err or {}
             self._send(p.ident, P.error_reply(p.req_id, RoboCompError(
-                f"robot {p.tag} could not stop: {err.get('message', 'no reason given')}")))
+                f"robot {p.tag} could not stop: {err.get('message', 'no reason given')}")), True)
             return None
         body = body or {}
         for k in ("x", "y", "heading"):
@@ -970,8 +1030,8 @@ class Core:
         ms = (time.monotonic() - p.t0) * 1000
         self.emit("robot.stopped", r.team, {"tag": r.tag, "x": r.x, "y": r.y, "cancelled": cancelled,
                                              "ms": round(ms, 3)})
-        self._send(p.ident, P.ok_reply(p.req_id, {
-            "tag": r.tag, "x": r.x, "y": r.y, "heading": r.heading, "cancelled": cancelled, "ms": ms}))
+        self._send(p.ident, P.ok_reply(p.req_id, {  # a stop is answered at once, even during a storage fault
+            "tag": r.tag, "x": r.x, "y": r.y, "heading": r.heading, "cancelled": cancelled, "ms": ms}), True)
         return None
 
 
