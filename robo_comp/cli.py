@@ -22,24 +22,44 @@ def _positive(text: str) -> float:
 
 
 def _core(args: argparse.Namespace) -> int:
+    from robo_comp.core import matchfile
     from robo_comp.core.server import Core
     from robo_comp.world.scenario import default_scenario, load_scenario
 
-    scenario = load_scenario(args.scenario) if args.scenario else default_scenario()
-    teams = [t.strip() for t in args.teams.split(",") if t.strip()] if args.teams else None
+    state = Path(args.state)
+    given = {"teams": [t.strip() for t in args.teams.split(",") if t.strip()] if args.teams else None,
+             "scenario": str(Path(args.scenario).resolve()) if args.scenario else None,
+             "scenario_sha256": matchfile.scenario_hash(args.scenario),
+             "practice": args.practice, "approve_uploads": args.approve_uploads, "rules": args.rules,
+             "curve": args.curve, "pose_hz": args.pose_hz, "heartbeat": args.heartbeat, "port": args.port}
+    settings, recovering = matchfile.resolve(state, given, args.override)
+    scenario_file = settings.get("scenario")
+    if recovering and scenario_file and not args.scenario:
+        if matchfile.scenario_hash(scenario_file) != settings.get("scenario_sha256"):
+            raise FieldError(f"the scenario file {scenario_file} changed since this match started; put the "
+                             "match's version back, or give --scenario FILE --override to play on with this one")
+    scenario = load_scenario(scenario_file) if scenario_file else default_scenario()
     pm = None
-    if args.rules:
+    if settings.get("rules"):
         from robo_comp.plugins.manager import load_rules
 
-        pm = load_rules(args.rules)
-    core = Core(Path(args.state), scenario, teams, host=args.host, port=args.port,
-                heartbeat=args.heartbeat, fsync=args.fsync, plugins=pm,
-                practice=args.practice or not args.scenario, approve_uploads=args.approve_uploads,
-                curve=args.curve, pose_hz=args.pose_hz)
+        pm = load_rules(settings["rules"])
+    practice = bool(settings.get("practice")) or not scenario_file
+    core = Core(state, scenario, settings.get("teams"), host=args.host, port=settings.get("port", 5555),
+                heartbeat=settings.get("heartbeat", 1.0), fsync=args.fsync, plugins=pm,
+                practice=practice, approve_uploads=bool(settings.get("approve_uploads")),
+                curve=bool(settings.get("curve")), pose_hz=settings.get("pose_hz", 10.0))
     core.bind()
+    matchfile.write(state, {"teams": core.tokens.teams, "scenario": scenario_file,
+                            "scenario_sha256": settings.get("scenario_sha256"), "practice": practice,
+                            "approve_uploads": bool(settings.get("approve_uploads")), "rules": settings.get("rules"),
+                            "curve": bool(settings.get("curve")), "pose_hz": settings.get("pose_hz", 10.0),
+                            "heartbeat": core.heartbeat, "port": core.port})
+    if recovering:
+        print(f"core: recovered the match of {state} (settings from {state / matchfile.MATCH_FILE})", flush=True)
     print(f"core: serving {scenario.name!r} for teams {', '.join(core.tokens.teams)} on "
           f"tcp://{args.host}:{core.port} (events on port {core.pub_port}); state in {args.state}"
-          f"{'; CurveZMQ on (keys in ' + str(Path(args.state) / 'keys') + ')' if args.curve else ''}",
+          f"{'; CurveZMQ on (keys in ' + str(Path(args.state) / 'keys') + ')' if core.curve else ''}",
           flush=True)
     core.run()
     return 0
@@ -105,26 +125,32 @@ def build_parser() -> argparse.ArgumentParser:
 
     c = sub.add_parser("core", help="run the core (ROUTER + PUB) for a match",
                        description="Run the core. Writes STATE/core.json, team tokens in "
-                                   "STATE/teams/<team>.token and STATE/referee.token (mode 0600).")
+                                   "STATE/teams/<team>.token and STATE/referee.token (mode 0600), and "
+                                   "the match's settings in STATE/match.json. On a state folder that holds "
+                                   "a match, the core recovers it with its recorded teams, scenario, rules, "
+                                   "port and options; an option that contradicts them is refused "
+                                   "(--override applies it).")
     c.add_argument("--state", required=True, help="state folder (tokens, core.json, event log)")
     c.add_argument("--scenario", help="scenario file (TOML); default: the built-in arena")
     c.add_argument("--teams", help="comma-separated team names (default: the scenario's teams)")
     c.add_argument("--host", default="127.0.0.1", help="address to bind (0.0.0.0 for a LAN)")
-    c.add_argument("--port", type=int, default=5555, help="ROUTER port (0 = any free port)")
-    c.add_argument("--heartbeat", type=float, default=1.0, help="heartbeat interval in seconds")
+    c.add_argument("--port", type=int, help="ROUTER port (0 = any free port; default 5555, or the recovered match's)")
+    c.add_argument("--heartbeat", type=float, help="heartbeat interval in seconds (default 1)")
     c.add_argument("--fsync", action="store_true", help="fsync the event log every loop turn")
-    c.add_argument("--pose-hz", type=_positive, default=10.0,
+    c.add_argument("--pose-hz", type=_positive,
                    help="robot.positions batches per team per second; reports in between are "
                         "conflated, the newest pose wins (default 10)")
-    c.add_argument("--practice", action="store_true",
+    c.add_argument("--practice", action="store_true", default=None,
                    help="no match phases: running at once, no time limit (the default without --scenario)")
-    c.add_argument("--approve-uploads", action="store_true",
+    c.add_argument("--approve-uploads", action="store_true", default=None,
                    help="a team's upload during a running match waits for the referee's approval")
     c.add_argument("--rules", metavar="MODULE:OBJECT",
                    help="scoring rules plugin to use instead of the default search-and-rescue rules")
-    c.add_argument("--curve", action="store_true",
+    c.add_argument("--curve", action="store_true", default=None,
                    help="CurveZMQ for a networked match: encrypted sockets, only the keys in STATE/keys "
                         "get in (run 'robo-comp keys --state STATE' first)")
+    c.add_argument("--override", action="store_true",
+                   help="on a restart, apply options that contradict the recovered match (and record them)")
     c.set_defaults(func=_core)
 
     r = sub.add_parser("robots", help="host simulated robots of one team",

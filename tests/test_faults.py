@@ -3,9 +3,11 @@ core or a robot host stopped (SIGSTOP) past the heartbeat. ``docs/reliability.md
 promise each test checks."""
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
+import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -127,3 +129,33 @@ def test_a_host_stopped_past_the_heartbeat_is_lost_then_returns_with_its_tags(co
     finally:
         os.kill(host.pid, signal.SIGCONT)
     assert sorted(r["tag"] for r in wait_robots(red, 2, timeout=20.0)) == tags
+
+
+def test_a_restart_keeps_the_match_it_recovers(tmp_path: Path) -> None:
+    """The teams, scenario and options come from the state folder; a contradicting option is
+    refused with what to do, and applied only with --override."""
+    state = tmp_path / "state"
+    first = start_core(state, "--heartbeat", "0.2", "--teams", "red", "--pose-hz", "4")
+    port = json.loads((state / "core.json").read_text())["router"].rsplit(":", 1)[1]
+    first.kill()
+    first.wait()
+    again = start_core(state)  # no options at all: the recovered match's, its port included
+    try:
+        info = json.loads((state / "core.json").read_text())
+        assert info["teams"] == ["red"] and info["router"].endswith(":" + port) and info["heartbeat"] == 0.2
+        assert not (state / "teams" / "blue.token").exists()
+    finally:
+        again.terminate()
+        again.wait(10)
+    out = subprocess.run([sys.executable, "-m", "robo_comp.cli", "core", "--state", str(state),
+                          "--teams", "red,blue", "--pose-hz", "10"], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 2
+    assert "--teams red,blue (the match has red)" in out.stderr and "--pose-hz 10.0 (the match has 4.0)" in out.stderr
+    assert "--override" in out.stderr and "empty --state folder" in out.stderr
+    overridden = start_core(state, "--teams", "red,blue", "--override")
+    try:
+        assert json.loads((state / "core.json").read_text())["teams"] == ["red", "blue"]
+        assert json.loads((state / "match.json").read_text())["teams"] == ["red", "blue"]
+    finally:
+        overridden.terminate()
+        overridden.wait(10)
