@@ -155,6 +155,9 @@ class Core:
         # Routes whose connection went away (a send found no peer): nothing is pushed to them until
         # their session proves itself again there, so whoever takes such an id next gets nothing.
         self._unproven: set[bytes] = set()
+        # True while the short path of _handle may serve a proved message (no CURVE key to check, no
+        # unproven route, no storage fault); otherwise every message takes _prove's full path.
+        self._plain_turn = self.curve is None
         # Refusals of connections without a session, counted per (type, code) and logged once a beat
         # (a flood of bad hellos must not flood the log and the referee's console).
         self._refused_anon: dict[tuple[str, str], list[Any]] = {}
@@ -347,16 +350,20 @@ class Core:
             msg_type = msg.type
             sess = self.sessions.get(ident)
             secret = raw.get("s")
-            if (sess is not None and type(secret) is str and _same(secret, sess.secret)
-                    and (self.curve is None or self._key_owner == sess.key)):
-                sess.last_seen = time.monotonic()  # proved (the common case, kept short)
-                if self._unproven:
-                    self._unproven.discard(ident)
+            # proved (the common case, kept short): the session's secret, compared in constant time
+            proved = False
+            if sess is not None and self._plain_turn and secret.__class__ is str:
+                try:
+                    proved = _compare(secret, sess.secret)
+                except TypeError:  # text that is not ASCII: not a secret of ours
+                    pass
+            if proved:
+                sess.last_seen = time.monotonic()  # type: ignore[union-attr]
             else:
                 sess = None  # not proved (yet): a refusal below is nobody's
                 sess = self._prove(ident, msg.type, secret)
-            if self.storage_fault is not None and msg.type not in STORAGE_FREE:
-                raise StorageError(self.storage_fault)
+                if self.storage_fault is not None and msg.type not in STORAGE_FREE:
+                    raise StorageError(self.storage_fault)
             body = self._handlers[msg.type](ident, msg)
             if body is not None:
                 self._reply(ident, P.ok_reply(req_id, body))
@@ -393,7 +400,12 @@ class Core:
         sess.last_seen = time.monotonic()
         if self._unproven:
             self._unproven.discard(ident)
+            self._replan()
         return sess
+
+    def _replan(self) -> None:
+        """Whether _handle's short path may serve proved messages (see ``_plain_turn``)."""
+        self._plain_turn = self.curve is None and not self._unproven and self.storage_fault is None
 
     def _send_error(self, ident: bytes, req_id: int, err: RoboCompError, sess: Session | None,
                     msg_type: str = "?") -> None:
@@ -467,6 +479,7 @@ class Core:
                 if e.errno == zmq.EHOSTUNREACH and frames[0] in self.sessions:
                     # the session's connection is gone: whoever presents this id next must prove it
                     self._unproven.add(frames[0])
+                    self._plain_turn = False
                 log.debug("send failed: %s", e)
 
     # ------------------------------------------------------------------ events
@@ -477,6 +490,7 @@ class Core:
                               "Organiser: free space on the state folder's disk (or fix it); the core goes on "
                               "by itself")
         self._fault_since = time.monotonic()
+        self._plain_turn = False
         self.stats["storage_faults"] = self.stats.get("storage_faults", 0) + 1
         log.error("%s", self.storage_fault)
         self.emit("core.storage", None, {"ok": False, "message": self.storage_fault, "errno": fault.errno},
@@ -485,6 +499,7 @@ class Core:
     def _storage_restored(self) -> None:
         seconds = time.monotonic() - self._fault_since
         self.storage_fault = None
+        self._replan()
         log.warning("the event log is written again after %.1f s", seconds)
         self.emit("core.storage", None, {"ok": True, "seconds": round(seconds, 3),
                                          "message": f"the event log is written again (after {seconds:.1f} s)"})
@@ -528,7 +543,9 @@ class Core:
         s = self.sessions.pop(ident, None)
         if s is not None:
             self._set_watch(s, False)
-        self._unproven.discard(ident)
+        if self._unproven:
+            self._unproven.discard(ident)
+            self._replan()
         return s
 
     # ------------------------------------------------------------------ helpers
@@ -1033,6 +1050,9 @@ class Core:
         self._send(p.ident, P.ok_reply(p.req_id, {  # a stop is answered at once, even during a storage fault
             "tag": r.tag, "x": r.x, "y": r.y, "heading": r.heading, "cancelled": cancelled, "ms": ms}), True)
         return None
+
+
+_compare = hmac.compare_digest
 
 
 def _same(given: str, secret: str) -> bool:
