@@ -68,6 +68,9 @@ def test_descriptions_are_sentences() -> None:
         text = describe_event(LogEntry(0.0, topic, team, data))
         assert text and "{" not in text
     assert fmt_clock(None) == "--:--" and fmt_clock(61) == "01:01" and fmt_clock(3661) == "1:01:01"
+    fault = describe_event(LogEntry(0.0, "core.storage", None, {"ok": False, "message": "the core cannot write"}))
+    back = describe_event(LogEntry(0.0, "core.storage", None, {"ok": True, "message": "written again"}))
+    assert fault.startswith("STORAGE FAULT: the core cannot write") and back.startswith("storage OK again")
 
 
 def test_link_refuses_requests_while_down_and_reports_states(tmp_path) -> None:  # type: ignore[no-untyped-def]

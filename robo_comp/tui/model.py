@@ -286,6 +286,11 @@ def describe_event(e: LogEntry) -> str:
         return f"{who} bumped at ({d.get('x')}, {d.get('y')})"
     if t == "upload.pending":
         return f"upload {d.get('upload_id')} of {d.get('team')} ({d.get('filename')}) awaits approval"
+    if t == "core.storage":
+        return (f"STORAGE FAULT: {d.get('message', '')}" if not d.get("ok") else
+                f"storage OK again: {d.get('message', '')}")
+    if t == "sandbox.reset":
+        return f"the referee restarted the sandbox of robot(s) {', '.join(map(str, d.get('tags') or []))}"
     if t == "upload.done":
         return f"upload to {d.get('tags')}: {'ok' if d.get('ok') else 'FAILED'} {d.get('message', '')}"
     rest = ", ".join(f"{k}={v}" for k, v in d.items() if k not in ("tag", "team"))[:120]
