@@ -159,3 +159,117 @@ def test_a_restart_keeps_the_match_it_recovers(tmp_path: Path) -> None:
     finally:
         overridden.terminate()
         overridden.wait(10)
+
+
+def test_a_burst_of_tasks_while_the_core_is_killed_in_a_loop(tmp_path: Path) -> None:
+    """Thousands of pipelined gives, the core killed mid-stream five times: every acknowledged
+    task is in the log, none is logged twice, none finishes twice."""
+    from robo_comp.client import Client
+    from robo_comp.core.eventlog import read_log
+    from robo_comp.launch import start_robots, stop_all
+
+    state = tmp_path / "state"
+    core = start_core(state, "--heartbeat", "0.3", "--teams", "red")
+    host = start_robots(state, "red", 3)
+    acked: list[int] = []
+    try:
+        for cycle in range(5):
+            red = Client(str(state), (state / "teams/red.token").read_text().strip(), timeout=10)
+            tags = [r["tag"] for r in wait_robots(red, 3, timeout=20)]
+            rids = [red.ask("give", tag=tags[i % 3], task="goTo", args=[1 + i % 9, 1 + i % 7], queue=True)
+                    for i in range(500)]
+            time.sleep(0.02 * (cycle + 1))  # some answered, many in flight
+            core.kill()
+            core.wait()
+            for rid in rids:  # the answers that arrived before the kill
+                try:
+                    reply = red.answer(rid)
+                except Exception:  # refused (e.g. a robot lost mid-burst): not acknowledged
+                    continue
+                if reply is not None:
+                    acked.append(reply["task_id"])
+            red.close()
+            core = start_core(state)  # the recorded match: its teams, port and options
+        assert len(acked) > 100
+        given = [r.data["task_id"] for r in read_log(state / "events.log", strict=False) if r.topic == "task.given"]
+        done = [r.data["task_id"] for r in read_log(state / "events.log", strict=False) if r.topic == "task.done"]
+        assert set(acked) <= set(given), sorted(set(acked) - set(given))[:10]
+        assert len(given) == len(set(given)), "a task was logged as given twice"
+        assert len(done) == len(set(done)), "a task finished twice"
+    finally:
+        stop_all([host, core])
+
+
+def test_latency_and_a_dead_link_between_a_host_and_the_core(core: CoreHandle) -> None:
+    """Through a link that delays every byte by 50-150 ms the match goes on; a link that carries
+    nothing for 2.5 s (ten heartbeats) makes the robots stop moving and be marked lost, and they
+    come back with the same tags when it carries bytes again. (No netem here: see faultproxy.)"""
+    from faultproxy import DelayProxy
+
+    port = int(json.loads((core.state / "core.json").read_text())["router"].rsplit(":", 1)[1])
+    proxy = DelayProxy(port, delay=0.05, jitter=0.1, seed=3).start()
+    host = subprocess.Popen([sys.executable, "-m", "robo_comp.cli", "robots", "--core", proxy.url, "--token-file",
+                             str(core.token_file("red")), "--count", "2", "--speed", "4"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, stdin=subprocess.DEVNULL)
+    core.procs.append(host)
+    try:
+        red = core.client("red")
+        rows = wait_robots(red, 2, timeout=20)
+        tags = sorted(r["tag"] for r in rows)
+        red.watch(True)
+        given = red.give(tags[0], "goTo", [3, 3])["task_id"]
+        done = next_event_where(red, lambda e: e["topic"] == "task.done" and e["data"]["task_id"] == given, 20.0)
+        assert done["data"]["ok"], done
+        assert red.stop(tags[0])["ms"] >= 50  # the stop crossed the slow link both ways
+        far = red.give(tags[1], "goTo", [18, 12])["task_id"]  # a long way at 4 cells/s
+        time.sleep(0.5)
+        before = red.monitor(tags[1])
+        proxy.stall(2.5)
+        lost = wait_robots(red, 2, status="lost", timeout=5)
+        assert sorted(r["tag"] for r in lost) == tags
+        back = {r["tag"]: r for r in wait_robots(red, 2, timeout=20)}
+        assert sorted(back) == tags
+        moved = abs(back[tags[1]]["x"] - before["x"]) + abs(back[tags[1]]["y"] - before["y"])
+        assert moved < 6, f"the robot drove on without the core: {moved:.1f} cells in 2.5 s"  # 10 if it had
+        assert far >= 1
+    finally:
+        proxy.close()
+
+
+def _libfaketime() -> str | None:
+    """The multi-threaded libfaketime from Debian's package, where it is installed."""
+    import glob
+
+    found = glob.glob("/usr/lib/*/faketime/libfaketimeMT.so.1")
+    return found[0] if found else None
+
+
+def test_a_host_whose_clock_runs_fast_and_jumps(core: CoreHandle, tmp_path: Path) -> None:
+    """A robot host under libfaketime: its clock runs twice as fast, then jumps 2 h forward, then
+    1 h back. Robots keep their tags, no task finishes twice, no duration is negative."""
+    lib = _libfaketime()
+    if lib is None:
+        pytest.skip("libfaketime is not installed (Debian package faketime; .ci/run installs it)")
+    clock = tmp_path / "faketime.rc"
+    clock.write_text("+0 x2\n")
+    env = dict(os.environ, LD_PRELOAD=lib, FAKETIME_TIMESTAMP_FILE=str(clock), FAKETIME_NO_CACHE="1")
+    host = subprocess.Popen([sys.executable, "-m", "robo_comp.cli", "robots", "--core", str(core.state),
+                             "--token-file", str(core.token_file("red")), "--count", "2"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, stdin=subprocess.DEVNULL, env=env)
+    core.procs.append(host)
+    red = core.client("red")
+    tags = sorted(r["tag"] for r in wait_robots(red, 2, timeout=30))
+    red.watch(True)
+    ids = []
+    for step, when in enumerate(("+0 x2", "+7200 x2", "+3600 x1")):
+        clock.write_text(when + "\n")
+        time.sleep(1.0)  # a forward jump looks like a silent core to the host: it may re-register
+        assert sorted(r["tag"] for r in wait_robots(red, 2, timeout=20)) == tags
+        ids.append(red.give(tags[step % 2], "goTo", [2 + step, 3])["task_id"])
+        next_event_where(red, lambda e: e["topic"] == "task.done" and e["data"]["task_id"] == ids[-1], 30.0)
+    done = [e["data"] for e in core.logged_events("task.done")]
+    assert len({d["task_id"] for d in done}) == len(done), "a task finished twice"
+    for tag in tags:
+        for t in red.tasks(tag)["done"]:
+            if t["started_at"] is not None:  # (a task cancelled before it started has none)
+                assert t["finished_at"] >= t["started_at"] >= t["given_at"] - 1e-6, t

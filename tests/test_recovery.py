@@ -92,7 +92,8 @@ def test_acknowledged_events_survive_kill_9_at_random_points(tmp_path):
             # fire more without waiting for the replies, then kill at once
             for _ in range(rng.randrange(0, 20)):
                 red.sock.send(__import__("robo_comp.core.protocol", fromlist=["x"]).request(
-                    "give", 9999, {"tag": rows[0]["tag"], "task": "goTo", "args": [1, 1], "queue": True}))
+                    "give", 9999, {"tag": rows[0]["tag"], "task": "goTo", "args": [1, 1], "queue": True},
+                    red.session))
             red.close()
             port = _port(state)
             _kill9(core)
@@ -105,7 +106,7 @@ def test_acknowledged_events_survive_kill_9_at_random_points(tmp_path):
             known |= {x["task_id"] for x in t["queued"] + t["done"]}
             if t["current"]:
                 known.add(t["current"]["task_id"])
-        # done lists keep the newest 200 per robot; nothing acknowledged may be missing
+        # done lists keep the newest 20 per robot; nothing acknowledged may be missing
         missing = [a for a in acked if a not in known]
         assert not missing, f"{len(missing)} acknowledged tasks lost: {missing[:10]}"
         red.close()

@@ -280,6 +280,8 @@ class Core:
         next_pose = time.monotonic() + self.pose_period
         try:
             while self._running:
+                if next_tick - time.monotonic() > self.heartbeat:  # the clock went back: beat now
+                    next_tick = next_pose = time.monotonic()
                 timeout = max(0.0, next_tick - time.monotonic())
                 if self.pending_stops or self.uploads.busy:
                     timeout = min(timeout, 0.05)
@@ -352,10 +354,10 @@ class Core:
             secret = raw.get("s")
             # proved (the common case, kept short): the session's secret, compared in constant time
             proved = False
-            if sess is not None and self._plain_turn and secret.__class__ is str:
+            if sess is not None and self._plain_turn:
                 try:
                     proved = _compare(secret, sess.secret)
-                except TypeError:  # text that is not ASCII: not a secret of ours
+                except TypeError:  # not ASCII text (bytes, a number, nil ...): not a secret of ours
                     pass
             if proved:
                 sess.last_seen = time.monotonic()  # type: ignore[union-attr]

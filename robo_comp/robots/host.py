@@ -38,6 +38,8 @@ from robo_comp.world.public import scenario_from_payload
 from robo_comp.world.scenario import Scenario
 
 log = logging.getLogger("robo_comp.robots")
+#: The longest simulation step, in seconds (a clock that jumps forward is taken as this).
+MAX_STEP = 0.5
 
 Reply = Callable[[bool, dict[str, Any]], None]
 #: Robots per ``reports`` message; the host looks at the core's socket between two messages
@@ -497,6 +499,16 @@ class RobotHost:
         r.pending = None
 
     # ------------------------------------------------------------------ loop
+    def _clock_went_back(self, now: float) -> None:
+        """The monotonic clock jumped back (an injected clock, a restored VM): every time stamp taken
+        before is in the future now, and would hold back heartbeats, reports and sensing until the
+        clock caught up. Take them all as now."""
+        log.warning("the clock went back; the host goes on from now")
+        self.last_tx = self.last_rx = self.state_since = now
+        for r in self.robots.values():
+            r.last_report = min(r.last_report, now)
+            r.last_sensed = min(r.last_sensed, now)
+
     def step(self, dt: float) -> None:
         """Advance the arena and every robot by ``dt`` seconds (movement, task steps)."""
         assert self.world is not None and self.loc is not None
@@ -611,6 +623,9 @@ class RobotHost:
         next_report = last
         while self._running and (t_end is None or time.monotonic() < t_end):
             self._watch_code()
+            if next_tick - time.monotonic() > self.tick:  # the clock went back: tick now, not an hour on
+                last = next_tick = next_report = time.monotonic()
+                self._clock_went_back(last)
             wake = next_tick
             code_deadline = self.code.deadline()
             if code_deadline is not None:
@@ -624,7 +639,9 @@ class RobotHost:
             now = time.monotonic()
             if now >= next_tick:
                 if self.state == "up" and not self.holding:
-                    self.step(now - last)
+                    # a clock that jumps (a virtual machine resumed, an injected clock) never moves a
+                    # robot backwards or across the arena in one step
+                    self.step(min(max(0.0, now - last), MAX_STEP))
                     self._drain()  # a stop that came in meanwhile goes first
                     if now >= next_report:
                         self._report(now)
