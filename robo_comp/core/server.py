@@ -348,21 +348,23 @@ class Core:
         sess: Session | None = None  # the session this message proved it belongs to
         try:
             raw, req_id = P.decode_envelope(frame)
-            msg = P.validate(raw, req_id)
-            msg_type = msg.type
-            sess = self.sessions.get(ident)
+            found = self.sessions.get(ident)
             secret = raw.get("s")
-            # proved (the common case, kept short): the session's secret, compared in constant time
+            # proved (the common case, kept short): the session's secret, compared in constant time;
+            # a refusal below (a bad field, say) is then the session's, else nobody's
             proved = False
-            if sess is not None and self._plain_turn:
+            if found is not None and self._plain_turn:
                 try:
-                    proved = _compare(secret, sess.secret)
+                    proved = _compare(secret, found.secret)
                 except TypeError:  # not ASCII text (bytes, a number, nil ...): not a secret of ours
                     pass
             if proved:
-                sess.last_seen = time.monotonic()  # type: ignore[union-attr]
+                sess = found
+            msg = P.validate(raw, req_id)
+            msg_type = msg.type
+            if proved:
+                found.last_seen = time.monotonic()  # type: ignore[union-attr]
             else:
-                sess = None  # not proved (yet): a refusal below is nobody's
                 sess = self._prove(ident, msg.type, secret)
                 if self.storage_fault is not None and msg.type not in STORAGE_FREE:
                     raise StorageError(self.storage_fault)
