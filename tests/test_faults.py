@@ -273,3 +273,34 @@ def test_a_host_whose_clock_runs_fast_and_jumps(core: CoreHandle, tmp_path: Path
         for t in red.tasks(tag)["done"]:
             if t["started_at"] is not None:  # (a task cancelled before it started has none)
                 assert t["finished_at"] >= t["started_at"] >= t["given_at"] - 1e-6, t
+
+
+def test_a_console_stopped_past_the_heartbeat_holds_up_nothing(core: CoreHandle, tmp_path: Path) -> None:
+    """A console (``ctl events``) SIGSTOPped for ten heartbeats: the match goes on without it, and
+    when it runs again it gets the events it missed and the new ones."""
+    core.robots("red", 1)
+    red = core.client("red")
+    tag = wait_robots(red, 1)[0]["tag"]
+    out = tmp_path / "events.jsonl"
+    with open(out, "w") as f:
+        console = subprocess.Popen([sys.executable, "-m", "robo_comp.cli", "ctl", "--core", str(core.state),
+                                    "--token-file", str(core.token_file("red")), "--json", "events",
+                                    "--timeout", "6"], stdout=f, stderr=subprocess.DEVNULL, stdin=subprocess.DEVNULL)
+    core.procs.append(console)
+    t_end = time.monotonic() + 10
+    while not out.read_text():  # it watches: its first event has come
+        assert time.monotonic() < t_end, "the console printed nothing"
+        red.give(tag, "goTo", [2, 2])
+        time.sleep(0.3)
+    os.kill(console.pid, signal.SIGSTOP)
+    try:
+        during = red.give(tag, "goTo", [3, 3])["task_id"]  # the match does not wait for the console
+        time.sleep(2.0)
+        assert red.monitor(tag)["status"] == "connected"
+    finally:
+        os.kill(console.pid, signal.SIGCONT)
+    after = red.give(tag, "goTo", [4, 4])["task_id"]
+    console.wait(30)
+    given = {json.loads(line)["data"].get("task_id") for line in out.read_text().splitlines()
+             if json.loads(line)["topic"] == "task.given"}
+    assert {during, after} <= given, given

@@ -302,3 +302,24 @@ def test_a_master_tile_shares_zoom_pan_and_panels_with_its_followers():
     finally:
         master.close()
         follower.close()
+
+
+def test_a_storage_fault_stays_on_the_message_bar_while_it_lasts():
+    m = model()
+    tile = TileSpec(1, 1, 0, 0, 1000, 640)
+
+    def bar_has_error_text() -> bool:
+        surf, r = render(m, tile)
+        x, y, w, h = r.layout.bar
+        pixels = pygame.surfarray.array3d(surf.subsurface((x, y, w, h)))
+        return bool((pixels == np.array(R.ERROR)).all(axis=2).any())
+
+    assert not bar_has_error_text()
+    m.apply("core.storage", {"ok": False, "message": "the core cannot write its event log (disk full)"})
+    assert m.storage and bar_has_error_text()
+    m.messages.clear()  # the message bar's lines time out; the fault stays until the core says it is over
+    assert bar_has_error_text()
+    m.apply("core.storage", {"ok": True, "message": "the event log is written again (after 3.0 s)"})
+    assert m.storage is None
+    m.messages.clear()
+    assert not bar_has_error_text()

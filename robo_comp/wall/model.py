@@ -127,6 +127,8 @@ class WallModel:
         self.panel_version = 0  # changes with everything but positions (the panel redraws on it)
         self.events = 0
         self.replay = False  # set by a replay source: the clock line then shows the recording's time
+        #: The core's storage fault while it lasts (its event log cannot be written), else None.
+        self.storage: str | None = None
 
     # ------------------------------------------------------------------ feeding
     def set_arena(self, payload: dict[str, Any]) -> None:
@@ -300,6 +302,16 @@ def _on_broadcast(m: WallModel, d: dict[str, Any]) -> None:
     m.note(str(d.get("message", "")), "broadcast")
 
 
+def _on_storage(m: WallModel, d: dict[str, Any]) -> None:
+    """The core cannot write its event log (kept on the bar until it can), or can again."""
+    if d.get("ok"):
+        m.storage = None
+        m.note(str(d.get("message") or "the core writes its event log again"), "info")
+    else:
+        m.storage = str(d.get("message") or "the core cannot write its event log")
+        m.note(m.storage, "error")
+
+
 def _on_penalty(m: WallModel, d: dict[str, Any]) -> None:
     m.note(f"penalty {d.get('team')}: {d.get('points')} ({d.get('reason', '')})", "error")
 
@@ -320,4 +332,5 @@ _HANDLERS: dict[str, Any] = {
     "picture": _on_picture,
     "broadcast": _on_broadcast,
     "penalty": _on_penalty,
+    "core.storage": _on_storage,
 }

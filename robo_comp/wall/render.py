@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import pygame
 
-from robo_comp.wall.model import Arena, Robot, Thing, WallModel
+from robo_comp.wall.model import Arena, Message, Robot, Thing, WallModel
 from robo_comp.wall.view import Layout, MapGeometry, Rect, TileSpec, ViewState, rnd
 
 RGB = tuple[int, int, int]
@@ -652,6 +652,8 @@ class Renderer:
             return
         msgs = self.model.visible_messages(now)
         last = msgs[-1] if msgs else None
+        if self.model.storage is not None:  # a storage fault stays on the bar while it lasts
+            last = Message("STORAGE FAULT: " + self.model.storage, "error", now or 0.0)
         key = (overlay.hint, last.text if last else "", last.level if last else "")
         if self._bar is None or self._bar[0] != key:
             bar = pygame.Surface(L.bar[2:], 0, 32)
