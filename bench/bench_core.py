@@ -34,7 +34,7 @@ sys.path.insert(0, str(TREE))
 BASELINE_REV = "a7f9924"
 
 from robo_comp.client import Client  # noqa: E402
-from robo_comp.core import protocol as P  # noqa: E402
+from robo_comp import protocol as P  # noqa: E402
 from robo_comp.launch import start_core, start_robots, stop_all  # noqa: E402
 from robo_comp.robots.host import RobotHost  # noqa: E402
 

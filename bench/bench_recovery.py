@@ -139,7 +139,7 @@ def log_rate(fsync: bool, seconds: float) -> float:
                 time.sleep(0.1)
             tag = c.robots()[0]["tag"]
             # pipeline requests: many in flight, as many consoles and robots would produce
-            from robo_comp.core import protocol as P
+            from robo_comp import protocol as P
             n = 0
             inflight = 0
             t_end = time.perf_counter() + seconds

@@ -21,7 +21,7 @@ import time
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent.parent))
 
-from robo_comp.plugins.sandbox import (  # noqa: E402
+from robo_comp.sandbox.parent import (  # noqa: E402
     Limits, Sandbox, SandboxStopped, TaskDone, TaskFailed, poll_many,
 )
 

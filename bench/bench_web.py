@@ -53,7 +53,7 @@ import numpy as np  # noqa: E402
 import zmq  # noqa: E402
 
 from robo_comp.client import Client, pub_url  # noqa: E402
-from robo_comp.core import protocol as P  # noqa: E402
+from robo_comp import protocol as P  # noqa: E402
 from robo_comp.core.eventlog import EventLog  # noqa: E402
 from robo_comp.launch import start_core, start_robots, stop_all  # noqa: E402
 from robo_comp.world.scenario import bundled_scenario_path  # noqa: E402
@@ -104,7 +104,7 @@ def browser():
 
 # ---------------------------------------------------------------------- the live match
 def free_cells(c: Client) -> list[tuple[int, int]]:
-    from robo_comp.world.public import unpack_walls
+    from robo_comp.protocol import unpack_walls
 
     walls = unpack_walls(c.arena())
     ys, xs = np.nonzero(~walls)

@@ -6,7 +6,7 @@
     .venv/bin/python bench/fuzz_atheris.py --engine simple   # no atheris: our own mutation fuzzer
 
 One input drives one target: ``decode`` feeds the bytes to
-:func:`robo_comp.core.protocol.decode`; ``scenario`` decodes them as UTF-8 (with replacement)
+:func:`robo_comp.protocol.decode`; ``scenario`` decodes them as UTF-8 (with replacement)
 and feeds the text to :func:`robo_comp.world.scenario.parse_scenario`. With ``--target both``
 the first byte of the input chooses the target. Only :class:`RoboCompError` subclasses are
 acceptable; anything else is a crash: libFuzzer (atheris) prints the traceback and writes the
@@ -38,11 +38,11 @@ except ImportError:  # pragma: no cover - atheris is optional
 
 if atheris is not None:
     with atheris.instrument_imports(include=["robo_comp", "tomllib"]):
-        from robo_comp.core import protocol as P
+        from robo_comp import protocol as P
         from robo_comp.errors import RoboCompError
         from robo_comp.world.scenario import parse_scenario
 else:  # pragma: no cover
-    from robo_comp.core import protocol as P
+    from robo_comp import protocol as P
     from robo_comp.errors import RoboCompError
     from robo_comp.world.scenario import parse_scenario
 

@@ -67,7 +67,7 @@ def _core(args: argparse.Namespace) -> int:
 
 def _robots(args: argparse.Namespace) -> int:
     from robo_comp.client import read_token, resolve_core
-    from robo_comp.core.curve import client_keys
+    from robo_comp.protocol.curve import client_keys
     from robo_comp.robots.host import RobotHost
 
     truth = None
@@ -93,7 +93,7 @@ def _robots(args: argparse.Namespace) -> int:
 def _replay(args: argparse.Namespace) -> int:
     import tempfile
 
-    from robo_comp.scoring.replay import ReplayCore
+    from robo_comp.core.replay import ReplayCore
 
     state = Path(args.state) if args.state else Path(tempfile.mkdtemp(prefix="robo_comp_replay_"))
     core = ReplayCore(Path(args.log), state, speed=args.speed, start_at=args.start, host=args.host,
@@ -197,7 +197,7 @@ def build_parser() -> argparse.ArgumentParser:
     d.set_defaults(func=_demo)
 
     plan_cli.add_parser(sub)
-    from robo_comp.core import curve
+    from robo_comp.protocol import curve
 
     curve.add_parser(sub)
     from robo_comp.teams import newteam

@@ -21,9 +21,10 @@ from urllib.parse import urlparse
 
 import zmq
 
-from robo_comp.core import protocol as P
-from robo_comp.core.curve import client_keys, secure_client
-from robo_comp.errors import ConnectionLostError, FieldError, TimeoutError_, error_from_code
+from robo_comp import protocol as P
+from robo_comp.protocol.curve import client_keys, secure_client
+from robo_comp.errors import ConnectionLostError, FieldError, TimeoutError_
+from robo_comp.protocol.replies import reply_body
 
 
 def resolve_core(core: str) -> str:
@@ -64,7 +65,7 @@ def pub_url(router_url: str, pub_port: int) -> str:
 
 def open_dealer(ctx: zmq.Context, url: str, curve: Any = None, **options: int) -> zmq.Socket:
     """A DEALER socket connected to the core at ``url`` with a fresh random routing id (see
-    :func:`robo_comp.core.protocol.new_routing_id`), CurveZMQ keys when given, and ``options``
+    :func:`robo_comp.protocol.new_routing_id`), CurveZMQ keys when given, and ``options``
     (socket option -> value); what every client of the project connects with."""
     sock = ctx.socket(zmq.DEALER)
     sock.setsockopt(zmq.LINGER, 0)
@@ -76,18 +77,12 @@ def open_dealer(ctx: zmq.Context, url: str, curve: Any = None, **options: int) -
     return sock
 
 
-def _reply_body(msg: dict[str, Any]) -> dict[str, Any]:
-    """The body of an ok reply, or the matching :class:`RoboCompError` raised for an error reply."""
-    if msg.get("ok"):
-        return msg.get("body") or {}
-    err = msg.get("error") or {}
-    raise error_from_code(err.get("code", "E_INTERNAL"), err.get("message", "unknown error"), err.get("details"))
 
 class Client:
     """A DEALER connection to the core that has said hello with a token.
 
     For a core run with ``--curve``, ``curve_cert`` is this client's secret certificate and
-    ``core_key`` the core's public one (see :func:`robo_comp.core.curve.client_keys` for the
+    ``core_key`` the core's public one (see :func:`robo_comp.protocol.curve.client_keys` for the
     defaults: ``$ROBO_COMP_CURVE_CERT``/``$ROBO_COMP_CORE_KEY``, or the state folder's keys).
     """
 
@@ -178,7 +173,7 @@ class Client:
                     f"the core at {self.url} did not answer {type_!r} within {self.timeout:.1f} s; is it running?")
             msg = P.unpack(self.sock.recv())
             if msg.get("type") == "reply" and msg.get("id") in (rid, 0):
-                return _reply_body(msg)
+                return reply_body(msg)
             self._keep(msg)
 
     def _keep(self, msg: dict[str, Any]) -> None:
@@ -207,7 +202,7 @@ class Client:
         if msg is None:
             return None
         del self._asked[rid]
-        return _reply_body(msg)
+        return reply_body(msg)
 
     def forget(self, rid: int) -> None:
         """Stop waiting for request ``rid`` (a late reply is dropped)."""
@@ -267,7 +262,7 @@ class Client:
         return self.request("snapshot")
 
     def arena(self) -> dict[str, Any]:
-        """The arena payload (see :func:`robo_comp.core.server.unpack_walls`)."""
+        """The arena payload (walls: :func:`robo_comp.protocol.unpack_walls`)."""
         return self.request("arena")
 
     # ------------------------------------------------------------------ events

@@ -61,7 +61,7 @@ def add_connection_args(p: argparse.ArgumentParser, required: bool = True) -> No
     """``--core``, ``--token``/``--token-file`` and the CurveZMQ ``--curve-cert``/``--core-key``,
     shared by every client command (``required=False`` where another source may replace the core,
     as the wall's ``--replay``)."""
-    from robo_comp.core.curve import add_curve_args
+    from robo_comp.protocol.curve import add_curve_args
 
     p.add_argument("--core", required=required, help="ROUTER URL (tcp://HOST:PORT) or the core's state folder")
     tok = p.add_mutually_exclusive_group(required=required)

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from robo_comp.client import Client
-from robo_comp.core.protocol import unpack_walls
+from robo_comp.protocol import unpack_walls
 from robo_comp.errors import RoboCompError
 from robo_comp.launch import start_core, start_robots, stop_all
 

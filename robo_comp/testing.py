@@ -16,7 +16,7 @@ fixtures without a ``conftest.py``:
     :meth:`Match.robots`, talk to it with :meth:`Match.client`; everything is stopped at
     teardown.
 ``robo_bench``
-    A :class:`Bench`: the team's modules in the **real sandbox** (:class:`~robo_comp.plugins.sandbox.Sandbox`,
+    A :class:`Bench`: the team's modules in the **real sandbox** (:class:`~robo_comp.sandbox.parent.Sandbox`,
     a separate restricted process), its robot API answered by an in-process, seeded simulation
     of the scenario on a step-locked simulated clock. :meth:`Bench.run` runs one task,
     :meth:`Bench.run_match` a whole match (task lists for many robots, a simulated duration; a
@@ -50,8 +50,8 @@ from robo_comp.launch import start_core, start_robots, stop_all
 from robo_comp.robots import teamcode as host_answers  # the robot host's answers to team code
 
 if TYPE_CHECKING:  # heavy imports (numpy, numba, the sandbox) only when a fixture needs them
-    from robo_comp.plugins.contract import ModuleInfo
-    from robo_comp.plugins.sandbox import Limits, LogLine
+    from robo_comp.sandbox.contract import ModuleInfo
+    from robo_comp.sandbox.parent import Limits, LogLine
     from robo_comp.world.scenario import Scenario
 
 DEFAULT_SCENARIO = "demo_room"
@@ -298,7 +298,7 @@ class Bench:
 
     ``Bench(scenario, team, robots=1, seed=0)`` builds the simulated arena (seeded: the scenario's
     seed plus ``seed``), places ``robots`` robots of ``team`` in its start zone (tags 101, 102, ...)
-    and starts a :class:`~robo_comp.plugins.sandbox.Sandbox` for them. ``speed`` (cells per
+    and starts a :class:`~robo_comp.sandbox.parent.Sandbox` for them. ``speed`` (cells per
     second) overrides the scenario's robot speed, as ``robo-comp robots --speed`` does.
 
     :meth:`run` runs one task on one robot and returns its result; :meth:`run_match` runs task
@@ -344,7 +344,7 @@ class Bench:
                  limits: Limits | None = None, dt: float = 0.05, max_sim_seconds: float = 600.0,
                  speed: float | None = None) -> None:
         from robo_comp.plugins.manager import get_plugin_manager
-        from robo_comp.plugins.sandbox import Sandbox
+        from robo_comp.sandbox.parent import Sandbox
         from robo_comp.scoring.board import Scoreboard
         from robo_comp.scoring.config import ScoringConfig
         from robo_comp.world.arena import Arena
@@ -403,7 +403,7 @@ class Bench:
         checked contract; raises :class:`~robo_comp.errors.UploadError` when it is refused."""
         p = Path(path)
         text = p.read_text(encoding="utf-8") if source is None else source
-        from robo_comp.plugins.sandbox import LoadFailed, Loaded, RpcCall
+        from robo_comp.sandbox.parent import LoadFailed, Loaded, RpcCall
 
         lid = self.sandbox.begin_load(p.name, text)
         t_end = time.monotonic() + 10.0
@@ -533,7 +533,7 @@ class Bench:
 
     def _handle_records(self) -> None:
         """Wait (a little) for what the sandbox says and act on it."""
-        from robo_comp.plugins.sandbox import RpcCall
+        from robo_comp.sandbox.parent import RpcCall
 
         recs = self.sandbox.poll(0.05)
         if not recs and time.monotonic() > self._wall_end:
@@ -573,7 +573,7 @@ class Bench:
         self._start_next(tag)
 
     def _on_record(self, rec: Any) -> None:
-        from robo_comp.plugins.sandbox import LogLine, SandboxStopped, TaskDone, TaskFailed as SbFailed
+        from robo_comp.sandbox.parent import LogLine, SandboxStopped, TaskDone, TaskFailed as SbFailed
 
         if isinstance(rec, LogLine):
             self.logs.append(rec)

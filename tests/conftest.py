@@ -9,7 +9,7 @@ import pytest
 
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 
-from robo_comp.core.protocol import TOPICS  # noqa: E402
+from robo_comp.protocol import TOPICS  # noqa: E402
 from robo_comp.launch import start_core  # noqa: E402
 from robo_comp.testing import Match, next_event_where, wait_for, wait_robots  # noqa: E402,F401  (tests import them from here)
 

@@ -9,7 +9,7 @@ import pytest
 import zmq
 
 from robo_comp.client import recv_event
-from robo_comp.core import protocol as P
+from robo_comp import protocol as P
 
 POSE_HZ = 5
 

@@ -6,7 +6,7 @@ import signal
 import time
 
 from conftest import HEARTBEAT, next_event_where, wait_for, wait_robots
-from robo_comp.core import protocol as P
+from robo_comp import protocol as P
 from robo_comp.launch import start_core, stop_all
 
 

@@ -9,7 +9,7 @@ import pytest
 import zmq
 
 from conftest import wait_robots
-from robo_comp.core import protocol as P
+from robo_comp import protocol as P
 
 
 class Raw:

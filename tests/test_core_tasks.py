@@ -20,7 +20,7 @@ def one_robot(core):
     red = core.client("red")
     red.watch(True)
     row = wait_robots(red, 1)[0]
-    from robo_comp.core.protocol import unpack_walls
+    from robo_comp.protocol import unpack_walls
     walls = unpack_walls(red.arena())
     free = [(x, y) for y in range(walls.shape[0]) for x in range(walls.shape[1]) if not walls[y, x]]
     return red, row, free
@@ -113,7 +113,7 @@ def test_invalid_tasks_get_clear_messages(one_robot):
     with pytest.raises(BadTaskError, match="followPath"):
         red.give(tag, "followPath", [[1, 2]])
     # the robot validates too: a wall cell is answered with a status message
-    from robo_comp.core.protocol import unpack_walls
+    from robo_comp.protocol import unpack_walls
     walls = unpack_walls(red.arena())
     wall = next((x, y) for y in range(walls.shape[0]) for x in range(walls.shape[1]) if walls[y, x])
     tid = red.give(tag, "goTo", list(wall))["task_id"]

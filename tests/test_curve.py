@@ -20,7 +20,7 @@ import zmq
 
 from conftest import CoreHandle, wait_for, wait_robots
 from robo_comp.client import Client
-from robo_comp.core.curve import ENV_CERT, ENV_CORE_KEY, create_keys
+from robo_comp.protocol.curve import ENV_CERT, ENV_CORE_KEY, create_keys
 from robo_comp.errors import AuthError, FieldError, TimeoutError_
 from robo_comp.launch import start_core, start_robots
 

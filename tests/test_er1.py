@@ -126,7 +126,7 @@ def test_a_host_drives_an_er1_for_a_real_core(core):
         red.watch(True)
         row = wait_robots(red, 1)[0]
         x, y = round(row["x"]), round(row["y"])
-        from robo_comp.core.protocol import unpack_walls
+        from robo_comp.protocol import unpack_walls
 
         walls = unpack_walls(red.arena())
         target = next((x + dx, y + dy) for dx, dy in ((1, 0), (-1, 0), (0, 1), (0, -1))

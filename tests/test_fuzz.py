@@ -1,7 +1,7 @@
 """Fuzzing (issue 9, part 4): the decoder, the scenario parser and a live core never fail
 with anything but their own errors.
 
-* :func:`robo_comp.core.protocol.decode` on arbitrary bytes and on msgpack maps with the right
+* :func:`robo_comp.protocol.decode` on arbitrary bytes and on msgpack maps with the right
   envelope but arbitrary (wrong) fields: a :class:`Message` or a ``RoboCompError`` subclass.
 * :func:`robo_comp.world.scenario.parse_scenario` on arbitrary text and on mutations of
   ``demo_room.toml``: a scenario or a ``ScenarioError``.
@@ -27,7 +27,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from robo_comp.client import Client
-from robo_comp.core import protocol as P
+from robo_comp import protocol as P
 from robo_comp.errors import RoboCompError, ScenarioError
 from robo_comp.world.scenario import parse_scenario
 

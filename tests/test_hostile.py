@@ -22,7 +22,7 @@ import time
 import pytest
 
 from robo_comp.errors import UploadError
-from robo_comp.plugins.sandbox import (
+from robo_comp.sandbox.parent import (
     Limits, Loaded, LoadFailed, Sandbox, SandboxStopped, TaskDone, TaskFailed, poll_many,
 )
 

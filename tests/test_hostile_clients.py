@@ -21,8 +21,8 @@ import pytest
 import zmq
 
 from conftest import CoreHandle, wait_for, wait_robots
-from robo_comp.core import protocol as P
-from robo_comp.core.curve import ClientKeys, load_public, load_secret, secure_client
+from robo_comp import protocol as P
+from robo_comp.protocol.curve import ClientKeys, load_public, load_secret, secure_client
 from robo_comp.launch import start_core
 
 #: libzmq's first made-up routing ids when nothing seeds C's rand(): 0x00 + 0x6b8b4567, +1, ...

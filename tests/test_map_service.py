@@ -12,7 +12,7 @@ import zmq
 
 import robo_comp.world.scenario as scen
 from conftest import CoreHandle, wait_for
-from robo_comp.core import protocol as P
+from robo_comp import protocol as P
 from robo_comp.errors import FieldError, NotYoursError
 from robo_comp.launch import start_core
 from robo_comp.world.mapservice import MapView

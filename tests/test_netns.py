@@ -43,7 +43,7 @@ AGENT = r"""
 import json, sys
 import numpy as np
 from robo_comp.client import Client
-from robo_comp.core import protocol as P
+from robo_comp import protocol as P
 from robo_comp.errors import RoboCompError
 c = Client(sys.argv[1], open(sys.argv[2]).read().strip(), client="netns-referee", timeout=5.0)
 c.watch()

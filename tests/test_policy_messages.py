@@ -6,7 +6,7 @@ import re
 
 import pytest
 
-from robo_comp.plugins import explain, restricted
+from robo_comp.sandbox import explain, policy
 
 #: Words that start the "what to do instead" part of a refusal.
 INSTEAD = re.compile(r"; (?:[a-z`(].*)?\b(write|use|rename|choose|keep|import|call|put|give|compare|return|"
@@ -43,8 +43,8 @@ COMPILE_CASES = [
 
 @pytest.mark.parametrize("name,src,line,code", COMPILE_CASES, ids=[c[0] for c in COMPILE_CASES])
 def test_each_compile_refusal_quotes_the_code_and_says_what_to_do(name: str, src: str, line: int, code: str) -> None:
-    with pytest.raises(restricted.PolicyError) as ei:
-        restricted.compile_team(src, "team.py")
+    with pytest.raises(policy.PolicyError) as ei:
+        policy.compile_team(src, "team.py")
     err = ei.value
     assert err.line == line, (name, err)
     assert err.detail.startswith(f"`{code}`"), (name, err.detail)
@@ -57,8 +57,8 @@ def test_every_rule_of_the_table_has_a_sample() -> None:
     texts = []
     for _, src, _, _ in COMPILE_CASES:
         try:
-            restricted.compile_team(src, "team.py")
-        except restricted.PolicyError as e:
+            policy.compile_team(src, "team.py")
+        except policy.PolicyError as e:
             texts.append(e.detail)
     untried = [p for p, sentence in explain._RULES if not any(
         sentence.split("{0}")[0][:40].split("`")[0] in t for t in texts)]
@@ -88,9 +88,9 @@ RUNTIME_CASES = [
 
 @pytest.mark.parametrize("name,src,exc", RUNTIME_CASES, ids=[c[0] for c in RUNTIME_CASES])
 def test_each_run_time_refusal_says_what_to_do(name: str, src: str, exc: type) -> None:
-    code = restricted.compile_team(src, "team.py")
+    code = policy.compile_team(src, "team.py")
     with pytest.raises(exc) as ei:
-        exec(code, restricted.make_globals("team"))
+        exec(code, policy.make_globals("team"))
     text = str(ei.value)
     assert not RAW.search(text), (name, text)
     assert INSTEAD.search(text), (name, text)
@@ -98,7 +98,7 @@ def test_each_run_time_refusal_says_what_to_do(name: str, src: str, exc: type) -
 
 def test_a_long_line_is_quoted_shortened() -> None:
     src = "x = 1\ny = eval('" + "1 + " * 40 + "1')\n"
-    with pytest.raises(restricted.PolicyError) as ei:
-        restricted.compile_team(src, "team.py")
+    with pytest.raises(policy.PolicyError) as ei:
+        policy.compile_team(src, "team.py")
     quoted = ei.value.detail.split("`")[1]
     assert len(quoted) == explain.QUOTE_CHARS and quoted.endswith("…")

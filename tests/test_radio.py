@@ -7,7 +7,7 @@ import msgpack
 import pytest
 import zmq
 
-from robo_comp.core import protocol as P
+from robo_comp import protocol as P
 
 
 class Host:

@@ -91,7 +91,7 @@ def test_acknowledged_events_survive_kill_9_at_random_points(tmp_path):
                                       queue=True)["task_id"])
             # fire more without waiting for the replies, then kill at once
             for _ in range(rng.randrange(0, 20)):
-                red.sock.send(__import__("robo_comp.core.protocol", fromlist=["x"]).request(
+                red.sock.send(__import__("robo_comp.protocol", fromlist=["x"]).request(
                     "give", 9999, {"tag": rows[0]["tag"], "task": "goTo", "args": [1, 1], "queue": True},
                     red.session))
             red.close()

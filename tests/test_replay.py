@@ -11,10 +11,10 @@ import pytest
 import robo_comp.world.scenario as scen
 from conftest import next_event_where, wait_for, wait_robots
 from robo_comp.client import Client
-from robo_comp.core.curve import ENV_CERT, ENV_CORE_KEY, create_keys
+from robo_comp.protocol.curve import ENV_CERT, ENV_CORE_KEY, create_keys
 from robo_comp.errors import FieldError, ForbiddenError, TimeoutError_
 from robo_comp.launch import _spawn, start_core, start_robots, stop_all
-from robo_comp.scoring.replay import ReplayCore
+from robo_comp.core.replay import ReplayCore
 
 DEMO = Path(scen.__file__).parent / "scenarios" / "demo_room.toml"
 

@@ -9,13 +9,13 @@ import time
 import pytest
 
 from robo_comp.errors import BadTaskError, NotYoursError, UploadError
-from robo_comp.plugins import restricted
-from robo_comp.plugins.contract import BUILTIN_TASKS
-from robo_comp.plugins.sandbox import (
+from robo_comp.sandbox import policy
+from robo_comp.sandbox.contract import BUILTIN_TASKS
+from robo_comp.sandbox.parent import (
     PENDING, Limits, LogLine, Loaded, RpcCall, Sandbox, SandboxStopped, TaskDone, TaskFailed,
     poll_many,
 )
-from robo_comp.plugins.sandbox_child import FrameError, FrameReader, pack
+from robo_comp.sandbox.child import FrameError, FrameReader, pack
 
 ROOT = pathlib.Path(__file__).parent.parent
 SQUARE = (ROOT / "team_templates" / "extensions" / "square.py").read_text()
@@ -376,8 +376,8 @@ def test_frame_reader_caps_and_rejects_garbage():
 
 # ------------------------------------------------------------------ the policy itself (no child)
 def run_policy(src: str) -> dict:
-    glb = restricted.make_globals("team.t")
-    exec(restricted.compile_team(src, "t.py"), glb)
+    glb = policy.make_globals("team.t")
+    exec(policy.compile_team(src, "t.py"), glb)
     return glb
 
 
@@ -409,11 +409,11 @@ def test_policy_refusals(src, exc, pattern):
 
 
 def test_policy_compile_errors_have_line_and_rule():
-    with pytest.raises(restricted.PolicyError) as ei:
-        restricted.compile_team("x = 1\ny = x.__dict__\n", "t.py")
+    with pytest.raises(policy.PolicyError) as ei:
+        policy.compile_team("x = 1\ny = x.__dict__\n", "t.py")
     assert ei.value.line == 2 and ei.value.rule == "policy"
-    with pytest.raises(restricted.PolicyError) as ei:
-        restricted.compile_team("x = (\n", "t.py")
+    with pytest.raises(policy.PolicyError) as ei:
+        policy.compile_team("x = (\n", "t.py")
     assert ei.value.rule == "syntax"
 
 

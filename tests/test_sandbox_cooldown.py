@@ -9,7 +9,7 @@ import pytest
 
 from conftest import CoreHandle, next_event_where, wait_robots
 from robo_comp.errors import ForbiddenError, RoboCompError
-from robo_comp.plugins.sandbox import Limits, Sandbox, SandboxRestarted, SandboxStopped, TaskDone
+from robo_comp.sandbox.parent import Limits, Sandbox, SandboxRestarted, SandboxStopped, TaskDone
 
 ROOT = pathlib.Path(__file__).parent.parent
 SQUARE = (ROOT / "team_templates" / "extensions" / "square.py").read_text()

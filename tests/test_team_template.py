@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from robo_comp.errors import BadTaskError, FieldError, UploadError
-from robo_comp.plugins.sandbox import Sandbox, TaskDone, TaskFailed
+from robo_comp.sandbox.parent import Sandbox, TaskDone, TaskFailed
 from robo_comp.teams import newteam
 from robo_comp.testing import Bench, TaskError, start_match, wait_robots
 

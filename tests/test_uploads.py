@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from conftest import wait_for, wait_robots
-from robo_comp.core.protocol import unpack_walls
+from robo_comp.protocol import unpack_walls
 from robo_comp.errors import BadTaskError, NotYoursError, UploadError
 
 TEMPLATES = Path(__file__).parent.parent / "team_templates" / "extensions"

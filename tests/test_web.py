@@ -144,7 +144,7 @@ def open_page(browser, url: str, *, width: int = 1280, height: int = 800, frames
 def drive_far(c: Any) -> None:
     """Give each of the client's robots a goTo to the free cell farthest from where it is (so it
     drives for seconds whatever it did before)."""
-    from robo_comp.world.public import unpack_walls
+    from robo_comp.protocol import unpack_walls
 
     walls = unpack_walls(c.arena())
     free = [(x, y) for y in range(walls.shape[0]) for x in range(walls.shape[1]) if not walls[y, x]]

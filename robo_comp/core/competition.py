@@ -7,23 +7,29 @@ phase may forbid, and :meth:`Competition.tick` every heartbeat.
 from __future__ import annotations
 
 import hashlib
+import logging
 import math
 import time
+import traceback
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from robo_comp.core import protocol as P
-from robo_comp.core.eventlog import read_log
+from robo_comp import protocol as P
+from robo_comp.core.desk import Access, Outbox
+from robo_comp.core.eventlog import EventLog, read_log
 from robo_comp.errors import FieldError, ForbiddenError, NotYoursError, PhaseError, TooLargeError
 from robo_comp.scoring.board import Scoreboard, ScoreLine
 from robo_comp.scoring.config import ScoringConfig
 from robo_comp.scoring.match import MatchClock
 from robo_comp.teams.policy import check_owner, check_referee
+from robo_comp.world.scenario import Scenario
 from robo_comp.world.visibility import in_view
 
 if TYPE_CHECKING:
-    from robo_comp.core.server import Core
+    from robo_comp.core.mapdesk import MapDesk
+
+log = logging.getLogger("robo_comp.core")
 
 MAX_PICTURE = 256 * 1024
 EVERYONE = P.EVERYONE
@@ -46,20 +52,27 @@ _WHY = {
 class Competition:
     """Match clock, scoreboard, finds and pictures of one core."""
 
-    def __init__(self, core: Core, config: ScoringConfig, practice: bool) -> None:
-        self.core = core
+    def __init__(self, access: Access, out: Outbox, scenario: Scenario, teams: list[str], pm: Any,
+                 state_dir: Path, maps: MapDesk, events: Callable[[], EventLog], config: ScoringConfig,
+                 practice: bool) -> None:
+        self.access = access
+        self.out = out
+        self.scenario = scenario
+        self.state_dir = state_dir
+        self.maps = maps
+        self.events = events  # the core's event log (opened after recovery has replayed into this desk)
         self.config = config
-        self.clock = MatchClock(duration=math.inf if practice else float(core.scenario.duration),
+        self.clock = MatchClock(duration=math.inf if practice else float(scenario.duration),
                                 phase="running" if practice else "setup",
                                 running_since=time.monotonic() if practice else None)
-        self.board = Scoreboard(core.tokens.teams, core.pm, config)
+        self.board = Scoreboard(teams, pm, config)
         self.pictures: dict[int, dict[str, Any]] = {}
-        self.examined: dict[str, dict[str, set[int]]] = {t: {} for t in core.tokens.teams}
+        self.examined: dict[str, dict[str, set[int]]] = {t: {} for t in teams}
         self.finds: list[dict[str, Any]] = []
         self.disqualified_robots: dict[int, str] = {}
         self.next_picture = 1
-        self.picture_dir = core.state_dir / "pictures"
-        self.victims = [v.to_dict() for v in core.scenario.victims]
+        self.picture_dir = state_dir / "pictures"
+        self.victims = [v.to_dict() for v in scenario.victims]
         self.score_dirty = False
 
     def handlers(self) -> dict[str, Callable[[bytes, P.Message], dict[str, Any] | None]]:
@@ -99,17 +112,17 @@ class Competition:
         before = self.clock.phase
         self.clock.apply(action, now, seconds)
         st = self.clock.state(now)
-        self.core.emit("match.phase", EVERYONE, dict(st, action=action, by=by, was=before))
+        self.out.emit("match.phase", EVERYONE, dict(st, action=action, by=by, was=before))
         if self.clock.phase != before:
             hold = self.clock.phase in ("paused", "finished")
-            for ident in self.core.host_sessions():
-                self.core._send(ident, P.request("hold", 0, {"on": hold, "phase": self.clock.phase}))
+            for ident in self.access.host_sessions():
+                self.out.send(ident, P.request("hold", 0, {"on": hold, "phase": self.clock.phase}))
         if self.clock.phase == "finished" and before != "finished":
-            self.core.on_finished()
+            self._write_results_now()
         return st
 
     def _on_match(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        who = self.core._session(ident).who
+        who = self.access.session(ident).who
         check_referee(who, "change the match phase")
         action = msg.body["action"]
         seconds = msg.body.get("seconds")
@@ -124,7 +137,7 @@ class Competition:
         if not lines:
             return
         for ln in lines:
-            self.core.emit("score.change", ln.team, ln.to_dict())
+            self.out.emit("score.change", ln.team, ln.to_dict())
         self.score_dirty = True  # one scoreboard event per loop turn, however many lines changed
 
     def flush_score(self) -> None:
@@ -132,7 +145,7 @@ class Competition:
         log flush, so the board goes out with the replies that changed it)."""
         if self.score_dirty:
             self.score_dirty = False
-            self.core.emit("score", EVERYONE, {"teams": self.board.table(), **self.state()})
+            self.out.emit("score", EVERYONE, {"teams": self.board.table(), **self.state()})
 
     def feed(self, event: dict[str, Any]) -> None:
         """Give a scoring-relevant event to the rules while the match runs."""
@@ -140,7 +153,7 @@ class Competition:
             self._score_changed(self.board.apply(event, self.clock.elapsed(time.monotonic())))
 
     def _on_score(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        who = self.core._session(ident).who
+        who = self.access.session(ident).who
         out = self.scores()
         team = None if who.role == "referee" else who.team
         mine = [ln for ln in self.board.lines if team is None or ln.team == team]
@@ -155,7 +168,7 @@ class Competition:
         return team
 
     def _on_penalty(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        who = self.core._session(ident).who
+        who = self.access.session(ident).who
         check_referee(who, "give penalties")
         team = self._team_arg(msg.body["team"])
         reason = msg.body.get("reason", "").strip()
@@ -165,41 +178,41 @@ class Competition:
             raise PhaseError("the match is over; results are frozen")
         lines = self.board.apply({"kind": "penalty", "team": team, "points": msg.body["points"],
                                   "reason": reason}, self.clock.elapsed(time.monotonic()))
-        self.core.emit("penalty", team, {"team": team, "points": msg.body["points"], "reason": reason})
+        self.out.emit("penalty", team, {"team": team, "points": msg.body["points"], "reason": reason})
         self._score_changed(lines)
         return {"teams": self.board.table()}
 
     def _on_disqualify(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        who = self.core._session(ident).who
+        who = self.access.session(ident).who
         check_referee(who, "disqualify robots or teams")
         reason = msg.body.get("reason", "").strip() or "no reason given"
         tags: list[int] = []
         if msg.body.get("team") is not None:
             team = self._team_arg(msg.body["team"])
             self.board.disqualified.add(team)
-            tags = [r.tag for r in self.core.registry.of_team(team)]
+            tags = [r.tag for r in self.access.registry.of_team(team)]
         elif msg.body.get("tag") is not None:
-            tags = [self.core.registry.get(msg.body["tag"]).tag]
+            tags = [self.access.registry.get(msg.body["tag"]).tag]
         else:
             raise FieldError("disqualify needs a 'tag' or a 'team'")
         for tag in tags:
             self.disqualified_robots[tag] = reason
-            self.core.halt_and_remove(tag, reason)
-        self.core.emit("disqualified", EVERYONE, {"team": msg.body.get("team"), "tags": tags, "reason": reason})
+            self.access.halt_and_remove(tag, reason)
+        self.out.emit("disqualified", EVERYONE, {"team": msg.body.get("team"), "tags": tags, "reason": reason})
         self.score_dirty = True  # the board goes out once, with this turn's other changes
         return {"tags": tags}
 
     def _on_broadcast(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        who = self.core._session(ident).who
+        who = self.access.session(ident).who
         check_referee(who, "broadcast messages")
         text = msg.body["message"][:500]
-        self.core.emit("broadcast", EVERYONE, {"message": text, "by": who.name})
+        self.out.emit("broadcast", EVERYONE, {"message": text, "by": who.name})
         return {}
 
     # ------------------------------------------------------------------ pictures and finds
     def _on_picture(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
         b = msg.body
-        r = self.core._hosted(ident, b["tag"])
+        r = self.access.hosted(ident, b["tag"])
         png = b["png"]
         if len(png) > MAX_PICTURE:
             raise TooLargeError(f"a picture may be at most {MAX_PICTURE // 1024} KiB")
@@ -217,18 +230,18 @@ class Competition:
                 "label": b.get("label", "")}
         self.pictures[pid] = meta
         public = {k: meta[k] for k in ("id", "tag", "team", "x", "y", "heading", "t")}
-        self.core.emit("picture", r.team, dict(public, victims=seen, sha256=meta["sha256"]), public=False)
-        self.core.emit("picture", r.team, public, log_it=False)
+        self.out.emit("picture", r.team, dict(public, victims=seen, sha256=meta["sha256"]), public=False)
+        self.out.emit("picture", r.team, public, log_it=False)
         return {"id": pid}
 
     def _victims_seen(self, x: float, y: float, heading: float) -> list[str]:
-        cam = self.core.scenario.camera
+        cam = self.scenario.camera
         pts = [(v["x"], v["y"]) for v in self.victims]
-        flags = in_view(self.core.scenario.walls, pts, x, y, heading, cam.fov, cam.range)
+        flags = in_view(self.scenario.walls, pts, x, y, heading, cam.fov, cam.range)
         return [v["id"] for v, f in zip(self.victims, flags) if f]
 
     def _on_picture_get(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        who = self.core._session(ident).who
+        who = self.access.session(ident).who
         meta = self.pictures.get(msg.body["id"])
         if meta is None:
             raise NotYoursError(f"there is no picture {msg.body['id']} of team {who.name}")
@@ -239,11 +252,11 @@ class Competition:
 
     def _on_find(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
         b = msg.body
-        sess = self.core._session(ident)
+        sess = self.access.session(ident)
         if b["tag"] in sess.tags:
-            r = self.core._hosted(ident, b["tag"])
+            r = self.access.hosted(ident, b["tag"])
         else:
-            r = self.core._robot_for(ident, b["tag"])
+            r = self.access.robot_for(ident, b["tag"])
         self.check_robot(r.tag)
         self.check_phase("find")
         evidence = b.get("evidence", [])
@@ -262,21 +275,29 @@ class Competition:
         self.finds.append(record)
         state = "confirmed" if verdict["valid"] else ("duplicate" if verdict.get("duplicate") else "rejected")
         if state != "duplicate":
-            self.core.maps.discovery(r.tag, r.team, find["x"], find["y"], find["kind"], evidence)
-        self.core.emit("find.reported", r.team, {"id": fid, "team": r.team, "tag": r.tag, "x": find["x"],
+            self.maps.discovery(r.tag, r.team, find["x"], find["y"], find["kind"], evidence)
+        self.out.emit("find.reported", r.team, {"id": fid, "team": r.team, "tag": r.tag, "x": find["x"],
                                                  "y": find["y"], "kind": find["kind"], "state": state,
                                                  "evidence": evidence, "message": verdict["reason"]})
         self.feed({"kind": "find.judged", "team": r.team, "tag": r.tag, "verdict": verdict})
         return {"id": fid, "state": state, "message": verdict["reason"]}
 
     def _on_bump(self, ident: bytes, msg: P.Message) -> None:
-        r = self.core._hosted(ident, msg.body["tag"])
-        self.core.emit("robot.bump", r.team, {"tag": r.tag, "team": r.team, "x": msg.body["x"],
+        r = self.access.hosted(ident, msg.body["tag"])
+        self.out.emit("robot.bump", r.team, {"tag": r.tag, "team": r.team, "x": msg.body["x"],
                                               "y": msg.body["y"], "with": msg.body.get("with")})
         self.feed({"kind": "robot.bump", "team": r.team, "tag": r.tag})
         return None
 
     # ------------------------------------------------------------------ results
+    def _write_results_now(self) -> None:
+        """The match is over: write the results into the state folder (a failure is logged: the
+        match itself is not lost, ``robo-comp results`` can write them again from the log)."""
+        try:
+            self.write_results(self.state_dir)
+        except Exception:
+            log.error("could not write the results: %s", traceback.format_exc())
+
     def write_results(self, folder: Path) -> dict[str, Any]:
         """Write ``results.json``, ``results.csv`` and ``scores.png`` into ``folder``."""
         from robo_comp.scoring.results import write_results
@@ -285,6 +306,6 @@ class Competition:
         if board.lines_total == len(board.lines):
             lines = [ln.to_dict() for ln in board.lines]
         else:  # the oldest lines were let go from memory: the event log has them all
-            self.core.events.flush()
-            lines = [rec.data for rec in read_log(self.core.events.path, strict=False) if rec.topic == "score.change"]
+            self.events().flush()
+            lines = [rec.data for rec in read_log(self.events().path, strict=False) if rec.topic == "score.change"]
         return write_results(folder, self.scores(), lines, self.finds)

@@ -10,14 +10,13 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-from robo_comp.core import protocol as P
+from robo_comp import protocol as P
+from robo_comp.core.desk import Access, Outbox
 from robo_comp.errors import FieldError
 from robo_comp.world.mapservice import MapService
-
-if TYPE_CHECKING:
-    from robo_comp.core.server import Core
+from robo_comp.world.scenario import Scenario
 
 MAX_PIECE_RADIUS = 100
 
@@ -25,9 +24,10 @@ MAX_PIECE_RADIUS = 100
 class MapDesk:
     """The core's map service and who has which version of it."""
 
-    def __init__(self, core: Core) -> None:
-        self.core = core
-        self.service = MapService.from_scenario(core.scenario)
+    def __init__(self, access: Access, out: Outbox, scenario: Scenario) -> None:
+        self.access = access
+        self.out = out
+        self.service = MapService.from_scenario(scenario)
         self.pushed: dict[bytes, int] = {}  # host routing id -> map version it has
 
     def handlers(self) -> dict[str, Callable[[bytes, P.Message], dict[str, Any] | None]]:
@@ -35,7 +35,7 @@ class MapDesk:
         return {"map": self._on_map, "map.delta": self._on_delta}
 
     def _team(self, ident: bytes) -> str | None:
-        who = self.core._session(ident).who
+        who = self.access.session(ident).who
         return None if who.role == "referee" else who.team
 
     def _on_map(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
@@ -43,7 +43,7 @@ class MapDesk:
         tag = msg.body.get("tag")
         if tag is None:
             return self.service.snapshot(team)
-        r = self.core._robot_for(ident, tag)
+        r = self.access.robot_for(ident, tag)
         radius = msg.body.get("radius", 5)
         if not 0 <= radius <= MAX_PIECE_RADIUS:
             raise FieldError(f"'radius' must be 0..{MAX_PIECE_RADIUS} cells")
@@ -69,8 +69,8 @@ class MapDesk:
         """Send every robot host the changes since the version it has, but robot positions
         (a host knows where its robots are; ``map`` and ``map.delta`` requests have them all)."""
         frames: dict[tuple[int, str | None], tuple[int, bytes]] = {}  # hosts at one version share a delta
-        for ident in self.core.host_sessions():
-            sess = self.core.sessions[ident]
+        for ident in self.access.host_sessions():
+            sess = self.access.session(ident)
             have = self.pushed.get(ident, 0)
             if have >= self.service.static_version:  # only robots moved since
                 continue
@@ -79,6 +79,6 @@ class MapDesk:
                 delta = self.service.delta_since(have, sess.who.team, robots=False)
                 frames[key] = (delta["version"], P.request("map.delta", 0, delta))
             self.pushed[ident], frame = frames[key]
-            self.core._send(ident, frame)
-        for gone in set(self.pushed) - set(self.core.sessions):
+            self.out.send(ident, frame)
+        for gone in [i for i in self.pushed if not self.access.has_session(i)]:
             del self.pushed[gone]

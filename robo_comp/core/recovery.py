@@ -14,16 +14,25 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 from robo_comp.core.eventlog import LogReader
-from robo_comp.core.registry import RobotRecord
-from robo_comp.core.tasks import TaskRecord, check_specs
+from robo_comp.core.registry import Registry, RobotRecord, RobotStatus
+from robo_comp.core.tasks import TaskMachine, TaskMode, TaskRecord, TaskState
+from robo_comp.protocol.taskspec import check_specs
 from robo_comp.errors import RoboCompError
 from robo_comp.scoring.board import ScoreLine
 
 if TYPE_CHECKING:
-    from robo_comp.core.server import Core
+    from robo_comp.core.competition import Competition
+
+
+class Recoverable(Protocol):
+    """What recovery rebuilds: a freshly constructed core's registry, match and task counter."""
+
+    registry: Registry
+    competition: Competition
+    next_task_id: int
 
 log = logging.getLogger("robo_comp.core")
 
@@ -48,15 +57,17 @@ class RecoveryReport:
 class Replayer:
     """Applies logged events to a freshly constructed core."""
 
-    def __init__(self, core: Core) -> None:
+    def __init__(self, core: Recoverable) -> None:
         self.core = core
         self.tasks: dict[int, TaskRecord] = {}
+        # the core's own transitions, without its events (they are in the log already)
+        self.machine = TaskMachine(on_finish=core.registry.finished)
         self.phase: tuple[str, float, float | None, float] | None = None
         self.last_t = 0.0
         self.handlers: dict[str, Callable[[str | None, dict[str, Any], float], None]] = {
             "robot.registered": self._registered, "robot.returned": self._returned,
-            "robot.positions": self._positions, "robot.left": self._status("left"),
-            "robot.lost": self._status("lost"), "task.given": self._given, "task.started": self._started,
+            "robot.positions": self._positions, "robot.left": self._status(RobotStatus.LEFT),
+            "robot.lost": self._status(RobotStatus.LOST), "task.given": self._given, "task.started": self._started,
             "task.done": self._done, "match.phase": self._phase, "score.change": self._score,
             "disqualified": self._disqualified, "picture": self._picture, "find.reported": self._find,
         }
@@ -91,7 +102,7 @@ class Replayer:
     def _returned(self, team: str | None, d: dict[str, Any], t: float) -> None:
         r = self._robot(d["tag"])
         if r is not None:
-            r.status = "connected"
+            r.status = RobotStatus.CONNECTED
             self._advertised(r, d)
 
     def _positions(self, team: str | None, d: dict[str, Any], t: float) -> None:
@@ -101,7 +112,7 @@ class Replayer:
             if r is not None:
                 r.x, r.y, r.heading = x, y, h
 
-    def _status(self, status: str) -> Callable[[str | None, dict[str, Any], float], None]:
+    def _status(self, status: RobotStatus) -> Callable[[str | None, dict[str, Any], float], None]:
         def apply(team: str | None, d: dict[str, Any], t: float) -> None:
             r = self._robot(d["tag"])
             if r is not None:
@@ -113,41 +124,26 @@ class Replayer:
         r = self._robot(d["tag"])
         if r is None:
             return
-        task = TaskRecord(d["task_id"], r.tag, d["name"], d["args"], d["mode"], d.get("by", "?"), given_at=t)
+        mode = TaskMode.QUEUE if d["mode"] == TaskMode.QUEUE else TaskMode.NOW
+        task = TaskRecord(d["task_id"], r.tag, d["name"], d["args"], mode, d.get("by", "?"), given_at=t)
         self.tasks[task.id] = task
         self.core.next_task_id = max(self.core.next_task_id, task.id + 1)
-        if task.mode == "queue":
-            r.queue.append(task)
-        elif r.current is not None:
-            task.state = "pending"
-            r.pending = task
+        self.machine.restore_given(r, task)
 
     def _started(self, team: str | None, d: dict[str, Any], t: float) -> None:
         r = self._robot(d["tag"])
         task = self.tasks.get(d["task_id"])
         if r is None or task is None:
             return
-        if task in r.queue:
-            r.queue.remove(task)
-        if r.pending is task:
-            r.pending = None
-        task.state, task.started_at = "running", t
-        r.current = task
+        self.machine.start(r, task, at=t)
 
     def _done(self, team: str | None, d: dict[str, Any], t: float) -> None:
         r = self._robot(d["tag"])
         task = self.tasks.pop(d["task_id"], None)
         if r is None or task is None:
             return
-        task.state, task.ok, task.status, task.result, task.finished_at = (
-            d["state"], d["ok"], d.get("status", ""), d.get("result"), t)
-        if r.current is task:
-            r.current = None
-        if r.pending is task:
-            r.pending = None
-        if task in r.queue:
-            r.queue.remove(task)
-        self.core.registry.finished(r, task)
+        state = TaskState.CANCELLED if d["state"] == TaskState.CANCELLED else TaskState.DONE
+        self.machine.finish(r, task, d["ok"], d.get("status", ""), d.get("result"), state=state, at=t)
 
     # the match ----------------------------------------------------------
     def _phase(self, team: str | None, d: dict[str, Any], t: float) -> None:
@@ -174,7 +170,7 @@ class Replayer:
             comp.disqualified_robots[tag] = d.get("reason", "")
             r = self._robot(tag)
             if r is not None:
-                r.status = "disqualified"
+                r.status = RobotStatus.DISQUALIFIED
 
     def _picture(self, team: str | None, d: dict[str, Any], t: float) -> None:
         if "victims" not in d:  # the public copy carries no evidence facts
@@ -189,7 +185,7 @@ class Replayer:
         self.core.competition.finds.append(dict(d))
 
 
-def recover(core: Core, path: Path) -> RecoveryReport:
+def recover(core: Recoverable, path: Path) -> RecoveryReport:
     """Replay ``path`` into ``core``; cut off and keep a copy of a damaged tail."""
     t0 = time.perf_counter()
     reader = LogReader(path)
@@ -200,8 +196,8 @@ def recover(core: Core, path: Path) -> RecoveryReport:
         n += 1
     rep.finish()
     for r in core.registry.robots.values():
-        if r.status == "connected":
-            r.status = "lost"  # until its host re-registers
+        if r.status == RobotStatus.CONNECTED:
+            r.status = RobotStatus.LOST  # until its host re-registers
         r.session = None
     report = RecoveryReport(n, reader.last_seq, reader.good_end, time.perf_counter() - t0)
     if reader.damage is not None:

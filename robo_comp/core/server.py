@@ -24,21 +24,23 @@ import socket
 import time
 import traceback
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import zmq
 
-from robo_comp.core import protocol as P
+from robo_comp import protocol as P
 from robo_comp.core.competition import Competition
-from robo_comp.core.curve import ServerKeys, ZapHandler, load_server_keys, secure_server
+from robo_comp.protocol.curve import ServerKeys, ZapHandler, load_server_keys, secure_server
 from robo_comp.core.mapdesk import MapDesk
 from robo_comp.core.uploads import UploadDesk
 from robo_comp.core.eventlog import EventLog, StorageFault
 from robo_comp.core.recovery import RecoveryReport, recover
-from robo_comp.core.registry import RobotRecord, Registry
-from robo_comp.core.tasks import TaskRecord, check_args, check_specs, find_spec
+from robo_comp.core.sessions import Session
+from robo_comp.core.registry import RobotRecord, RobotStatus, Registry
+from robo_comp.core.tasks import TaskMachine, TaskMode, TaskRecord, TaskState
+from robo_comp.protocol.taskspec import check_args, check_specs, find_spec
 from robo_comp.errors import (
     AuthError,
     FieldError,
@@ -60,7 +62,6 @@ from robo_comp.world.scenario import Scenario
 
 log = logging.getLogger("robo_comp.core")
 
-PRIVATE_KEYS = P.PRIVATE_KEYS
 #: How long a console session may stay silent before it is forgotten (watchers heartbeat).
 SESSION_IDLE = 300.0
 STOP_TIMEOUT = 2.0
@@ -78,22 +79,6 @@ HELD_FRAMES = 50_000
 STORAGE_FREE = frozenset({"hello", "heartbeat", "bye", "watch", "robots", "monitor", "tasks", "snapshot", "arena",
                           "stats", "score", "map", "map.delta", "picture.get", "extensions", "stop", "report",
                           "reports", "reply"})
-
-
-@dataclass(slots=True)
-class Session:
-    """A connection that said hello (console, wall, script or robot host)."""
-
-    ident: bytes
-    who: Principal
-    client: str
-    last_seen: float
-    #: The secret every message of this session carries (``"s"``); issued at hello/register.
-    secret: str = field(default_factory=P.new_session_secret)
-    #: Under CurveZMQ: the owner of the key the session was opened with (every frame must match).
-    key: str | None = None
-    watching: bool = False
-    tags: set[int] = field(default_factory=set)
 
 
 @dataclass(slots=True)
@@ -129,6 +114,7 @@ class Core:
         self.pub_port = pub_port
         self.heartbeat = heartbeat
         self.registry = Registry()
+        self.tasks = TaskMachine(self._task_started, self._task_finished)
         self.sessions: dict[bytes, Session] = {}
         # Who watches what: team name -> routing ids, and the referee's under None.
         self.watchers: dict[str | None, set[bytes]] = {}
@@ -174,13 +160,16 @@ class Core:
             "leave": self._on_leave, "reply": self._on_host_reply, "arena": self._on_arena, "stats": self._on_stats,
         }
         self.pm = plugins or get_plugin_manager()
-        self.competition = Competition(self, scoring or ScoringConfig.from_table(scenario.scoring), practice)
-        self._handlers.update(self.competition.handlers())
-        self.maps = MapDesk(self)
-        self._handlers.update(self.maps.handlers())
-        self.uploads = UploadDesk(self, approve_uploads or scenario.approve_uploads)
-        self._handlers.update(self.uploads.handlers())
         log_path = self.state_dir / "events.log"
+        # the log is opened after recovery (below); the desks reach it through the core
+        self.maps = MapDesk(self, self, scenario)
+        self.competition = Competition(self, self, scenario, self.tokens.teams, self.pm, self.state_dir,
+                                       self.maps, lambda: self.events,
+                                       scoring or ScoringConfig.from_table(scenario.scoring), practice)
+        self.uploads = UploadDesk(self, self, self.competition, self.state_dir,
+                                  approve_uploads or scenario.approve_uploads)
+        for desk in (self.competition, self.maps, self.uploads):
+            self._handlers.update(desk.handlers())
         self.recovered: RecoveryReport | None = None
         if log_path.exists() and log_path.stat().st_size > 0:
             self.recovered = recover(self, log_path)
@@ -436,7 +425,7 @@ class Core:
                                         "count": count}, public=False)
 
     # ------------------------------------------------------------------ output
-    def _send(self, ident: bytes, frame: bytes, urgent: bool = False) -> None:
+    def send(self, ident: bytes, frame: bytes, urgent: bool = False) -> None:
         """Queue a frame for session ``ident`` (a push, or a reply that comes later); it leaves in
         :meth:`_commit`, after the log flush.
 
@@ -520,8 +509,7 @@ class Core:
         if log_it:
             self.events.append(topic, team, data)
         if public and self.pub is not None:
-            view = {k: v for k, v in data.items() if k not in PRIVATE_KEYS} if PRIVATE_KEYS & data.keys() else data
-            self._out.append((self.pub, [topic.encode(), P.pack(view)], not log_it))
+            self._out.append((self.pub, [topic.encode(), P.pack(P.public_view(data))], not log_it))
         if team == P.EVERYONE:
             targets: list[bytes] = [i for group in self.watchers.values() for i in group]
         else:
@@ -531,7 +519,7 @@ class Core:
         if targets:
             frame = P.request("event", 0, {"topic": topic, "team": team, "data": data})
             for ident in targets:
-                self._send(ident, frame, not log_it)
+                self.send(ident, frame, not log_it)
         if topic != "robot.positions":
             self.pm.hook.robo_comp_event(topic=topic, team=team, data=data)
 
@@ -553,15 +541,15 @@ class Core:
         return s
 
     # ------------------------------------------------------------------ helpers
-    def _session(self, ident: bytes) -> Session:
+    def session(self, ident: bytes) -> Session:
         s = self.sessions.get(ident)
         if s is None:
             raise AuthError("say 'hello' with your team token first (the client does this for you)")
         return s
 
-    def _robot_for(self, ident: bytes, tag: int) -> RobotRecord:
+    def robot_for(self, ident: bytes, tag: int) -> RobotRecord:
         """The robot ``tag`` as commanded by session ``ident`` (ownership checked)."""
-        s = self._session(ident)
+        s = self.session(ident)
         r = self.registry.robots.get(tag)
         if r is None:
             if s.who.role == "referee":
@@ -576,48 +564,49 @@ class Core:
             raise AuthError("this connection is not known to the core (did the core restart?); "
                             "say hello and register your robots again")
 
-    def _hosted(self, ident: bytes, tag: int) -> RobotRecord:
+    def hosted(self, ident: bytes, tag: int) -> RobotRecord:
         """The robot ``tag`` as reported by its host connection ``ident``."""
         self._check_known(ident)
         r = self.registry.robots.get(tag)
         if r is None or r.session != ident:
             raise NotYoursError(f"robot {tag} is not hosted by this connection; register it first")
-        if r.status != "connected":
+        if r.status != RobotStatus.CONNECTED:
             self._mark_returned(r)
         return r
 
     def _send_host(self, r: RobotRecord, type_: str, body: dict[str, Any], req_id: int = 0) -> None:
         if r.session is not None:  # a stop leaves at once, whatever the log's state (safety first)
-            self._send(r.session, P.request(type_, req_id, body), type_ == "stop")
+            self.send(r.session, P.request(type_, req_id, body), type_ == "stop")
 
-    def _new_task(self, r: RobotRecord, name: str, args: list[Any], mode: str, by: str) -> TaskRecord:
+    def _new_task(self, r: RobotRecord, name: str, args: list[Any], mode: TaskMode, by: str) -> TaskRecord:
         t = TaskRecord(self.next_task_id, r.tag, name, args, mode, by)
         self.next_task_id += 1
         return t
 
-    def _start(self, r: RobotRecord, t: TaskRecord) -> None:
-        t.state = "running"
-        t.started_at = time.time()
-        r.current = t
+    def _task_started(self, r: RobotRecord, t: TaskRecord) -> None:
         self.emit("task.started", r.team, {"tag": r.tag, "task_id": t.id, "name": t.name, "args": t.args})
 
-    def _finish(self, r: RobotRecord, t: TaskRecord, ok: bool, status: str, result: Any = None,
-                state: str = "done") -> None:
-        t.state = state
-        t.ok = ok
-        t.status = status
-        t.result = result
-        t.finished_at = time.time()
+    def _task_finished(self, r: RobotRecord, t: TaskRecord) -> None:
         self.registry.finished(r, t)
-        self.emit("task.done", r.team, {"tag": r.tag, "task_id": t.id, "name": t.name, "ok": ok,
-                                         "state": state, "status": status, "result": result})
+        self.emit("task.done", r.team, {"tag": r.tag, "task_id": t.id, "name": t.name, "ok": t.ok,
+                                         "state": t.state, "status": t.status, "result": t.result})
 
     def _mark_lost(self, r: RobotRecord, why: str) -> None:
-        if r.status == "connected":
-            r.status = "lost"
+        if r.status == RobotStatus.CONNECTED:
+            r.status = RobotStatus.LOST
             r.moving = False
             self.emit("robot.lost", r.team, {"tag": r.tag, "x": r.x, "y": r.y, "message": why})
             self.competition.feed({"kind": "robot.lost", "team": r.team, "tag": r.tag})
+
+    def has_session(self, ident: bytes) -> bool:
+        """Whether connection ``ident`` has a session."""
+        return ident in self.sessions
+
+    def new_request_id(self) -> int:
+        """A fresh id for a request the core sends to a robot host (its reply comes as ``reply``)."""
+        cid = self.next_core_req
+        self.next_core_req += 1
+        return cid
 
     def host_sessions(self) -> list[bytes]:
         """Routing ids of the connections that host robots."""
@@ -626,25 +615,15 @@ class Core:
     def halt_and_remove(self, tag: int, reason: str) -> None:
         """Halt a robot (no confirmation awaited), cancel its tasks, take it out of the match."""
         r = self.registry.get(tag)
-        if r.status == "connected":
+        if r.status == RobotStatus.CONNECTED:
             self._send_host(r, "stop", {"tag": r.tag})
-        for t in ([r.current] if r.current else []) + ([r.pending] if r.pending else []) + list(r.queue):
-            self._finish(r, t, False, f"cancelled: {reason}", state="cancelled")
-        r.current = r.pending = None
-        r.queue.clear()
+        self.tasks.cancel_all(r, f"cancelled: {reason}", f"cancelled: {reason}")
         r.moving = False
-        r.status = "disqualified"
-
-    def on_finished(self) -> None:
-        """The match is over: write the results into the state folder."""
-        try:
-            self.competition.write_results(self.state_dir)
-        except Exception:
-            log.error("could not write the results: %s", traceback.format_exc())
+        r.status = RobotStatus.DISQUALIFIED
 
     def _mark_returned(self, r: RobotRecord) -> None:
-        if r.status != "connected" and r.tag not in self.competition.disqualified_robots:
-            r.status = "connected"
+        if r.status != RobotStatus.CONNECTED and r.tag not in self.competition.disqualified_robots:
+            r.status = RobotStatus.CONNECTED
             self.emit("robot.returned", r.team, {"tag": r.tag, "x": r.x, "y": r.y})
 
     # ------------------------------------------------------------------ timers
@@ -656,7 +635,7 @@ class Core:
         posed, self._posed = self._posed, {}
         robots = self.registry.robots
         for team in sorted(posed):
-            rows = [r for r in (robots[t] for t in sorted(posed[team])) if r.status == "connected"]
+            rows = [r for r in (robots[t] for t in sorted(posed[team])) if r.status == RobotStatus.CONNECTED]
             if not rows:
                 continue
             self.maps.positions(rows)
@@ -688,14 +667,14 @@ class Core:
         for ident, s in list(self.sessions.items()):
             silent = now - s.last_seen
             if s.tags:
-                self._send(ident, hb, True)
+                self.send(ident, hb, True)
                 if silent > limit:
                     for tag in s.tags:
                         r = self.registry.robots[tag]
                         if r.session == ident:
                             self._mark_lost(r, f"no message from its host for {silent:.1f} s")
             elif s.watching:
-                self._send(ident, hb, True)
+                self.send(ident, hb, True)
                 if silent > max(SESSION_IDLE / 10, limit * 10):
                     self._set_watch(s, False)
             elif silent > SESSION_IDLE:
@@ -708,7 +687,7 @@ class Core:
                 err = P.error_reply(p.req_id, TimeoutError_(
                     f"robot {p.tag} did not confirm the stop within {STOP_TIMEOUT:.0f} s; "
                     "its host may be lost (it halts on its own when it loses the core)"))
-                self._send(p.ident, err, True)
+                self.send(p.ident, err, True)
 
     # ------------------------------------------------------------------ session requests
     def _check_key(self, who: Principal) -> None:
@@ -750,7 +729,7 @@ class Core:
         if s is not None:
             for tag in s.tags:
                 r = self.registry.robots[tag]
-                if r.session == ident and r.status == "lost":
+                if r.session == ident and r.status == RobotStatus.LOST:
                     self._mark_returned(r)
         return None
 
@@ -759,36 +738,36 @@ class Core:
         if s is not None:
             for tag in s.tags:
                 r = self.registry.robots[tag]
-                if r.session == ident and r.status == "connected":
+                if r.session == ident and r.status == RobotStatus.CONNECTED:
                     self._mark_lost(r, "its host said bye without leaving")
         return {}
 
     def _on_watch(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        s = self._session(ident)
+        s = self.session(ident)
         self._set_watch(s, bool(msg.body.get("on", True)))
         return {"watching": s.watching}
 
     def _on_robots(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        s = self._session(ident)
+        s = self.session(ident)
         team = None if s.who.role == "referee" else s.who.team
         return {"robots": [r.summary() for r in self.registry.of_team(team)]}
 
     def _on_monitor(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        return self._robot_for(ident, msg.body["tag"]).monitor()
+        return self.robot_for(ident, msg.body["tag"]).monitor()
 
     def _on_tasks(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        r = self._robot_for(ident, msg.body["tag"])
+        r = self.robot_for(ident, msg.body["tag"])
         return {"tag": r.tag, "advertised": list(r.tasks.values()),
                 "current": r.current.summary() if r.current else None,
                 "pending": r.pending.summary() if r.pending else None,
                 "queued": [t.summary() for t in r.queue], "done": [t.summary() for t in r.done]}
 
     def _on_arena(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        self._session(ident)
+        self.session(ident)
         return self._arena_payload
 
     def _on_stats(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        check_referee(self._session(ident).who, "read the core's counters")
+        check_referee(self.session(ident).who, "read the core's counters")
         by_status: dict[str, int] = {}
         for r in self.registry.robots.values():
             by_status[r.status] = by_status.get(r.status, 0) + 1
@@ -797,7 +776,7 @@ class Core:
                     uptime=time.monotonic() - self.started)
 
     def _on_snapshot(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        s = self._session(ident)
+        s = self.session(ident)
         team = None if s.who.role == "referee" else s.who.team
         return {"arena": self._arena_payload, "teams": self.tokens.teams,
                 "robots": [r.summary() for r in self.registry.of_team(team)], "seq": self.events.seq,
@@ -805,8 +784,8 @@ class Core:
                 "finds": [f for f in self.competition.finds if team is None or f["team"] == team]}
 
     def _on_give(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        s = self._session(ident)
-        r = self._robot_for(ident, msg.body["tag"])
+        s = self.session(ident)
+        r = self.robot_for(ident, msg.body["tag"])
         return self.give_task(r, msg.body["task"], msg.body.get("args", []), bool(msg.body.get("queue", False)),
                               s.who.name)
 
@@ -816,39 +795,32 @@ class Core:
         self.competition.check_phase("give")
         spec = find_spec(r.tasks, name, r.tag)
         args = check_args(spec, args)
-        if r.status == "left":
+        if r.status == RobotStatus.LEFT:
             raise UnavailableError(f"robot {r.tag} has left the arena; it takes no tasks until it returns")
-        if not queue and r.status != "connected":
+        if not queue and r.status != RobotStatus.CONNECTED:
             raise UnavailableError(
                 f"robot {r.tag} is {r.status} and cannot start a task now; queue it (--queue) for when it returns")
-        t = self._new_task(r, spec["name"], args, "queue" if queue else "now", by)
+        t = self._new_task(r, spec["name"], args, TaskMode.QUEUE if queue else TaskMode.NOW, by)
         self.emit("task.given", r.team, {"tag": r.tag, "task_id": t.id, "name": t.name, "args": args,
                                           "mode": t.mode, "by": by})
+        started = self.tasks.give(r, t, idle_ok=r.status == RobotStatus.CONNECTED)
+        if started is not None:
+            self._send_host(r, "task.start", started.wire())
         if queue:
-            r.queue.append(t)
-            if r.current is None and r.pending is None and r.status == "connected":
-                self._start(r, r.queue.popleft())
-                self._send_host(r, "task.start", r.current.wire())  # type: ignore[union-attr]
             return {"task_id": t.id, "mode": "queue", "position": len(r.queue)}
-        if r.current is None:
-            self._start(r, t)
-            self._send_host(r, "task.start", t.wire())
+        if started is t:
             return {"task_id": t.id, "mode": "now", "interrupts": None}
-        if r.pending is not None:  # a newer "now" replaces an older one not yet started
-            self._finish(r, r.pending, False, f"replaced by task {t.id} before it started", state="cancelled")
-        t.state = "pending"
-        r.pending = t
+        assert r.current is not None  # t waits for the running task's next movement boundary
         self._send_host(r, "task.interrupt", t.wire())
         return {"task_id": t.id, "mode": "now", "interrupts": r.current.id}
 
     def _on_stop(self, ident: bytes, msg: P.Message) -> None:
-        r = self._robot_for(ident, msg.body["tag"])
+        r = self.robot_for(ident, msg.body["tag"])
         self.competition.check_robot(r.tag)
-        if r.status != "connected" or r.session is None:
+        if r.status != RobotStatus.CONNECTED or r.session is None:
             raise UnavailableError(
                 f"robot {r.tag} is {r.status}; it halts by itself when it loses the core, and cannot be reached now")
-        cid = self.next_core_req
-        self.next_core_req += 1
+        cid = self.new_request_id()
         now = time.monotonic()
         self.pending_stops[cid] = PendingStop(ident, msg.id, r.tag, now + STOP_TIMEOUT, now)
         self._send_host(r, "stop", {"tag": r.tag}, cid)
@@ -885,24 +857,20 @@ class Core:
             if k in b:
                 setattr(r, k, float(b[k]))
         was = r.status
-        r.status = "disqualified" if r.tag in self.competition.disqualified_robots else "connected"
+        r.status = RobotStatus.DISQUALIFIED if r.tag in self.competition.disqualified_robots else RobotStatus.CONNECTED
         r.last_report = time.time()
         if returning:
             if r.current is not None and r.current.id != b.get("task_id"):
                 # the host no longer runs what we think it runs (it restarted): start afresh
-                self._finish(r, r.current, False, "the robot restarted and lost this task", state="cancelled")
-                r.current = None
+                self.tasks.finish(r, r.current, False, "the robot restarted and lost this task",
+                                  state=TaskState.CANCELLED)
             self.emit("robot.returned", r.team, {"tag": r.tag, "x": r.x, "y": r.y, "was": was,
                                                  "tasks": list(specs.values())})
         else:
             self.emit("robot.registered", r.team, {"tag": r.tag, "team": r.team, "robot_id": robot_id,
                                                    "x": r.x, "y": r.y, "heading": r.heading,
                                                    "tasks": list(specs.values())})
-        if r.current is None and r.pending is not None:
-            self._start(r, r.pending)
-            r.pending = None
-        elif r.current is None and r.queue:
-            self._start(r, r.queue.popleft())
+        self.tasks.advance(r)
         return {"session": sess.secret, "tag": r.tag, "team": r.team, "returning": returning,
                 "heartbeat": self.heartbeat,
                 "task": r.current.wire() if r.current else None,
@@ -910,7 +878,7 @@ class Core:
 
     def _on_report(self, ident: bytes, msg: P.Message) -> None:
         b = msg.body
-        self._pose(self._hosted(ident, b["tag"]), b["x"], b["y"], b["heading"], b.get("moving", False),
+        self._pose(self.hosted(ident, b["tag"]), b["x"], b["y"], b["heading"], b.get("moving", False),
                    b.get("sensors"), time.time())
         return None
 
@@ -926,7 +894,7 @@ class Core:
         foreign = []
         for i, tag in enumerate(b["tags"]):
             try:
-                r = self._hosted(ident, tag)
+                r = self.hosted(ident, tag)
             except NotYoursError:
                 foreign.append(tag)
                 continue
@@ -949,35 +917,25 @@ class Core:
         posed.add(r.tag)
 
     def _on_task_next(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        r = self._hosted(ident, msg.body["tag"])
-        if r.current is not None:
-            return {"task": r.current.wire()}
-        if r.queue:
-            self._start(r, r.queue.popleft())
-            return {"task": r.current.wire()}  # type: ignore[union-attr]
-        return {"task": None}
+        r = self.hosted(ident, msg.body["tag"])
+        t = r.current or self.tasks.advance(r)
+        return {"task": t.wire() if t is not None else None}
 
     def _on_task_done(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
         b = msg.body
-        r = self._hosted(ident, b["tag"])
+        r = self.hosted(ident, b["tag"])
         tid = b["task_id"]
         if r.current is None or r.current.id != tid:
             raise FieldError(f"task {tid} is not robot {r.tag}'s current task")
         result = b.get("result")
         if len(P.pack(result)) > MAX_RESULT:
             raise TooLargeError(f"a task result may be at most {MAX_RESULT} bytes once packed")
-        self._finish(r, r.current, b["ok"], b["status"][:500], result)
-        r.current = None
-        if r.pending is not None:
-            self._start(r, r.pending)
-            r.pending = None
-        elif r.queue:
-            self._start(r, r.queue.popleft())
-        return {"next": r.current.wire() if r.current else None}
+        nxt = self.tasks.complete(r, b["ok"], b["status"][:500], result)
+        return {"next": nxt.wire() if nxt is not None else None}
 
     def _on_radio(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
         b = msg.body
-        r = self._hosted(ident, b["tag"])
+        r = self.hosted(ident, b["tag"])
         size = len(P.pack(b["data"]))
         if size > P.MAX_RADIO:
             raise TooLargeError(f"a radio message may be at most {P.MAX_RADIO} bytes; this one is {size}")
@@ -998,15 +956,15 @@ class Core:
         delivered = 0
         body = {"from": r.tag, "to": to, "data": b["data"]}
         for t in targets:
-            if t.status == "connected" and t.session is not None:
-                self._send(t.session, P.request("radio", 0, dict(body, tag=t.tag)))
+            if t.status == RobotStatus.CONNECTED and t.session is not None:
+                self.send(t.session, P.request("radio", 0, dict(body, tag=t.tag)))
                 delivered += 1
         self.emit("radio", r.team, dict(body, delivered=delivered), public=False)
         return {"delivered": delivered}
 
     def _on_leave(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        r = self._hosted(ident, msg.body["tag"])
-        r.status = "left"
+        r = self.hosted(ident, msg.body["tag"])
+        r.status = RobotStatus.LEFT
         r.moving = False
         r.session = None
         self.sessions[ident].tags.discard(r.tag)
@@ -1025,12 +983,12 @@ class Core:
         del self.pending_stops[msg.id]
         err, body = raw.get("error"), raw.get("body")
         if not isinstance(err, (dict, type(None))) or not isinstance(body, (dict, type(None))):
-            self._send(p.ident, P.error_reply(p.req_id, RoboCompError(
+            self.send(p.ident, P.error_reply(p.req_id, RoboCompError(
                 f"robot {p.tag}'s host answered the stop with a malformed reply; it may not have halted")), True)
             raise FieldError("a reply's 'error' and 'body' must be maps")
         if not raw.get("ok"):
             err = err or {}
-            self._send(p.ident, P.error_reply(p.req_id, RoboCompError(
+            self.send(p.ident, P.error_reply(p.req_id, RoboCompError(
                 f"robot {p.tag} could not stop: {err.get('message', 'no reason given')}")), True)
             return None
         body = body or {}
@@ -1038,20 +996,11 @@ class Core:
             if type(body.get(k)) in (int, float):
                 setattr(r, k, float(body[k]))
         r.moving = False
-        cancelled = []
-        if r.current is not None:
-            cancelled.append(r.current.id)
-            self._finish(r, r.current, False, "stopped", state="cancelled")
-            r.current = None
-        for t in ([r.pending] if r.pending else []) + list(r.queue):
-            cancelled.append(t.id)
-            self._finish(r, t, False, "cancelled by stop", state="cancelled")
-        r.pending = None
-        r.queue.clear()
+        cancelled = self.tasks.cancel_all(r, "stopped", "cancelled by stop")
         ms = (time.monotonic() - p.t0) * 1000
         self.emit("robot.stopped", r.team, {"tag": r.tag, "x": r.x, "y": r.y, "cancelled": cancelled,
                                              "ms": round(ms, 3)})
-        self._send(p.ident, P.ok_reply(p.req_id, {  # a stop is answered at once, even during a storage fault
+        self.send(p.ident, P.ok_reply(p.req_id, {  # a stop is answered at once, even during a storage fault
             "tag": r.tag, "x": r.x, "y": r.y, "heading": r.heading, "cancelled": cancelled, "ms": ms}), True)
         return None
 
@@ -1078,7 +1027,7 @@ def _check_route(ident: bytes) -> None:
     if ident[:1] != b"\x00" and len(ident) < MIN_ROUTING_ID:
         raise AuthError(f"this connection's routing id has {len(ident)} bytes; a client that chooses its "
                         f"own must make it random and at least {MIN_ROUTING_ID} bytes long "
-                        "(robo_comp.core.protocol.new_routing_id), or set none at all")
+                        "(robo_comp.protocol.new_routing_id), or set none at all")
 
 
 def _seed_routing_ids() -> None:

@@ -1,112 +1,42 @@
-"""Task descriptions and records: what a robot advertises, what the core queues.
+"""The tasks of each robot: records, their states, and the one state machine that moves them.
 
-A robot advertises each task it can run as a plain map::
+A robot has at most one *running* task, at most one *pending* task (given "now" while another
+runs: it waits for the running task's next movement boundary, where the host interrupts it), a
+FIFO of *queued* tasks, and its kept finished ones. Every transition goes through
+:class:`TaskMachine`, which the core drives from requests and recovery drives from the log.
+What a robot may advertise and how calls are checked is the protocol's
+(:mod:`robo_comp.protocol.taskspec`).
 
-    {"name": "goTo", "description": "...", "args": [{"name": "x", "type": "int", "description": "..."}]}
+States::
 
-Argument types: ``int``, ``float``, ``str``, ``bool``, ``point`` (``[x, y]``) and ``points``
-(a list of points). :func:`check_args` validates a call against such a description; the core
-runs it before queueing a task and the robot runs it again before starting one.
+    queued --start--> running --finish--> done | cancelled
+    pending --start--> running             (pending|queued) --cancel--> cancelled
 """
 from __future__ import annotations
 
-import math
+import enum
 import time
+from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
-
-from robo_comp.errors import BadTaskError, FieldError
-
-ARG_TYPES = ("int", "float", "str", "bool", "point", "points")
-MAX_TASKS_ADVERTISED = 64
-MAX_ARGS = 16
+from typing import Any, Protocol
 
 
-def _is_num(v: Any) -> bool:
-    return type(v) is int or (type(v) is float and math.isfinite(v))
+class TaskState(enum.StrEnum):
+    """Where a task stands (its value is the word on the wire and in the log)."""
+
+    QUEUED = "queued"
+    PENDING = "pending"
+    RUNNING = "running"
+    DONE = "done"
+    CANCELLED = "cancelled"
 
 
-def _is_point(v: Any) -> bool:
-    return type(v) in (list, tuple) and len(v) == 2 and all(_is_num(c) for c in v)
+class TaskMode(enum.StrEnum):
+    """How a task was given: interrupting the current one, or behind the queue."""
 
-
-_CHECKS = {
-    "int": lambda v: type(v) is int,
-    "float": _is_num,
-    "str": lambda v: type(v) is str,
-    "bool": lambda v: type(v) is bool,
-    "point": _is_point,
-    "points": lambda v: type(v) in (list, tuple) and 0 < len(v) <= 1000 and all(_is_point(p) for p in v),
-}
-_TYPE_WORDS = {"int": "a whole number", "float": "a number", "str": "a text", "bool": "true or false",
-               "point": "a point [x, y]", "points": "a list of points [[x, y], ...] (1 to 1000)"}
-
-
-def check_spec(spec: Any) -> dict[str, Any]:
-    """Validate one advertised task description; return it normalised.
-
-    Raises :class:`FieldError` naming what is wrong.
-    """
-    if type(spec) is not dict:
-        raise FieldError("each advertised task must be a map with 'name' and 'args'")
-    name = spec.get("name")
-    if type(name) is not str or not name or len(name) > 64:
-        raise FieldError("an advertised task needs a 'name' of 1 to 64 characters")
-    args = spec.get("args", [])
-    if type(args) is not list or len(args) > MAX_ARGS:
-        raise FieldError(f"task {name!r}: 'args' must be a list of at most {MAX_ARGS} argument descriptions")
-    clean_args = []
-    for i, a in enumerate(args):
-        if type(a) is not dict or type(a.get("name")) is not str or a.get("type") not in ARG_TYPES:
-            raise FieldError(
-                f"task {name!r}: argument {i + 1} needs a 'name' and a 'type' among {', '.join(ARG_TYPES)}")
-        clean_args.append({"name": a["name"], "type": a["type"],
-                           "description": str(a.get("description", ""))[:200]})
-    return {"name": name, "description": str(spec.get("description", ""))[:500], "args": clean_args}
-
-
-def check_specs(specs: Any) -> dict[str, dict[str, Any]]:
-    """Validate a list of advertised tasks; return them by name."""
-    if type(specs) is not list or len(specs) > MAX_TASKS_ADVERTISED:
-        raise FieldError(f"'tasks' must be a list of at most {MAX_TASKS_ADVERTISED} task descriptions")
-    out: dict[str, dict[str, Any]] = {}
-    for s in specs:
-        clean = check_spec(s)
-        out[clean["name"]] = clean
-    return out
-
-
-def signature(spec: dict[str, Any]) -> str:
-    """A one-line human signature such as ``goTo(x: int, y: int)``."""
-    return f"{spec['name']}({', '.join(a['name'] + ': ' + a['type'] for a in spec.get('args') or ())})"
-
-
-def check_args(spec: dict[str, Any], args: list[Any]) -> list[Any]:
-    """Check call arguments against a task description; raise :class:`BadTaskError` if they do not fit."""
-    want = spec["args"]
-    if type(args) not in (list, tuple):
-        raise BadTaskError(f"arguments of {spec['name']} must be a list, as in {signature(spec)}")
-    if len(args) != len(want):
-        raise BadTaskError(
-            f"{spec['name']} takes {len(want)} argument(s), got {len(args)}: use {signature(spec)}")
-    out = []
-    for a, value in zip(want, args):
-        if a["type"] == "int" and type(value) is float and value.is_integer():
-            value = int(value)  # 3.0 means 3
-        if not _CHECKS[a["type"]](value):
-            raise BadTaskError(
-                f"argument {a['name']!r} of {spec['name']} must be {_TYPE_WORDS[a['type']]}, got {value!r:.40}")
-        out.append(value)
-    return out
-
-
-def find_spec(specs: dict[str, dict[str, Any]], name: str, tag: int) -> dict[str, Any]:
-    """Return the description of task ``name`` or raise a :class:`BadTaskError` listing the known ones."""
-    spec = specs.get(name)
-    if spec is None:
-        known = ", ".join(sorted(specs)) or "none"
-        raise BadTaskError(f"robot {tag} has no task {name!r}; its tasks are: {known}")
-    return spec
+    NOW = "now"
+    QUEUE = "queue"
 
 
 @dataclass(slots=True)
@@ -117,9 +47,9 @@ class TaskRecord:
     tag: int
     name: str
     args: list[Any]
-    mode: str  # "now" or "queue"
+    mode: TaskMode
     given_by: str
-    state: str = "queued"  # queued, running, done, cancelled
+    state: TaskState = TaskState.QUEUED
     given_at: float = field(default_factory=time.time)
     started_at: float | None = None
     finished_at: float | None = None
@@ -137,3 +67,114 @@ class TaskRecord:
                 "state": self.state, "given_at": self.given_at, "started_at": self.started_at,
                 "finished_at": self.finished_at, "ok": self.ok, "status": self.status,
                 "result": self.result}
+
+
+class TaskHolder(Protocol):
+    """A robot as the task machine sees it (the core's :class:`~robo_comp.core.registry.RobotRecord`)."""
+
+    tag: int
+    current: TaskRecord | None
+    pending: TaskRecord | None
+    queue: deque[TaskRecord]
+
+
+class TaskMachine:
+    """Every transition of every robot's tasks, in one place.
+
+    ``on_start(robot, task)`` and ``on_finish(robot, task)`` are called after a task started
+    or ended (the core logs and publishes them, and keeps the finished task); recovery runs the
+    machine with no callbacks to rebuild the same state from the log.
+    """
+
+    def __init__(self, on_start: Callable[[Any, TaskRecord], None] | None = None,
+                 on_finish: Callable[[Any, TaskRecord], None] | None = None) -> None:
+        self.on_start = on_start
+        self.on_finish = on_finish
+
+    # ------------------------------------------------------------------ transitions
+    def start(self, r: TaskHolder, t: TaskRecord, at: float | None = None) -> TaskRecord:
+        """Make ``t`` the running task of ``r`` (taking it out of the pending place or the queue)."""
+        if r.pending is t:
+            r.pending = None
+        elif t in r.queue:
+            r.queue.remove(t)
+        t.state = TaskState.RUNNING
+        t.started_at = time.time() if at is None else at
+        r.current = t
+        if self.on_start is not None:
+            self.on_start(r, t)
+        return t
+
+    def finish(self, r: TaskHolder, t: TaskRecord, ok: bool, status: str, result: Any = None,
+               state: TaskState = TaskState.DONE, at: float | None = None) -> None:
+        """End task ``t`` of ``r`` (running, pending or queued) as ``state``."""
+        t.state = state
+        t.ok = ok
+        t.status = status
+        t.result = result
+        t.finished_at = time.time() if at is None else at
+        if r.current is t:
+            r.current = None
+        elif r.pending is t:
+            r.pending = None
+        elif t in r.queue:
+            r.queue.remove(t)
+        if self.on_finish is not None:
+            self.on_finish(r, t)
+
+    def advance(self, r: TaskHolder) -> TaskRecord | None:
+        """An idle robot starts its pending task, else its next queued one; returns the task it
+        started (None: it was busy or has nothing to do)."""
+        if r.current is not None:
+            return None
+        if r.pending is not None:
+            return self.start(r, r.pending)
+        if r.queue:
+            return self.start(r, r.queue[0])
+        return None
+
+    def give(self, r: TaskHolder, t: TaskRecord, idle_ok: bool) -> TaskRecord | None:
+        """Take a new task. Queued: behind the others (started at once if ``r`` is idle and
+        ``idle_ok``). Now: started at once if ``r`` is idle, else pending (replacing an older
+        pending task, which is cancelled), for the host to interrupt at its next movement
+        boundary. Returns the task that started now, if any."""
+        if t.mode == TaskMode.QUEUE:
+            t.state = TaskState.QUEUED
+            r.queue.append(t)
+            if idle_ok and r.current is None and r.pending is None:
+                return self.start(r, r.queue[0])
+            return None
+        if r.current is None:
+            return self.start(r, t)
+        if r.pending is not None:
+            self.finish(r, r.pending, False, f"replaced by task {t.id} before it started",
+                        state=TaskState.CANCELLED)
+        t.state = TaskState.PENDING
+        r.pending = t
+        return None
+
+    def complete(self, r: TaskHolder, ok: bool, status: str, result: Any = None) -> TaskRecord | None:
+        """The running task ended on the robot; returns the task that starts next, if any."""
+        assert r.current is not None
+        self.finish(r, r.current, ok, status, result)
+        return self.advance(r)
+
+    def cancel_all(self, r: TaskHolder, why_current: str, why_waiting: str) -> list[int]:
+        """Cancel the running, pending and queued tasks of ``r``; returns their ids, running first."""
+        ids = []
+        for t in [r.current, r.pending, *r.queue]:
+            if t is not None:
+                ids.append(t.id)
+                self.finish(r, t, False, why_current if t is r.current else why_waiting,
+                            state=TaskState.CANCELLED)
+        return ids
+
+    # ------------------------------------------------------------------ recovery (from the log)
+    def restore_given(self, r: TaskHolder, t: TaskRecord) -> None:
+        """A logged ``task.given``: the task waits in the queue or (given now) in the pending place
+        until its logged ``task.started`` or ``task.done``."""
+        if t.mode == TaskMode.QUEUE:
+            r.queue.append(t)
+        elif r.current is not None:
+            t.state = TaskState.PENDING
+            r.pending = t

@@ -14,22 +14,23 @@ referee's ``approve``; its verdict then reaches the team as an ``upload.done`` e
 from __future__ import annotations
 
 import os
-
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from robo_comp.core import protocol as P
-from robo_comp.core.tasks import check_specs
+from robo_comp import protocol as P
+from robo_comp.core.desk import Access, Outbox
+from robo_comp.core.registry import RobotRecord, RobotStatus
+from robo_comp.protocol.taskspec import check_specs
 from robo_comp.errors import (
     FieldError, ForbiddenError, NotYoursError, RoboCompError, UnavailableError, UploadError,
 )
-from robo_comp.plugins import contract
+from robo_comp.sandbox import contract
 
 if TYPE_CHECKING:  # pragma: no cover
-    from robo_comp.core.registry import RobotRecord
-    from robo_comp.core.server import Core
+    from robo_comp.core.competition import Competition
 
 #: Most robots one upload may go to.
 MAX_TAGS = 64
@@ -63,13 +64,16 @@ class PendingUpload:
 class UploadDesk:
     """The core's upload service: handlers, the forwarding to hosts and their answers."""
 
-    def __init__(self, core: Core, approve_uploads: bool = False) -> None:
-        self.core = core
+    def __init__(self, access: Access, out: Outbox, competition: Competition, state_dir: Path,
+                 approve_uploads: bool = False) -> None:
+        self.access = access
+        self.out = out
+        self.competition = competition
         self.approve_uploads = approve_uploads
         self.asks: dict[int, HostAsk] = {}  # by forwarded request id (an ask spanning hosts: several)
         self.pending: dict[int, PendingUpload] = {}
         self.next_upload = 1
-        self.folder = core.state_dir / "uploads"
+        self.folder = state_dir / "uploads"
 
     def handlers(self) -> dict[str, Callable[[bytes, P.Message], dict[str, Any] | None]]:
         """Request handlers this module adds to the core."""
@@ -83,9 +87,9 @@ class UploadDesk:
             raise FieldError("'tags' must be a non-empty list of robot tags, e.g. [101, 102]")
         if len(tags) > MAX_TAGS:
             raise FieldError(f"one upload may go to at most {MAX_TAGS} robots")
-        robots = [self.core._robot_for(ident, t) for t in dict.fromkeys(tags)]
+        robots = [self.access.robot_for(ident, t) for t in dict.fromkeys(tags)]
         for r in robots:
-            if r.status != "connected" or r.session is None:
+            if r.status != RobotStatus.CONNECTED or r.session is None:
                 raise UnavailableError(f"robot {r.tag} is {r.status}; uploads reach connected robots only")
         return robots
 
@@ -101,9 +105,9 @@ class UploadDesk:
 
     # ------------------------------------------------------------------ requests
     def _on_upload(self, ident: bytes, msg: P.Message) -> dict[str, Any] | None:
-        s = self.core._session(ident)
+        s = self.access.session(ident)
         robots = self._robots(ident, msg.body["tags"])
-        self.core.competition.check_phase("upload")
+        self.competition.check_phase("upload")
         filename, source = self._source(msg.body)
         sha = contract.source_hash(source)
         team = robots[0].team
@@ -113,11 +117,11 @@ class UploadDesk:
         body = {"filename": filename, "source": source, "sha256": sha, "run": bool(msg.body.get("run"))}
         tags = [r.tag for r in robots]
         if (self.approve_uploads and s.who.role == "team"
-                and self.core.competition.phase == "running"):
+                and self.competition.phase == "running"):
             uid = self.next_upload
             self.next_upload += 1
             self.pending[uid] = PendingUpload(uid, team, s.who.name, tags, body)
-            self.core.emit("upload.pending", team, {"upload_id": uid, "team": team, "tags": tags,
+            self.out.emit("upload.pending", team, {"upload_id": uid, "team": team, "tags": tags,
                                                     "filename": filename, "sha256": sha, "by": s.who.name}, public=False)
             return {"pending": uid, "results": [],
                     "message": f"{filename} waits for the referee's approval (upload {uid})"}
@@ -125,7 +129,7 @@ class UploadDesk:
         return None  # the reply goes out when the hosts have answered
 
     def _on_approve(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        s = self.core._session(ident)
+        s = self.access.session(ident)
         if s.who.role != "referee":
             raise ForbiddenError("only the referee approves or blocks uploads")
         uid = msg.body["upload_id"]
@@ -134,12 +138,12 @@ class UploadDesk:
             raise FieldError(f"no upload {uid} waits for approval")
         ok = bool(msg.body.get("ok", True))
         if not ok:
-            self.core.emit("upload.done", p.team, {"upload_id": uid, "team": p.team, "tags": p.tags,
+            self.out.emit("upload.done", p.team, {"upload_id": uid, "team": p.team, "tags": p.tags,
                                                    "filename": p.body["filename"], "ok": False,
                                                    "message": f"{p.body['filename']}: blocked by the referee"}, public=False)
             return {"upload_id": uid, "ok": False}
-        robots = [self.core.registry.robots[t] for t in p.tags if t in self.core.registry.robots]
-        robots = [r for r in robots if r.status == "connected" and r.session is not None]
+        robots = [self.access.registry.robots[t] for t in p.tags if t in self.access.registry.robots]
+        robots = [r for r in robots if r.status == RobotStatus.CONNECTED and r.session is not None]
         if not robots:
             raise UnavailableError(f"none of upload {uid}'s robots is connected now")
         self._forward(robots, p.body, p.by, lambda results: None, upload_id=uid)
@@ -157,42 +161,42 @@ class UploadDesk:
         def done(results: list[dict[str, Any]]) -> None:
             row = results[0] if results else {"ok": False, "message": "no answer"}
             if row.get("ok"):
-                self.core._send(ident, P.ok_reply(msg.id, {"tag": robots[0].tag, "modules": row.get("modules", [])}))
+                self.out.send(ident, P.ok_reply(msg.id, {"tag": robots[0].tag, "modules": row.get("modules", [])}))
             else:
-                self.core._send(ident, P.error_reply(msg.id, UnavailableError(str(row.get("message")))))
+                self.out.send(ident, P.error_reply(msg.id, UnavailableError(str(row.get("message")))))
         self._ask(robots, "extensions", {}, done)
         return None
 
     def _on_sandbox_reset(self, ident: bytes, msg: P.Message) -> dict[str, Any] | None:
         """Referee: restart the team-code sandbox of these robots' hosts now (ends a cool-down)."""
-        s = self.core._session(ident)
+        s = self.access.session(ident)
         if s.who.role != "referee":
             raise ForbiddenError("only the referee restarts a team's sandbox (it ends a cool-down early)")
         robots = self._robots(ident, msg.body["tags"])
 
         def done(results: list[dict[str, Any]]) -> None:
-            self.core.emit("sandbox.reset", robots[0].team, {"tags": [r.tag for r in robots], "by": s.who.name,
+            self.out.emit("sandbox.reset", robots[0].team, {"tags": [r.tag for r in robots], "by": s.who.name,
                                                              "results": results}, public=False)
-            self.core._send(ident, P.ok_reply(msg.id, {"results": results}))
+            self.out.send(ident, P.ok_reply(msg.id, {"results": results}))
         self._ask(robots, "sandbox.reset", {}, done)
         return None
 
     # ------------------------------------------------------------------ from robot hosts
     def _on_advertise(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        self._set_tasks(self.core._hosted(ident, msg.body["tag"]), msg.body["tasks"])
+        self._set_tasks(self.access.hosted(ident, msg.body["tag"]), msg.body["tasks"])
         return {}
 
     def _set_tasks(self, r: RobotRecord, adverts: list[Any]) -> None:
         """What robot ``r`` advertises from now on (checked like at registration)."""
         r.tasks = check_specs(adverts)
-        self.core.emit("robot.tasks", r.team, {"tag": r.tag, "tasks": list(r.tasks.values())})
+        self.out.emit("robot.tasks", r.team, {"tag": r.tag, "tasks": list(r.tasks.values())})
 
     def _on_log(self, ident: bytes, msg: P.Message) -> None:
         tag = msg.body.get("tag")
-        s = self.core._session(ident)
+        s = self.access.session(ident)
         if tag is not None:
-            self.core._hosted(ident, tag)
-        self.core.emit("robot.log", s.who.team, {"tag": tag, "stream": msg.body["stream"][:16],
+            self.access.hosted(ident, tag)
+        self.out.emit("robot.log", s.who.team, {"tag": tag, "stream": msg.body["stream"][:16],
                                                  "text": msg.body["text"][:2000]}, public=False)
         return None
 
@@ -246,16 +250,15 @@ class UploadDesk:
             by_host.setdefault(r.session, []).append(r.tag)  # type: ignore[arg-type]
         ask = HostAsk({}, time.monotonic() + HOST_TIMEOUT, [], done)
         for host, tags in by_host.items():
-            cid = self.core.next_core_req
-            self.core.next_core_req += 1
+            cid = self.out.new_request_id()
             ask.waiting[cid] = (host, tags)
             self.asks[cid] = ask
-            self.core._send(host, P.request(type_, cid, dict(body, tags=tags)))
+            self.out.send(host, P.request(type_, cid, dict(body, tags=tags)))
 
     def _forward(self, robots: list[RobotRecord], body: dict[str, Any], by: str,
                  reply: Callable[[list[dict[str, Any]]], None], upload_id: int | None = None) -> None:
         team = robots[0].team
-        self.core.emit("upload.sent", team, {"tags": [r.tag for r in robots], "filename": body["filename"],
+        self.out.emit("upload.sent", team, {"tags": [r.tag for r in robots], "filename": body["filename"],
                                              "sha256": body["sha256"], "by": by, "upload_id": upload_id},
                        public=False)
 
@@ -265,7 +268,7 @@ class UploadDesk:
             ok = bool(results) and all(row.get("ok") for row in results)
             first_error = next((row for row in results if not row.get("ok")), None)
             good = [row for row in results if row.get("ok")]
-            self.core.emit("upload.done", team, {
+            self.out.emit("upload.done", team, {
                 "upload_id": upload_id, "team": team, "tags": [row.get("tag") for row in results],
                 "filename": body["filename"], "sha256": body["sha256"], "ok": ok, "by": by,
                 "module": good[0].get("name") if good else None, "version": good[0].get("version") if good else None,
@@ -279,7 +282,7 @@ class UploadDesk:
     def _advertised(self, results: list[dict[str, Any]]) -> None:
         """Robots that took a module advertise its tasks from now on (before anyone is answered)."""
         for row in results:
-            r = self.core.registry.robots.get(row.get("tag", -1))
+            r = self.access.registry.robots.get(row.get("tag", -1))
             adverts = row.pop("advertised", None)
             if r is None or not row.get("ok") or not isinstance(adverts, list):
                 continue
@@ -292,13 +295,13 @@ class UploadDesk:
         """``run``: give each robot the module's first task now (code that "runs now")."""
         for row in rows:
             first = next(iter(row.get("tasks") or ()), None)  # the manifest's first task
-            r = self.core.registry.robots.get(row.get("tag", -1))
+            r = self.access.registry.robots.get(row.get("tag", -1))
             if first is None or r is None:
                 continue
             try:
-                self.core.give_task(r, first, [], queue=False, by=by)
+                self.access.give_task(r, first, [], queue=False, by=by)
             except RoboCompError as e:
-                self.core.emit("refused", r.team, {"by": by, "type": "upload", "code": e.code,
+                self.out.emit("refused", r.team, {"by": by, "type": "upload", "code": e.code,
                                                    "message": f"could not run {first} on robot {r.tag}: "
                                                               f"{e.message}"}, public=False)
 
@@ -309,19 +312,19 @@ class UploadDesk:
             err = UploadError(str(first.get("message") or f"{filename}: refused"),
                               file=first.get("file", filename), line=first.get("line"),
                               rule=first.get("rule") or "upload", results=results)
-            self.core._send(ident, P.error_reply(req_id, err))
+            self.out.send(ident, P.error_reply(req_id, err))
             return
-        self.core._send(ident, P.ok_reply(req_id, {"results": results, "ok": not bad}))
+        self.out.send(ident, P.ok_reply(req_id, {"results": results, "ok": not bad}))
 
     def _unloaded(self, ident: bytes, req_id: int, name: str, results: list[dict[str, Any]]) -> None:
         tags = sorted(t for row in results if row.get("ok") for t in row.get("unloaded", []))
         if not tags:
-            self.core._send(ident, P.error_reply(req_id, NotYoursError(
+            self.out.send(ident, P.error_reply(req_id, NotYoursError(
                 f"no robot of these has a module called {name!r} (see 'extensions TAG')")))
             return
-        self.core.emit("upload.unloaded", self.core.registry.robots[tags[0]].team, {"tags": tags, "name": name},
+        self.out.emit("upload.unloaded", self.access.registry.robots[tags[0]].team, {"tags": tags, "name": name},
                        public=False)
-        self.core._send(ident, P.ok_reply(req_id, {"name": name, "tags": tags}))
+        self.out.send(ident, P.ok_reply(req_id, {"name": name, "tags": tags}))
 
     def _keep(self, team: str, filename: str, sha: str, source: str) -> None:
         """A copy of every uploaded source, by hash, for the organisers and recovery."""

@@ -4,7 +4,7 @@ Plugins implement these with ``@hookimpl`` and are registered through the ``robo
 entry-point group (``[project.entry-points.robo_comp]``) or by calling
 ``get_plugin_manager().register(obj)``; never by import side effects. Team uploads do not
 become host-side plugins: they run in the sandbox, and the host wraps their declared tasks
-in a plugin of its own (see :mod:`robo_comp.plugins.sandbox`).
+in a plugin of its own (see :mod:`robo_comp.sandbox.parent`).
 """
 from __future__ import annotations
 

@@ -21,10 +21,10 @@ from typing import Any
 import numpy as np
 import zmq
 
-from robo_comp.core import protocol as P
+from robo_comp import protocol as P
 from robo_comp.client import open_dealer
-from robo_comp.core.curve import ClientKeys
-from robo_comp.core.tasks import check_args
+from robo_comp.protocol.curve import ClientKeys
+from robo_comp.protocol.taskspec import check_args
 from robo_comp.errors import RoboCompError
 from robo_comp.plugins.manager import get_plugin_manager
 from robo_comp.robots.drivers import ArenaDriver

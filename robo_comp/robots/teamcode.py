@@ -1,6 +1,6 @@
 """Uploaded team code on a robot host: the bridge between the host's loop and its sandbox.
 
-One :class:`TeamCode` per robot host holds one :class:`~robo_comp.plugins.sandbox.Sandbox`
+One :class:`TeamCode` per robot host holds one :class:`~robo_comp.sandbox.parent.Sandbox`
 (a limited child process, see ``docs/sandbox.md``). The host's single poll loop drives it:
 :meth:`TeamCode.fileno` joins the host's poller and :meth:`TeamCode.pump` handles what the
 sandbox says. Nothing here starts a thread.
@@ -22,21 +22,55 @@ import logging
 import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 from robo_comp.errors import RoboCompError
-from robo_comp.plugins.contract import source_hash
-from robo_comp.plugins.sandbox import (
+from robo_comp.sandbox.contract import source_hash
+from robo_comp.sandbox.parent import (
     PENDING, Limits, LoadFailed, Loaded, LogLine, RpcCall, Sandbox, SandboxRestarted, SandboxStopped, TaskDone,
     TaskFailed as SbFailed,
 )
 from robo_comp.robots.steps import Move, Step, TaskFailed, TaskSpec, Turn, Wait
 from robo_comp.world.planner import find_path
 
-if TYPE_CHECKING:  # pragma: no cover
-    from robo_comp.robots.host import RobotHost, SimRobot
-
 log = logging.getLogger("robo_comp.robots.teamcode")
+
+Reply = Callable[[bool, dict[str, Any]], None]
+
+
+class CodeRobot(Protocol):
+    """What team code sees of one hosted robot (a :class:`robo_comp.robots.host.SimRobot`)."""
+
+    robot_id: str
+    tag: int
+    driver: Any  # the robot's driver: ``pose``, ``heading`` and ``bump``
+
+    def cell(self) -> tuple[int, int]: ...  # noqa: D102
+    def free_cell(self) -> tuple[int, int]: ...  # noqa: D102
+    def in_bounds(self, x: int, y: int) -> bool: ...  # noqa: D102
+
+
+class CodeHost(Protocol):
+    """What :class:`TeamCode` needs of its robot host (a :class:`robo_comp.robots.host.RobotHost`):
+    the host's robots and world, and the requests team code makes through the host's connection."""
+
+    team: str | None
+    seed: int
+    by_tag: dict[int, Any]  # tag -> CodeRobot
+    world: Any  # the host's simulated arena (``sense``), None until it knows the arena
+    walls: Any  # the arena's wall grid ``[y, x]``
+
+    def upload_answered(self, rid: int, results: list[dict[str, Any]]) -> None:
+        """Answer the core's ``upload`` request ``rid`` with one result per robot."""
+
+    def team_log(self, tag: int | None, stream: str, text: str) -> None:
+        """Forward a line the team's code printed (or the sandbox said) to the team's console."""
+
+    def code_request(self, type_: str, body: dict[str, Any], on_reply: Reply) -> None:
+        """Send a request to the core on team code's behalf; ``on_reply(ok, body)`` gets the answer."""
+
+    def code_picture(self, r: Any, on_reply: Reply) -> None:
+        """Take a picture with robot ``r`` and send it to the core; ``on_reply(ok, body)`` gets its id."""
 
 #: How long a team-code task waits between two looks at its sandbox (one host tick at most).
 WAIT_SECONDS = 0.02
@@ -136,7 +170,7 @@ class LoadJob:
 class TeamCode:
     """The host's uploaded modules, their sandbox, and the runs of their tasks."""
 
-    host: RobotHost
+    host: CodeHost
     limits: Limits = field(default_factory=Limits)
     sb: Sandbox | None = None
     #: module names each robot may run (uploaded to that robot)
@@ -246,7 +280,7 @@ class TeamCode:
         return TaskSpec(name, lambda robot, *args: self._run(robot, name, list(args)), advert["args"],
                         advert["description"], source="upload")
 
-    def _run(self, r: SimRobot, name: str, args: list[Any]) -> Iterator[Step]:
+    def _run(self, r: CodeRobot, name: str, args: list[Any]) -> Iterator[Step]:
         """The task generator of a team-code task: movement steps from the sandbox's calls."""
         sb = self._sandbox()
         try:
@@ -334,7 +368,7 @@ class TeamCode:
             log.exception("robot call %s failed", c.name)
             sb.reject(c.call_id, call_failed(c.name, c.args, e))
 
-    def _immediate(self, r: SimRobot, c: RpcCall) -> Any:
+    def _immediate(self, r: CodeRobot, c: RpcCall) -> Any:
         host = self.host
         args = c.args
         if c.name == "position":
@@ -373,7 +407,7 @@ class TeamCode:
         except RoboCompError:
             pass  # the run ended meanwhile
 
-    def _steps(self, r: SimRobot, name: str, args: list[Any]) -> Iterator[Step]:
+    def _steps(self, r: CodeRobot, name: str, args: list[Any]) -> Iterator[Step]:
         if name == "turn":
             yield Turn(float(args[0]))
             return

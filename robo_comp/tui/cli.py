@@ -15,7 +15,7 @@ from robo_comp.ctl import add_connection_args
 
 def _check(args: argparse.Namespace, role: str) -> tuple[str, str]:
     from robo_comp.client import read_token, resolve_core
-    from robo_comp.core.curve import client_keys
+    from robo_comp.protocol.curve import client_keys
 
     token = read_token(args.token, args.token_file)
     resolve_core(args.core)  # clear messages now for a wrong --core or key file, before the screen opens

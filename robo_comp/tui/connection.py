@@ -27,13 +27,13 @@ import zmq
 import zmq.asyncio
 
 from robo_comp.client import open_dealer, resolve_core
-from robo_comp.core import protocol as P
-from robo_comp.core.curve import client_keys
+from robo_comp import protocol as P
+from robo_comp.protocol.curve import client_keys
+from robo_comp.protocol.replies import reply_body, reply_error
 from robo_comp.errors import (
     ConnectionLostError,
     RoboCompError,
     TimeoutError_,
-    error_from_code,
 )
 
 log = logging.getLogger("robo_comp.tui")
@@ -68,7 +68,7 @@ class CoreLink:
     called from the event loop (a Textual app passes functions that post messages).
 
     ``curve_cert``/``core_key`` are the CurveZMQ certificates for a core run with ``--curve``
-    (defaults as in :func:`robo_comp.core.curve.client_keys`, read again at every reconnect).
+    (defaults as in :func:`robo_comp.protocol.curve.client_keys`, read again at every reconnect).
     """
 
     def __init__(self, core: str, token: str, *, client: str = "console",
@@ -215,10 +215,7 @@ class CoreLink:
                 raise TimeoutError_(f"the core at {self.url} does not answer")
             msg = P.unpack(await sock.recv())
             if msg.get("type") == "reply" and msg.get("id") in (rid, 0):
-                if not msg.get("ok"):
-                    err = msg.get("error") or {}
-                    raise error_from_code(err.get("code", "E_INTERNAL"), err.get("message", "refused"))
-                body = msg.get("body") or {}
+                body = reply_body(msg)
                 self.session = body.get("session")
                 return body
 
@@ -317,13 +314,12 @@ class CoreLink:
 
     def _on_reply(self, msg: dict[str, Any]) -> None:
         rid = msg.get("id")
-        err = msg.get("error") or {}
         fut = self._pending.get(rid) if isinstance(rid, int) else None
-        if msg.get("ok"):
+        exc = reply_error(msg)
+        if exc is None:
             if fut is not None and not fut.done():
                 fut.set_result(msg.get("body") or {})
             return
-        exc = error_from_code(err.get("code", "E_INTERNAL"), err.get("message", "unknown error"), err.get("details"))
         if fut is not None and not fut.done():
             fut.set_exception(exc)
         if exc.code == "E_AUTH":  # the core forgot us (it restarted): hello again

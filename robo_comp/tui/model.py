@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from robo_comp.core.protocol import unpack_walls
+from robo_comp.protocol import unpack_walls
 from robo_comp.scoring.match import HeardClock
 
 #: Events kept for the log pane and the monitor's "recent events".

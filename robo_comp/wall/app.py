@@ -19,7 +19,7 @@ import pygame
 import zmq
 
 from robo_comp.client import Client, recv_event
-from robo_comp.core import protocol as P
+from robo_comp import protocol as P
 from robo_comp.errors import AuthError, FieldError, RoboCompError
 from robo_comp.wall.interact import Command, Interaction
 from robo_comp.wall.model import WallModel

@@ -28,8 +28,8 @@ import zmq
 import zmq.asyncio
 
 from robo_comp.client import pub_url
-from robo_comp.core import protocol as P
-from robo_comp.core.curve import client_keys, secure_client
+from robo_comp import protocol as P
+from robo_comp.protocol.curve import client_keys, secure_client
 from robo_comp.errors import FieldError, RoboCompError
 from robo_comp.tui.connection import CoreLink, LinkState
 from robo_comp.wall.model import WallModel

@@ -20,9 +20,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from robo_comp.core import protocol as P
+from robo_comp import protocol as P
 from robo_comp.errors import AuthError, FieldError
-from robo_comp.scoring.replay import read_recording
+from robo_comp.core.replay import read_recording
 from robo_comp.wall.model import WallModel
 from robo_comp.web.state import TaskNames, jsonable, map_png, public_event, state_json
 

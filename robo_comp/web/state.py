@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from robo_comp.core.protocol import PRIVATE_KEYS
+from robo_comp.protocol import public_view
 from robo_comp.wall.model import WallModel
 
 #: Topics the core never publishes (they reach only the team and the referee).
@@ -36,9 +36,7 @@ def public_event(topic: str, data: dict[str, Any]) -> dict[str, Any] | None:
         return None
     if topic == "picture":
         return {k: data[k] for k in PUBLIC_PICTURE if k in data}
-    if PRIVATE_KEYS & data.keys():
-        return {k: v for k, v in data.items() if k not in PRIVATE_KEYS}
-    return data
+    return public_view(data)
 
 
 def public_snapshot(snap: dict[str, Any]) -> dict[str, Any]:

@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from robo_comp.protocol.arena import unpack_walls
 from robo_comp.world.scenario import (
     CameraConfig,
     CostConfig,
@@ -45,13 +46,6 @@ def arena_payload(scenario: Scenario, teams: list[str]) -> dict[str, Any]:
             "costs": asdict(scenario.costs), "positioning": asdict(scenario.positioning),
             "drift": asdict(scenario.drift), "robot": asdict(scenario.kinematics),
             "sensors": asdict(scenario.sensors), "camera": asdict(scenario.camera)}
-
-
-def unpack_walls(arena: dict[str, Any]) -> np.ndarray:
-    """Rebuild the bool wall grid ``[y, x]`` from an arena payload."""
-    h, w = arena["height"], arena["width"]
-    bits = np.unpackbits(np.frombuffer(arena["walls"], dtype=np.uint8), count=h * w)
-    return bits.reshape(h, w).astype(bool)
 
 
 def _rect(d: dict[str, Any]) -> Rect:

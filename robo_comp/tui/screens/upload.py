@@ -13,7 +13,7 @@ from textual.screen import ModalScreen
 from textual.widgets import Button, Checkbox, DirectoryTree, Input, RadioButton, RadioSet
 
 from robo_comp.errors import RoboCompError
-from robo_comp.plugins.contract import MAX_SOURCE_BYTES as MAX_UPLOAD  # what the robots accept
+from robo_comp.sandbox.contract import MAX_SOURCE_BYTES as MAX_UPLOAD  # what the robots accept
 from robo_comp.tui.widgets.upload import PythonTree, UploadResult
 
 Sender = Callable[[dict[str, Any]], Awaitable[dict[str, Any]]]

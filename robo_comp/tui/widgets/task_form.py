@@ -17,7 +17,7 @@ from textual.containers import Vertical
 from textual.validation import ValidationResult, Validator
 from textual.widgets import Checkbox, Input, Label
 
-from robo_comp.core.tasks import signature  # the core's own wording of a task (re-exported)
+from robo_comp.protocol.taskspec import signature  # the core's own wording of a task
 
 #: What to type, by argument type (placeholder text).
 HINTS = {

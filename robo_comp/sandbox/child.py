@@ -1,8 +1,8 @@
 """The sandbox child process: runs one team's modules for one robot host, under limits.
 
-Started by :class:`robo_comp.plugins.sandbox.Sandbox` as::
+Started by :class:`robo_comp.sandbox.parent.Sandbox` as::
 
-    python -I -B -c "...; from robo_comp.plugins.sandbox_child import main; main()" \
+    python -I -B -c "...; from robo_comp.sandbox.child import main; main()" \
         --fd N --limits <msgpack hex>
 
 Order of start-up (everything that needs files or new threads happens *before* the limits):
@@ -33,7 +33,7 @@ from typing import Any, Callable
 
 import msgpack
 
-from robo_comp.plugins import explain
+from robo_comp.sandbox import explain
 
 HEADER = struct.Struct(">I")
 EXIT_MEMORY = 75
@@ -129,7 +129,7 @@ class Child:
     """The child's state and its message loop (one instance per process)."""
 
     def __init__(self, sock: socket.socket, limits: dict) -> None:
-        from robo_comp.plugins import contract, restricted  # imported before the limits
+        from robo_comp.sandbox import contract, policy as restricted  # imported before the limits
         self.contract = contract
         self.restricted = restricted
         self.sock = sock
@@ -740,7 +740,7 @@ def _set_limits(limits: dict, keep_fds: int) -> None:
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Child entry point (``python -m robo_comp.plugins.sandbox_child``)."""
+    """Child entry point (``python -m robo_comp.sandbox.child``)."""
     ap = argparse.ArgumentParser()
     ap.add_argument("--fd", type=int, required=True)
     ap.add_argument("--limits", required=True)

@@ -1,54 +1,23 @@
-"""The wire protocol: msgpack frames, versioned, with typed fields and stable error codes.
+"""The message table: every request type, its fields and their kinds, and the checks run on
+every incoming message (:func:`validate`, :func:`check_reports`).
 
-Every message is one msgpack map (one ZeroMQ frame after the ROUTER's identity frame)::
-
-    {"v": 2, "type": "give", "id": 7, "s": "9f2c...", "body": {...}}   # request or notification
-    {"v": 2, "type": "reply", "id": 7, "ok": True, "body": {...}}
-    {"v": 2, "type": "reply", "id": 7, "ok": False, "error": {"code": "E_FIELD", "message": "..."}}
-
-A session belongs to whoever proved it, never to a connection's routing id: ``hello`` (or a
-host's first ``register``) is answered with a random ``session`` secret, and every later message
-of that connection carries it as ``"s"``; a message without it gets ``E_AUTH`` and changes
-nothing. Clients set a random routing id of :data:`ROUTING_ID_BYTES` bytes on every socket they
-open (:func:`new_routing_id`).
-
-Requests get exactly one reply. Notifications (``report``, ``heartbeat``) get a reply only
-when they are rejected, so that a sender learns what was wrong. Events go out on the PUB
-socket as two frames ``[topic, msgpack map]`` and to watching sessions as ``event`` messages.
-See ``docs/protocol.md`` for every type and field.
+The table is data: ``docs/protocol.md`` describes it and the fuzz tests are generated from it.
 """
 from __future__ import annotations
 
-import math
-import secrets
-from dataclasses import dataclass, field
 from typing import Any
 
-import msgpack
-
-from robo_comp.world.public import unpack_walls  # noqa: F401  (clients read arenas with it)
-from robo_comp.errors import (
-    FieldError,
-    MalformedError,
-    RoboCompError,
-    TooLargeError,
-    UnknownTypeError,
-    VersionError,
+from robo_comp.errors import FieldError, MalformedError, UnknownTypeError, VersionError
+from robo_comp.protocol.wire import (
+    PROTOCOL_VERSION,
+    Message,
+    describe_type,
+    is_finite,
+    decode_envelope,
 )
 
-PROTOCOL_VERSION = 2
-#: The envelope key that carries a session's secret on every message after ``hello``.
-SESSION_KEY = "s"
-#: Bytes of a session secret (sent as hex text: twice as many characters).
-SESSION_BYTES = 16
-#: Length of the random routing id every client sets on its sockets (ZMQ_ROUTING_ID).
-ROUTING_ID_BYTES = 16
 #: Messages that may open a session on a connection that has none (a host may register first).
 OPENING = frozenset({"hello", "register"})
-#: Largest frame the core decodes; larger frames get an ``E_TOO_LARGE`` reply.
-MAX_FRAME = 1 << 20
-#: Hard cap set on the sockets (ZMQ_MAXMSGSIZE): peers sending more are disconnected by libzmq.
-SOCKET_MAX_FRAME = 16 << 20
 #: Largest team radio payload, in bytes once packed.
 MAX_RADIO = 4096
 #: Radio messages per robot per second (token bucket, burst of the same size).
@@ -137,95 +106,7 @@ MAX_REPORTS = 1000
 CORE_TO_HOST = ("heartbeat", "task.start", "task.interrupt", "stop", "radio", "hold", "map.delta", "event",
                 "upload", "unload", "extensions", "sandbox.reset")
 
-#: Keys left out of the PUB (public) view of an event: they stay with the owner and referee.
-PRIVATE_KEYS = frozenset({"status", "result", "data", "args", "message", "cancelled", "code", "robot_id",
-                          "tasks", "evidence"})
-#: The ``team`` of an event meant for every watching session (a broadcast).
-EVERYONE = "*"
-
-#: Event topics; the PUB socket uses them as the first frame.
-TOPICS = (
-    "robot.registered", "robot.positions", "robot.lost", "robot.returned", "robot.left",
-    "task.given", "task.started", "task.done", "robot.stopped", "radio", "refused", "core.started", "core.recovered", "core.storage",
-    "match.phase", "score", "score.change", "penalty", "disqualified", "broadcast", "find.reported",
-    "picture", "robot.bump", "robot.tasks", "robot.log", "upload.pending", "upload.sent", "upload.done",
-    "upload.unloaded", "sandbox.reset",
-)
-
-
-@dataclass(slots=True)
-class Message:
-    """A decoded, validated protocol message."""
-
-    type: str
-    id: int
-    body: dict[str, Any] = field(default_factory=dict)
-
-
-def pack(obj: Any) -> bytes:
-    """Encode one frame."""
-    return msgpack.packb(obj, use_bin_type=True)
-
-
-def unpack(frame: bytes) -> Any:
-    """Decode one frame without validation (clients reading the core's messages)."""
-    return msgpack.unpackb(frame, raw=False)
-
-
-def request(type_: str, id_: int, body: dict[str, Any] | None = None, session: str | None = None) -> bytes:
-    """Encode a request or notification frame; ``session`` is the secret the core gave this
-    connection at ``hello`` (every message after it must carry it)."""
-    if session is None:
-        return pack({"v": PROTOCOL_VERSION, "type": type_, "id": id_, "body": body or {}})
-    return pack({"v": PROTOCOL_VERSION, "type": type_, "id": id_, SESSION_KEY: session, "body": body or {}})
-
-
-def new_session_secret() -> str:
-    """A fresh, unguessable session secret (hex text)."""
-    return secrets.token_hex(SESSION_BYTES)
-
-
-def new_routing_id() -> bytes:
-    """A random routing id for a client socket: :data:`ROUTING_ID_BYTES` bytes, the first never
-    zero (libzmq keeps ids that start with a zero byte for the ones it makes up itself).
-
-    A fresh id for every socket means that a reconnecting client never competes with its own old,
-    half-dead connection for one id, and that nobody can guess the id of another's connection."""
-    rid = bytearray(secrets.token_bytes(ROUTING_ID_BYTES))
-    rid[0] = rid[0] | 0x80
-    return bytes(rid)
-
-
-def ok_reply(id_: int, body: dict[str, Any] | None = None, session: str | None = None) -> bytes:
-    """Encode a successful reply to request ``id_`` (a robot host answering the core passes its
-    ``session`` secret: to the core, a reply is a message like any other)."""
-    msg = {"v": PROTOCOL_VERSION, "type": "reply", "id": id_, "ok": True, "body": body or {}}
-    if session is not None:
-        msg[SESSION_KEY] = session
-    return pack(msg)
-
-
-def error_reply(id_: int, err: RoboCompError, session: str | None = None) -> bytes:
-    """Encode an error reply carrying the error's stable code and its sentence."""
-    error: dict[str, Any] = {"code": err.code, "message": err.message}
-    if err.details:  # e.g. an upload's file, line and rule
-        error["details"] = err.details
-    msg = {"v": PROTOCOL_VERSION, "type": "reply", "id": id_, "ok": False, "error": error}
-    if session is not None:
-        msg[SESSION_KEY] = session
-    return pack(msg)
-
-
-def event_frames(topic: str, payload: dict[str, Any]) -> list[bytes]:
-    """Encode an event for the PUB socket: ``[topic, payload]``."""
-    return [topic.encode(), pack(payload)]
-
-
 _NONE = type(None)
-
-
-def _finite(value: Any) -> bool:
-    return type(value) is not float or math.isfinite(value)
 #: The Python types each field kind admits (None = anything). bool is not an int here.
 _ALLOWED: dict[str, tuple[type, ...] | None] = {
     _ANY: None, _INT: (int,), _OPT_INT: (int, _NONE), _NUM: (int, float), _STR: (str,),
@@ -236,14 +117,6 @@ _CHECKS: dict[str, list[tuple[str, tuple[type, ...] | None, bool, str]]] = {
     t: [(name, _ALLOWED[kind], req, kind) for name, (kind, req) in spec.items()]
     for t, spec in REQUESTS.items()
 }
-
-
-_TYPE_NAMES = {int: "an integer", float: "a number", str: "a string", bool: "true/false",
-               list: "a list", dict: "a map", bytes: "bytes", type(None): "nil"}
-
-
-def _describe(value: Any) -> str:
-    return _TYPE_NAMES.get(type(value), type(value).__name__)
 
 
 def check_reports(body: dict[str, Any]) -> int:
@@ -262,36 +135,18 @@ def check_reports(body: dict[str, Any]) -> int:
             raise FieldError(f"'reports' needs one {name!r} per tag: {n} tags, {len(body[name])} {name!r}")
     for i, tag in enumerate(tags):
         if type(tag) is not int:
-            raise FieldError(f"'tags'[{i}] of 'reports' must be an integer, got {_describe(tag)}")
+            raise FieldError(f"'tags'[{i}] of 'reports' must be an integer, got {describe_type(tag)}")
     for name in ("x", "y", "heading"):
         for i, v in enumerate(body[name]):
-            if type(v) not in (int, float) or not _finite(v):
+            if type(v) not in (int, float) or not is_finite(v):
                 raise FieldError(f"{name!r}[{i}] of 'reports' must be a finite number, got {v!r}")
     for i, v in enumerate(body.get("moving", ())):
         if type(v) is not bool:
-            raise FieldError(f"'moving'[{i}] of 'reports' must be true/false, got {_describe(v)}")
+            raise FieldError(f"'moving'[{i}] of 'reports' must be true/false, got {describe_type(v)}")
     for i, v in enumerate(body.get("sensors", ())):
         if v is not None and type(v) is not dict:
-            raise FieldError(f"'sensors'[{i}] of 'reports' must be a map or nil, got {_describe(v)}")
+            raise FieldError(f"'sensors'[{i}] of 'reports' must be a map or nil, got {describe_type(v)}")
     return n
-
-
-def decode_envelope(frame: bytes) -> tuple[dict[str, Any], int]:
-    """Check size and msgpack shape; return the raw map and its request id (0 if unknown).
-
-    Raises a :class:`RoboCompError` whose reply should go to request id 0 when the id
-    cannot be read.
-    """
-    if len(frame) > MAX_FRAME:
-        raise TooLargeError(
-            f"message is {len(frame)} bytes; the limit is {MAX_FRAME} bytes (split or shrink it)")
-    try:
-        raw = msgpack.unpackb(frame, raw=False, strict_map_key=True)
-    except Exception:
-        raise MalformedError("message is not valid msgpack; send one msgpack map per frame") from None
-    if type(raw) is not dict:
-        raise MalformedError(f"message must be a msgpack map, got {_describe(raw)}")
-    return raw, raw.get("id") if type(raw.get("id")) is int else 0
 
 
 def decode(frame: bytes) -> Message:
@@ -328,15 +183,15 @@ def validate(raw: dict[str, Any], id_: int) -> Message:
         return Message(type_, id_, raw)
     body = raw.get("body", {})
     if type(body) is not dict:
-        raise FieldError(f"'body' of {type_!r} must be a map, got {_describe(body)}")
+        raise FieldError(f"'body' of {type_!r} must be a map, got {describe_type(body)}")
     for name, allowed, required, kind in _CHECKS[type_]:
         if name not in body:
             if required:
                 raise FieldError(f"{type_!r} needs the field {name!r} ({kind})")
         elif allowed is not None and type(body[name]) not in allowed:
             raise FieldError(
-                f"field {name!r} of {type_!r} must be {kind}, got {_describe(body[name])}")
-        elif kind == _NUM and not _finite(body[name]):
+                f"field {name!r} of {type_!r} must be {kind}, got {describe_type(body[name])}")
+        elif kind == _NUM and not is_finite(body[name]):
             raise FieldError(f"field {name!r} of {type_!r} must be a finite number, got {body[name]!r}")
     return Message(type_, id_, body)
 

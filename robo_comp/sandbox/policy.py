@@ -1,6 +1,6 @@
 """The RestrictedPython policy for team code: compile step, guards and restricted globals.
 
-Everything here runs inside the sandbox child process (see :mod:`robo_comp.plugins.sandbox_child`);
+Everything here runs inside the sandbox child process (see :mod:`robo_comp.sandbox.child`);
 the parent never executes team code. The policy has two layers:
 
 * **compile time** — :func:`compile_team` runs RestrictedPython's ``compile_restricted_exec``:
@@ -35,7 +35,7 @@ from RestrictedPython.Guards import (
 )
 from RestrictedPython.transformer import INSPECT_ATTRIBUTES
 
-from robo_comp.plugins.explain import explain_compile_error
+from robo_comp.sandbox.explain import explain_compile_error
 
 __all__ = [
     "PolicyError", "TaskCancelled", "RobotError", "LimitExceeded", "Namespace",

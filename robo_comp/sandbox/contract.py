@@ -292,7 +292,7 @@ def check_signatures(tree: ast.Module, manifest: dict[str, Any]) -> None:
 def check_task_args(spec: dict[str, Any], args: Any) -> list[Any]:
     """Check call arguments against an advertised task; raise :class:`BadTaskError` if wrong."""
     try:
-        from robo_comp.core.tasks import check_args
+        from robo_comp.protocol.taskspec import check_args
     except ImportError:  # pragma: no cover - core not importable
         check_args = None
     if check_args is not None:

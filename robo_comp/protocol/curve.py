@@ -36,7 +36,7 @@ from zmq.utils import z85
 from robo_comp.errors import FieldError
 from robo_comp.teams.tokens import REFEREE, check_team_name
 
-log = logging.getLogger("robo_comp.core.curve")
+log = logging.getLogger("robo_comp.protocol.curve")
 
 #: The folder under the state folder that holds the key files.
 KEYS_DIR = "keys"

@@ -22,8 +22,8 @@ import time
 from pathlib import Path
 from typing import Any
 
-from robo_comp.core import protocol as P
-from robo_comp.core.curve import keys_dir
+from robo_comp import protocol as P
+from robo_comp.protocol.curve import keys_dir
 from robo_comp.core.eventlog import LogRecord, read_log
 from robo_comp.core.recovery import Replayer
 from robo_comp.core.server import Core
@@ -98,7 +98,7 @@ class ReplayCore(Core):
         hb = P.request("heartbeat", 0, {"t": time.time(), "core_id": self.core_id})
         for ident, s in list(self.sessions.items()):
             if s.watching or s.tags:
-                self._send(ident, hb)
+                self.send(ident, hb)
 
     def run(self) -> None:
         """Serve while playing the recording; then keep serving the final state (or stop)."""

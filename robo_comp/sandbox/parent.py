@@ -34,9 +34,9 @@ from typing import Any, Callable, Iterable
 import msgpack
 
 from robo_comp.errors import BadTaskError, NotYoursError, UnavailableError, UploadError
-from robo_comp.plugins import contract
-from robo_comp.plugins.contract import BUILTIN_TASKS, ModuleInfo
-from robo_comp.plugins.sandbox_child import (
+from robo_comp.sandbox import contract
+from robo_comp.sandbox.contract import BUILTIN_TASKS, ModuleInfo
+from robo_comp.sandbox.child import (
     EXIT_INTERNAL, EXIT_MEMORY, EXIT_PROTOCOL, FrameError, FrameReader, pack,
 )
 
@@ -286,7 +286,7 @@ class Sandbox:
         pkg_root = os.path.dirname(os.path.dirname(os.path.abspath(robo_comp.__file__)))
         cmd = [sys.executable, "-I", "-B", "-c",
                f"import sys; sys.path.insert(0, {pkg_root!r}); "
-               "from robo_comp.plugins.sandbox_child import main; main()",
+               "from robo_comp.sandbox.child import main; main()",
                "--fd", str(child.fileno()),
                "--limits", msgpack.packb(self.limits.wire(self.seed)).hex()]
         try:

@@ -1,0 +1,23 @@
+"""Sessions: a connection that said hello (or registered robots) and proved it on every message."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from robo_comp import protocol as P
+from robo_comp.teams.tokens import Principal
+
+
+@dataclass(slots=True)
+class Session:
+    """A connection that said hello (console, wall, script or robot host)."""
+
+    ident: bytes
+    who: Principal
+    client: str
+    last_seen: float
+    #: The secret every message of this session carries (``"s"``); issued at hello/register.
+    secret: str = field(default_factory=P.new_session_secret)
+    #: Under CurveZMQ: the owner of the key the session was opened with (every frame must match).
+    key: str | None = None
+    watching: bool = False
+    tags: set[int] = field(default_factory=set)

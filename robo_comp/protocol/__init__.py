@@ -1,0 +1,58 @@
+"""The wire protocol every robo_comp process shares: msgpack frames, versioned, with typed fields
+and stable error codes. Clients, robot hosts, walls and the core import this package; it imports
+nothing of theirs.
+
+- :mod:`~robo_comp.protocol.wire`: the envelope (encoding, decoding, session secret, routing ids);
+- :mod:`~robo_comp.protocol.messages`: the message table and the checks run on every message;
+- :mod:`~robo_comp.protocol.topics`: event topics and their public view;
+- :mod:`~robo_comp.protocol.taskspec`: advertised task descriptions and task-call checks;
+- :mod:`~robo_comp.protocol.replies`: the one reply decoder;
+- :mod:`~robo_comp.protocol.arena`: reading the arena payload;
+- :mod:`~robo_comp.protocol.curve`: CurveZMQ keys and socket security, both ends.
+
+``from robo_comp import protocol as P`` gives the names below. See ``docs/protocol.md``.
+"""
+from robo_comp.protocol.arena import unpack_walls
+from robo_comp.protocol.messages import (
+    CORE_TO_HOST,
+    MAX_RADIO,
+    MAX_REPORTS,
+    NOTIFICATIONS,
+    OPENING,
+    RADIO_RATE,
+    REQUESTS,
+    check_reports,
+    decode,
+    validate,
+)
+from robo_comp.protocol.replies import reply_body, reply_error
+from robo_comp.protocol.topics import EVERYONE, PRIVATE_KEYS, TOPICS, public_view
+from robo_comp.protocol.wire import (
+    MAX_FRAME,
+    PROTOCOL_VERSION,
+    ROUTING_ID_BYTES,
+    SESSION_BYTES,
+    SESSION_KEY,
+    SOCKET_MAX_FRAME,
+    Message,
+    decode_envelope,
+    describe_type,
+    error_reply,
+    event_frames,
+    is_finite,
+    new_routing_id,
+    new_session_secret,
+    ok_reply,
+    pack,
+    request,
+    unpack,
+)
+
+__all__ = [
+    "CORE_TO_HOST", "EVERYONE", "MAX_FRAME", "MAX_RADIO", "MAX_REPORTS", "NOTIFICATIONS", "OPENING",
+    "PRIVATE_KEYS", "PROTOCOL_VERSION", "RADIO_RATE", "REQUESTS", "ROUTING_ID_BYTES", "SESSION_BYTES",
+    "SESSION_KEY", "SOCKET_MAX_FRAME", "TOPICS", "Message", "check_reports", "decode", "decode_envelope",
+    "describe_type", "error_reply", "event_frames", "is_finite", "new_routing_id", "new_session_secret",
+    "ok_reply", "pack", "public_view", "reply_body", "reply_error", "request", "unpack", "unpack_walls",
+    "validate",
+]
