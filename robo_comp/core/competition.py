@@ -266,7 +266,7 @@ class Competition:
             meta = self.pictures.get(pid)
             if meta is None or meta["team"] != r.team:
                 raise NotYoursError(f"picture {pid} is not one of team {r.team}'s pictures")
-        find = {"team": r.team, "tag": r.tag, "x": float(b["x"]), "y": float(b["y"]),
+        find: dict[str, Any] = {"team": r.team, "tag": r.tag, "x": float(b["x"]), "y": float(b["y"]),
                 "kind": str(b.get("kind", ""))[:32], "evidence": evidence}
         truth = {"victims": self.victims, "examined": self.examined[r.team]}
         verdict = self.board.judge(find, truth)

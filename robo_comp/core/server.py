@@ -12,6 +12,7 @@ walls) and, in full, to the sessions that ``watch`` and may see them.
 from __future__ import annotations
 
 import contextlib
+import math
 import ctypes
 import gc
 import hmac
@@ -278,7 +279,7 @@ class Core:
                     timeout = min(timeout, 0.2)
                 if self._posed:
                     timeout = min(timeout, max(0.0, next_pose - time.monotonic()))
-                if poller.poll(timeout * 1000):
+                if poller.poll(math.ceil(timeout * 1000)):
                     if self._zap is not None:
                         self._zap.serve()
                     self._drain()
@@ -317,13 +318,16 @@ class Core:
         curve = self.curve is not None
         for _ in range(budget):
             try:
-                frames = router.recv_multipart(zmq.NOBLOCK, copy=not curve)
+                if curve:  # which key the frame came with (the ZAP handler named its owner)
+                    parts = router.recv_multipart(zmq.NOBLOCK, copy=False)
+                    owner = parts[-1].get("User-Id")
+                    self._key_owner = owner if isinstance(owner, str) else None
+                    frames = [f.bytes for f in parts]
+                else:
+                    frames = router.recv_multipart(zmq.NOBLOCK)
             except zmq.Again:
                 return
             self.stats["received"] += 1
-            if curve:  # which key the frame came with (the ZAP handler named its owner)
-                self._key_owner = frames[-1].get("User-Id")
-                frames = [f.bytes for f in frames]
             ident = frames[0]
             if len(frames) != 2:
                 self._send_error(ident, 0, MalformedError(
@@ -338,7 +342,7 @@ class Core:
         try:
             raw, req_id = P.decode_envelope(frame)
             found = self.sessions.get(ident)
-            secret = raw.get("s")
+            secret: Any = raw.get("s")
             # proved (the common case, kept short): the session's secret, compared in constant time;
             # a refusal below (a bad field, say) is then the session's, else nobody's
             proved = False
@@ -434,12 +438,13 @@ class Core:
         if self._unproven and ident in self._unproven:
             self.stats["unrouted"] += 1
             return
-        self._out.append((self.router, [ident, frame], urgent))
+        # the router exists once bound, and nothing is queued before: no None check on this hot path
+        self._out.append((self.router, [ident, frame], urgent))  # type: ignore[arg-type]
 
     def _reply(self, ident: bytes, frame: bytes) -> None:
         """Queue the reply to the message that just came from ``ident`` (whoever sent it). During a
         storage fault it leaves at once: only requests that log nothing are served then."""
-        self._out.append((self.router, [ident, frame], self.storage_fault is not None))
+        self._out.append((self.router, [ident, frame], self.storage_fault is not None))  # type: ignore[arg-type]
 
     def _commit(self) -> None:
         """Flush the event log, then send every queued reply and event.

@@ -8,18 +8,35 @@ in a plugin of its own (see :mod:`robo_comp.sandbox.parent`).
 """
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Protocol
 
 import pluggy
+
+from robo_comp.robots.steps import RobotView, TaskSpec
+from robo_comp.scoring.config import ScoringConfig
 
 PROJECT = "robo_comp"
 hookspec = pluggy.HookspecMarker(PROJECT)
 hookimpl = pluggy.HookimplMarker(PROJECT)
 
 
+class BoardView(Protocol):
+    """What a scoring plugin sees of the scoreboard (a :class:`robo_comp.scoring.board.Scoreboard`)."""
+
+    config: ScoringConfig
+    #: victim id -> the team that found it first
+    first_finder: dict[str, str]
+
+
+class HostedRobot(RobotView, Protocol):
+    """A robot as a robot host's plugins see it (a :class:`robo_comp.robots.host.SimRobot`)."""
+
+    robot_id: str
+
+
 # ---------------------------------------------------------------------- tasks
 @hookspec
-def robo_comp_tasks() -> list[Any]:
+def robo_comp_tasks() -> list[TaskSpec]:
     """Called by a robot host at start-up and whenever its plugins change, to collect the
     tasks its robots advertise.
 
@@ -30,7 +47,7 @@ def robo_comp_tasks() -> list[Any]:
 
 
 @hookspec
-def robo_comp_task_interrupted(robot: Any, task_name: str, task_id: int, by_task_id: int) -> None:
+def robo_comp_task_interrupted(robot: HostedRobot, task_name: str, task_id: int, by_task_id: int) -> None:
     """Called by the robot host when a new task is given "now" while ``task_name`` runs on
     ``robot``; the switch itself happens at the next movement boundary. Return nothing."""
 
@@ -44,7 +61,9 @@ def robo_comp_extension_loaded(tag: int, name: str, version: str, sha256: str, t
 
 @hookspec
 def robo_comp_extension_unloaded(tag: int, name: str) -> None:
-    """Called by the robot host after an extension was unloaded or replaced on robot ``tag``."""
+    """Called by the robot host after an extension was unloaded from robot ``tag``, or replaced
+    there by a newer upload of the same name (before ``robo_comp_extension_loaded`` for the
+    new one). Return nothing."""
 
 
 # ---------------------------------------------------------------------- drivers and sensors
@@ -60,9 +79,10 @@ def robo_comp_driver(kind: str, options: dict[str, Any]) -> Any:
 
 
 @hookspec
-def robo_comp_sense(robot: Any) -> dict[str, Any]:
-    """Called by the robot host when it reports robot ``robot``; return sensor readings as
-    plain data (merged into the report's ``sensors`` map), or an empty dict."""
+def robo_comp_sense(robot: HostedRobot) -> dict[str, Any]:
+    """Called by the robot host when it reads robot ``robot``'s sensors (with its report, at the
+    host's sensor rate); return sensor readings as plain data (merged into the report's
+    ``sensors`` map), or an empty dict. A plugin that raises loses its own readings only."""
 
 
 # ---------------------------------------------------------------------- scoring
@@ -75,7 +95,7 @@ def robo_comp_judge_find(find: dict[str, Any], truth: dict[str, Any]) -> dict[st
 
 
 @hookspec
-def robo_comp_score(event: dict[str, Any], board: Any) -> list[dict[str, Any]]:
+def robo_comp_score(event: dict[str, Any], board: BoardView) -> list[dict[str, Any]]:
     """Called by the scoreboard for every scoring-relevant event (``find.judged``,
     ``robot.bump``, ``robot.lost``, ``penalty``). Return a list of score changes
     ``{"team": str, "points": float, "reason": str, "kind": str}`` (possibly empty).

@@ -341,7 +341,7 @@ def run_keys(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_parser(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add the ``keys`` subcommand."""
     k = sub.add_parser("keys", help="create CurveZMQ keys for a networked match (core --curve)",
                        description="Create the core's, each team's and the referee's CurveZMQ key pairs "

@@ -138,4 +138,5 @@ def decode_envelope(frame: bytes) -> tuple[dict[str, Any], int]:
         raise MalformedError("message is not valid msgpack; send one msgpack map per frame") from None
     if type(raw) is not dict:
         raise MalformedError(f"message must be a msgpack map, got {describe_type(raw)}")
-    return raw, raw.get("id") if type(raw.get("id")) is int else 0
+    rid = raw.get("id")
+    return raw, rid if type(rid) is int else 0

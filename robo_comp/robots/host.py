@@ -538,8 +538,8 @@ class RobotHost:
         """Report what one robot believes (the positioning system's estimate) at once, and
         its sensor readings when they are due."""
         sensors = None
-        if now - r.last_sensed >= self.sensor_interval and self.world is not None:
-            sensors = self.world.sense(r.robot_id)
+        if now - r.last_sensed >= self.sensor_interval:
+            sensors = self._sense([r]).get(r.tag)
         body = self._pose_rows([r], now, {r.tag: sensors} if sensors is not None else {})
         self.sock.send(P.request("reports", 0, body, self.session))  # type: ignore[union-attr]
         self.last_tx = now
@@ -565,6 +565,25 @@ class RobotHost:
             body["sensors"] = sensors
         return body
 
+    def _sense(self, robots: list[SimRobot]) -> dict[int, dict[str, Any]]:
+        """Sensor readings of ``robots`` by tag: the simulated arena's (one vectorised pass), with
+        what ``robo_comp_sense`` plugins add merged in (called only when a plugin implements it)."""
+        readings: dict[int, dict[str, Any]] = {}
+        if self.world is not None:
+            rows = self.world.sense_many([r.robot_id for r in robots])
+            readings = {r.tag: row for r, row in zip(robots, rows)}
+        # each plugin on its own: one that raises loses its readings only, not the others'
+        for impl in self.pm.hook.robo_comp_sense.get_hookimpls():
+            for r in robots:
+                try:
+                    part = impl.function(*(r for _ in impl.argnames))  # the one argument: robot
+                except Exception:
+                    log.exception("plugin %s: robo_comp_sense failed", impl.plugin_name)
+                    break
+                if isinstance(part, dict) and part:
+                    readings.setdefault(r.tag, {}).update(part)
+        return readings
+
     def _report(self, now: float) -> None:
         """Report moving robots every report interval, idle ones once a second, in ``reports``
         messages of up to ``REPORT_CHUNK`` robots; the sensors of all robots due are read in one
@@ -573,10 +592,7 @@ class RobotHost:
         if not due:
             return
         sensing = [r for r in due if now - r.last_sensed >= self.sensor_interval]
-        readings: dict[int, dict[str, Any]] = {}
-        if sensing and self.world is not None:
-            rows = self.world.sense_many([r.robot_id for r in sensing])
-            readings = {r.tag: row for r, row in zip(sensing, rows)}
+        readings = self._sense(sensing) if sensing else {}
         sock = self.sock
         for start in range(0, len(due), REPORT_CHUNK):
             if start:

@@ -56,6 +56,7 @@ class CodeHost(Protocol):
 
     team: str | None
     seed: int
+    pm: Any  # the host's plugin manager (extension hooks are called through it)
     by_tag: dict[int, Any]  # tag -> CodeRobot
     world: Any  # the host's simulated arena (``sense``), None until it knows the arena
     walls: Any  # the arena's wall grid ``[y, x]``
@@ -229,7 +230,16 @@ class TeamCode:
             self.enabled[t].discard(name)
         if done and self.sb is not None and not any(name in s for s in self.enabled.values()):
             self.sb.unload(name)
+        for t in done:
+            self._notify("robo_comp_extension_unloaded", tag=t, name=name)
         return done
+
+    def _notify(self, hook: str, **kwargs: Any) -> None:
+        """Call a host-side extension hook; a plugin that raises is logged, never fatal to the host."""
+        try:
+            getattr(self.host.pm.hook, hook)(**kwargs)
+        except Exception:
+            log.exception("plugin hook %s failed", hook)
 
     def reset(self, tags: list[int]) -> list[dict[str, Any]]:
         """The referee's restart of this host's sandbox (one per team and host): ends a cool-down."""
@@ -247,9 +257,13 @@ class TeamCode:
 
     def _answer_load(self, job: LoadJob, module: Any, err: RoboCompError | None) -> None:
         results: list[dict[str, Any]] = []
+        replaced: list[int] = []
         for tag in job.tags:
             if err is None:
-                self.enabled.setdefault(tag, set()).add(module.name)
+                mine = self.enabled.setdefault(tag, set())
+                if module.name in mine:
+                    replaced.append(tag)
+                mine.add(module.name)
                 results.append(dict(module.plain(), tag=tag, ok=True,
                                     message=f"{job.filename}: {module.name} {module.version} loaded"))
             else:
@@ -258,6 +272,12 @@ class TeamCode:
                                 "rule": details.get("rule"), "line": details.get("line"),
                                 "sha256": job.sha256})
         self.host.upload_answered(job.rid, results)
+        if err is None:
+            for tag in replaced:
+                self._notify("robo_comp_extension_unloaded", tag=tag, name=module.name)
+            for tag in job.tags:
+                self._notify("robo_comp_extension_loaded", tag=tag, name=module.name, version=module.version,
+                             sha256=module.sha256, tasks=sorted(module.tasks))
 
     # ------------------------------------------------------------------ tasks
     def adverts(self, tag: int) -> dict[str, dict[str, Any]]:

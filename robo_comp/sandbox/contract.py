@@ -291,12 +291,6 @@ def check_signatures(tree: ast.Module, manifest: dict[str, Any]) -> None:
 
 def check_task_args(spec: dict[str, Any], args: Any) -> list[Any]:
     """Check call arguments against an advertised task; raise :class:`BadTaskError` if wrong."""
-    try:
-        from robo_comp.protocol.taskspec import check_args
-    except ImportError:  # pragma: no cover - core not importable
-        check_args = None
-    if check_args is not None:
-        return check_args(spec, args)
-    if type(args) not in (list, tuple) or len(args) != len(spec["args"]):  # pragma: no cover
-        raise BadTaskError(f"{spec['name']} takes {len(spec['args'])} argument(s)")
-    return list(args)  # pragma: no cover
+    from robo_comp.protocol.taskspec import check_args  # the core's own check (the parent's side only)
+
+    return check_args(spec, args)

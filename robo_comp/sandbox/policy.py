@@ -98,7 +98,7 @@ def compile_team(source: str, filename: str) -> _types.CodeType:
         lines = source.splitlines()
         parsed = sorted((_parse_line(e) for e in result.errors), key=lambda p: p[0] or 0)
         explained = [(line, *explain_compile_error(text, lines[line - 1] if line and 0 < line <= len(lines)
-                                                   and line != parsed[0][0] or i == 0 else None))
+                                                   and (line != parsed[0][0] or i == 0) else None))
                      for i, (line, text) in enumerate(parsed)]
         line, rule, first = explained[0]
         others = [text if n == line else f"line {n}: {text}" for n, _, text in explained[1:3]]
@@ -146,8 +146,8 @@ def _math_namespace() -> Namespace:
     return Namespace("math", {n: getattr(_math, n) for n in names})
 
 
-def _random_namespace(seed: int) -> Namespace:
-    rng = _random.Random(seed)
+def _random_namespace(start: int) -> Namespace:
+    rng = _random.Random(start)
 
     def random() -> float:
         """A float in [0, 1)."""
@@ -185,8 +185,8 @@ def _random_namespace(seed: int) -> Namespace:
             raise TypeError("seed() needs an int, float or str")
         rng.seed(value)
 
-    return Namespace("random", {f.__name__: f for f in
-                                (random, uniform, randint, randrange, choice, shuffle, gauss, seed)})
+    fns: list[Callable[..., Any]] = [random, uniform, randint, randrange, choice, shuffle, gauss, seed]
+    return Namespace("random", {f.__name__: f for f in fns})
 
 
 def _heapq_namespace() -> Namespace:
@@ -274,7 +274,7 @@ class _ReadOnlyProxy:
         raise TypeError(f"{object.__getattribute__(self, '_ro_what')} is read-only in the sandbox; keep your "
                         "own state in variables, lists, dicts or objects of your own classes")
 
-    __setattr__ = __delattr__ = __setitem__ = __delitem__ = _refuse  # type: ignore[assignment]
+    __setattr__ = __delattr__ = __setitem__ = __delitem__ = _refuse
 
 
 _WRITABLE_TYPES = (list, dict, bytearray, set)
