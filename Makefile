@@ -16,6 +16,7 @@ demo: $(STAMP)
 	$(BIN)/robo-comp demo --web 8080
 
 test: $(STAMP)
+	$(BIN)/python -m mypy  # the packages in pyproject's [tool.mypy]: core, protocol, sandbox, plugins
 	$(BIN)/python -m pytest
 
 bench: $(STAMP)

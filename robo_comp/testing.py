@@ -592,7 +592,7 @@ class Bench:
             else:
                 out = {"ok": False, "status": why or rec.message, "result": None,
                        "reason": "stopped" if why else rec.reason,
-                       "line": None if why else rec.line}  # type: ignore[union-attr]
+                       "line": None if why else rec.line}  # type: ignore[union-attr]  -- rec is a TaskFailed when why is empty
             self._task_done(tag, dict(out, task=name))
         elif isinstance(rec, SandboxStopped):
             self._event("sandbox.stopped", None, reason=rec.reason, message=rec.message)

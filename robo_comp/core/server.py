@@ -355,8 +355,8 @@ class Core:
                 sess = found
             msg = P.validate(raw, req_id)
             msg_type = msg.type
-            if proved:
-                found.last_seen = time.monotonic()  # type: ignore[union-attr]
+            if sess is not None:  # proved above
+                sess.last_seen = time.monotonic()
             else:
                 sess = self._prove(ident, msg.type, secret)
                 if self.storage_fault is not None and msg.type not in STORAGE_FREE:
@@ -836,7 +836,8 @@ class Core:
         b = msg.body
         who = self.tokens.lookup(b["token"])
         self._check_key(who)
-        if who.role != "team":
+        team = who.team
+        if who.role != "team" or team is None:
             raise FieldError("robots register with a team token, not the referee's")
         robot_id = b["robot_id"]
         if not (0 < len(robot_id) <= 64):
@@ -849,10 +850,10 @@ class Core:
         elif sess.who != who:
             raise AuthError(f"this connection's session speaks for {sess.who.name}; robots of "
                             f"{who.name} register on a connection of their own")
-        r = self.registry.lookup(who.team, robot_id)  # type: ignore[arg-type]
+        r = self.registry.lookup(team, robot_id)
         returning = r is not None
         if r is None:
-            r = self.registry.add(who.team, robot_id)  # type: ignore[arg-type]
+            r = self.registry.add(team, robot_id)
         elif r.session is not None and r.session != ident and r.session in self.sessions:
             self.sessions[r.session].tags.discard(r.tag)
         r.session = ident

@@ -247,7 +247,8 @@ class UploadDesk:
              done: Callable[[list[dict[str, Any]]], None]) -> None:
         by_host: dict[bytes, list[int]] = {}
         for r in robots:
-            by_host.setdefault(r.session, []).append(r.tag)  # type: ignore[arg-type]
+            if r.session is not None:  # the callers pass connected robots: all have a host
+                by_host.setdefault(r.session, []).append(r.tag)
         ask = HostAsk({}, time.monotonic() + HOST_TIMEOUT, [], done)
         for host, tags in by_host.items():
             cid = self.out.new_request_id()

@@ -84,7 +84,7 @@ class ArenaDriver(PoseReadings):
 
     # what the robot believes (estimate) ------------------------------------
     @property
-    def pose(self) -> tuple[float, float, float]:  # type: ignore[override]
+    def pose(self) -> tuple[float, float, float]:  # type: ignore[override]  -- a read-only pose property where the protocol has plain attributes
         """Estimated (x, y, heading): what the robot and its team see."""
         return self.loc.estimate(self.tag)
 

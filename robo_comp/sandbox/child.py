@@ -29,7 +29,7 @@ import sys
 import threading
 import time
 import types
-from typing import Any, Callable
+from typing import Any, Callable, TypeGuard
 
 import msgpack
 
@@ -122,7 +122,17 @@ class _Run:
 
 
 class _Module:
+    """A loaded module inside the child: its identity, task functions and globals."""
+
     __slots__ = ("name", "version", "kind", "file", "sha256", "tasks", "functions", "globals")
+    name: str
+    version: str
+    kind: str
+    file: str
+    sha256: str
+    tasks: dict[str, Any]
+    functions: dict[str, Any]
+    globals: dict[str, Any]
 
 
 class Child:
@@ -316,7 +326,7 @@ class Child:
         t = msg["t"]
         if t == "reply":
             with self.state_lock:
-                worker = self.calls.pop(msg.get("c"), None)
+                worker = self.calls.pop(msg.get("c", -1), None)
             if worker is not None:
                 self.refresh_cpu()
                 worker.replies.put(msg)
@@ -331,7 +341,7 @@ class Child:
         elif t == "unload":
             name = msg.get("name")
             with self.state_lock:
-                if self.modules.pop(name, None) is not None:
+                if self.modules.pop(str(name), None) is not None:
                     self._reindex()
             self.send({"t": "unloaded", "name": name})
         else:
@@ -355,7 +365,7 @@ class Child:
             if w is None or w.run is None or w.run.id != run_id:
                 return
             w.run.cancelled = True
-            if w.in_team and _async_exc is not None:
+            if w.in_team and _async_exc is not None and w.ident is not None:
                 _async_exc(w.ident, self.restricted.TaskCancelled)
 
     def _reindex(self) -> None:
@@ -499,7 +509,7 @@ class _Worker:
     def run_task(self, run: _Run, msg: dict) -> None:
         c = self.child
         R = c.restricted
-        module = c.modules.get(msg.get("module")) or c.modules.get(c.task_index.get(msg["task"], ""))
+        module = c.modules.get(msg.get("module", "")) or c.modules.get(c.task_index.get(msg["task"], ""))
         if module is None or msg["task"] not in module.functions:
             self.finish({"t": "failed", "r": run.id, "why": "error", "line": None,
                          "m": f"no loaded module provides task {msg['task']!r}"})
@@ -633,7 +643,7 @@ class _Worker:
                      "previous": previous.version if previous else None})
 
 
-def _is_own_function(fn: Any, file: str, params: list[str]) -> bool:
+def _is_own_function(fn: Any, file: str, params: list[str]) -> TypeGuard[types.FunctionType]:
     if type(fn) is not types.FunctionType:
         return False
     code = fn.__code__
@@ -763,8 +773,8 @@ def main(argv: list[str] | None = None) -> None:
     _install_async_exc()
     child = Child(sock, limits)  # imports the policy and starts the workers
     _warm_up(child)
-    sys.stdout = _CappedStream(child, "stdout")  # type: ignore[assignment]
-    sys.stderr = _CappedStream(child, "stderr")  # type: ignore[assignment]
+    sys.stdout = _CappedStream(child, "stdout")
+    sys.stderr = _CappedStream(child, "stderr")
     _drop_root()
     _set_limits(limits, keep_fds=fd + 1)
     child.cpu_soft = -1

@@ -430,6 +430,7 @@ class Sandbox:
                               rule="timeout")
         if isinstance(rec, LoadFailed):
             raise rec.error
+        assert isinstance(rec, Loaded)  # what the wait above waited for
         return rec.module
 
     def unload(self, name: str) -> bool:
@@ -521,8 +522,9 @@ class Sandbox:
                  timeout: float = 30.0) -> TaskDone | TaskFailed | None:
         """Blocking :meth:`start_task`: the run's final record (None on timeout)."""
         rid = self.start_task(tag, task, args)
-        return self._wait(lambda r: isinstance(r, (TaskDone, TaskFailed)) and r.run_id == rid,
-                          timeout)
+        rec = self._wait(lambda r: isinstance(r, (TaskDone, TaskFailed)) and r.run_id == rid, timeout)
+        assert rec is None or isinstance(rec, (TaskDone, TaskFailed))  # what the wait above waited for
+        return rec
 
     def cancel(self, run_id: int) -> bool:
         """Interrupt/stop a run: its pending robot-API calls fail with ``TaskCancelled`` in team
@@ -582,7 +584,7 @@ class Sandbox:
     def poll(self, timeout: float = 0.0) -> list[Record]:
         """Wait up to ``timeout`` for input, then do all pending work; returns records."""
         if self._backlog:
-            out = list(self._backlog)
+            out: list[Record] = list(self._backlog)
             self._backlog.clear()
             return out + self.check_timers()
         if self.sock is not None:
@@ -594,7 +596,7 @@ class Sandbox:
                 r, w, _ = select.select([self.sock], wl, [], timeout)
             except (OSError, ValueError):
                 r, w = [], []
-            out: list[Record] = []
+            out = []
             if w:
                 out += self.handle_writable()
             if r:
@@ -665,7 +667,7 @@ class Sandbox:
             text = msg["text"]
             if type(text) is not str:
                 raise TypeError
-            run = self._runs.get(msg.get("run")) if msg.get("run") is not None else None
+            run = self._runs.get(msg.get("run", -1))
             self._out.append(LogLine(run.id if run else None, run.tag if run else None,
                                      str(msg.get("stream", "print"))[:10], text))
         elif t in ("done", "failed"):

@@ -112,8 +112,8 @@ class ConsoleApp(App[None]):
         self.link: Link = link or CoreLink(core, token, client=self.CLIENT_NAME, on_event=self._post_event,
                                            on_state=self._post_state, curve_cert=curve_cert, core_key=core_key)
         if link is not None and hasattr(link, "on_event"):
-            link.on_event = self._post_event  # type: ignore[attr-defined]
-            link.on_state = self._post_state  # type: ignore[attr-defined]
+            link.on_event = self._post_event  # type: ignore[attr-defined]  -- CoreLink's callbacks are set by its owner
+            link.on_state = self._post_state  # type: ignore[attr-defined]  -- CoreLink's callbacks are set by its owner
         self.features: dict[str, bool] = {}
         self.selected: int | None = None
         self.poll = poll

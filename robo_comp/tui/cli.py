@@ -53,7 +53,7 @@ def run_referee(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_parsers(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+def add_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     """Add the ``team`` and ``referee`` subcommands (each sets ``func``)."""
     t = sub.add_parser("team", help="the team console (Textual): robots, tasks, uploads, STOP",
                        description="A live console for one team: robots table, monitor, map, events, "

@@ -15,6 +15,7 @@ import contextlib
 import json
 import logging
 import time
+from collections.abc import AsyncIterator
 from pathlib import Path
 from typing import Any
 
@@ -70,10 +71,10 @@ class LiveGateway:
         if token is not None and not isinstance(token, str):
             raise FieldError("'token' must be text")
         if not token:
-            hub: Hub = self.public  # type: ignore[assignment]
+            hub: Hub = self.public  # type: ignore[assignment]  -- both gateways' hubs answer the same calls
         else:
             token = token.strip()
-            hub = self.private.get(token)  # type: ignore[assignment]
+            hub = self.private.get(token)  # type: ignore[assignment]  -- both gateways' hubs answer the same calls
             if hub is None:
                 th = TeamHub("private", self.core, token, **self.keys)
                 self.private[token] = th
@@ -248,7 +249,7 @@ def make_app(gw: LiveGateway | ReplayGateway) -> Starlette:
         await Connection(gw, websocket).run()
 
     @contextlib.asynccontextmanager
-    async def lifespan(app: Starlette):  # type: ignore[no-untyped-def]
+    async def lifespan(app: Starlette) -> AsyncIterator[None]:
         await gw.start()
         yield
         await gw.close()

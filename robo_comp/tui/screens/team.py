@@ -45,9 +45,9 @@ class ConsoleScreen(Screen[None]):
         self._narrow(self.app.size.width < NARROW)
         self.add_class(f"-panel-{self.panel}")
         self.ready = True
-        self.app.connected(self.app.link.info)  # type: ignore[attr-defined]
-        self.query_one(MatchBar).link = self.app.link_state  # type: ignore[attr-defined]
-        self.app.call_later(self.app._redraw, True)  # type: ignore[attr-defined]
+        self.app.connected(self.app.link.info)  # type: ignore[attr-defined]  -- self.app is the TeamApp (Textual types it as App)
+        self.query_one(MatchBar).link = self.app.link_state  # type: ignore[attr-defined]  -- self.app is the TeamApp (Textual types it as App)
+        self.app.call_later(self.app._redraw, True)  # type: ignore[attr-defined]  -- self.app is the TeamApp (Textual types it as App)
 
     def on_unmount(self) -> None:
         self.ready = False
@@ -60,7 +60,7 @@ class ConsoleScreen(Screen[None]):
         self.notify(f"showing the {'event log' if self.panel == 'log' else self.panel}", timeout=1.5)
 
     def on_robot_selected(self, msg: RobotSelected) -> None:
-        self.app.select_robot(msg.tag)  # type: ignore[attr-defined]
+        self.app.select_robot(msg.tag)  # type: ignore[attr-defined]  -- self.app is the TeamApp (Textual types it as App)
 
     def robot_selected(self, tag: int | None) -> None:
         """The app's selection changed: show it."""
@@ -75,7 +75,7 @@ class ConsoleScreen(Screen[None]):
     def refresh_views(self) -> None:
         """Redraw everything from the model."""
         self.query_one(RobotsTable).update_from(self.model)
-        self.query_one(MonitorPanel).show(self.model, self.app.selected)  # type: ignore[attr-defined]
+        self.query_one(MonitorPanel).show(self.model, self.app.selected)  # type: ignore[attr-defined]  -- self.app is the TeamApp (Textual types it as App)
         self.query_one(MapView).refresh()
         self.query_one(MatchBar).refresh()
 
@@ -114,7 +114,7 @@ class TeamScreen(ConsoleScreen):
     def on_data_table_row_selected(self, event: RobotsTable.RowSelected) -> None:
         """``enter`` on a robot opens the task form (the thesis's "3. Give task to a robot")."""
         event.stop()
-        self.app.action_give_task()  # type: ignore[attr-defined]
+        self.app.action_give_task()  # type: ignore[attr-defined]  -- self.app is the TeamApp (Textual types it as App)
 
     def set_team(self, team: str) -> None:
         """The hello told us the team's name."""

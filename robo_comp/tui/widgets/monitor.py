@@ -7,6 +7,7 @@ from typing import Any
 from rich.console import Group
 from rich.table import Table
 from rich.text import Text
+from textual.app import ComposeResult
 from textual.containers import VerticalScroll
 from textual.widgets import Static
 
@@ -41,7 +42,7 @@ class MonitorPanel(VerticalScroll):
         self.border_title = "Monitor"
         self.tag: int | None = None
 
-    def compose(self):  # type: ignore[no-untyped-def]
+    def compose(self) -> ComposeResult:
         yield Static("Select a robot in the table.", id="monitor-body")
 
     def show(self, model: ConsoleModel, tag: int | None) -> None:
