@@ -17,7 +17,8 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from robo_comp.client import Client  # noqa: E402
-from robo_comp.core.eventlog import EventLog, read_log  # noqa: E402
+from robo_comp.core.eventlog import EventLog
+from robo_comp.protocol.logfile import read_log  # noqa: E402
 from robo_comp.launch import start_core, start_robots, stop_all  # noqa: E402
 from robo_comp.robots.builtin_tasks import BUILTIN_TASKS  # noqa: E402
 

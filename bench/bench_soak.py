@@ -49,7 +49,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from robo_comp.client import Client, pub_url  # noqa: E402
 from robo_comp import protocol as P  # noqa: E402
-from robo_comp.core.eventlog import read_log  # noqa: E402
+from robo_comp.protocol.logfile import read_log  # noqa: E402
 from robo_comp.errors import RoboCompError  # noqa: E402
 from robo_comp.launch import start_core, start_robots, stop_all  # noqa: E402
 

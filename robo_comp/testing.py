@@ -183,7 +183,7 @@ class Match:
     def logged_events(self, topic: str | None = None) -> list[dict[str, Any]]:
         """Events the core has written to ``events.log`` so far (optionally of one topic),
         as ``{seq, t, topic, team, data}`` dicts."""
-        from robo_comp.core.eventlog import read_log
+        from robo_comp.protocol.logfile import read_log
 
         path = self.state / "events.log"
         if not path.exists():

@@ -165,7 +165,7 @@ def test_a_burst_of_tasks_while_the_core_is_killed_in_a_loop(tmp_path: Path) -> 
     """Thousands of pipelined gives, the core killed mid-stream five times: every acknowledged
     task is in the log, none is logged twice, none finishes twice."""
     from robo_comp.client import Client
-    from robo_comp.core.eventlog import read_log
+    from robo_comp.protocol.logfile import read_log
     from robo_comp.launch import start_robots, stop_all
 
     state = tmp_path / "state"

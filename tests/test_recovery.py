@@ -11,7 +11,7 @@ import pytest
 
 from conftest import wait_robots
 from robo_comp.client import Client
-from robo_comp.core.eventlog import LogCorrupt, read_log
+from robo_comp.protocol.logfile import LogCorrupt, read_log
 from robo_comp.launch import start_core, start_robots, stop_all
 
 import robo_comp.world.scenario as scen

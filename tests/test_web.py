@@ -392,7 +392,7 @@ def test_replay_seek_lands_on_the_right_state(browser, tmp_path: Path) -> None:
                 got = page.evaluate("() => [robo.model.robots.get(101).x, robo.model.robots.get(101).status]")
                 # the reference: the display wall's model fed with the log's public events up to `at`
                 ref = WallModel()
-                from robo_comp.core.eventlog import read_log
+                from robo_comp.protocol.logfile import read_log
                 recs = list(read_log(log))
                 for rec in recs:
                     if rec.t - recs[0].t <= at:

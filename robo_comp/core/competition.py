@@ -17,7 +17,8 @@ from typing import TYPE_CHECKING, Any
 
 from robo_comp import protocol as P
 from robo_comp.core.desk import Access, Outbox
-from robo_comp.core.eventlog import EventLog, read_log
+from robo_comp.core.eventlog import EventLog
+from robo_comp.protocol.logfile import read_log
 from robo_comp.errors import FieldError, ForbiddenError, NotYoursError, PhaseError, TooLargeError
 from robo_comp.scoring.board import Scoreboard, ScoreLine
 from robo_comp.scoring.config import ScoringConfig

@@ -1,4 +1,5 @@
-"""The append-only event log: every event the core emits, for debugging, replay and recovery.
+"""The append-only event log: every event the core emits, for debugging, replay and recovery
+(its format and its readers: :mod:`robo_comp.protocol.logfile`).
 
 File layout: records of ``[4-byte big-endian length][msgpack map]``. The first record is a
 header ``{"format": "robo_comp-eventlog", "version": 1, "started": t}``; then one record per
@@ -9,30 +10,13 @@ before any reply of that turn leaves (see docs/protocol.md, "Event log").
 from __future__ import annotations
 
 import os
-import struct
 import time
-from collections.abc import Iterator
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import msgpack
 
-FORMAT = "robo_comp-eventlog"
-FORMAT_VERSION = 1
-_LEN = struct.Struct(">I")
-MAX_RECORD = 8 << 20
-
-
-@dataclass(slots=True)
-class LogRecord:
-    """One event as stored in the log."""
-
-    seq: int
-    t: float
-    topic: str
-    team: str | None
-    data: dict[str, Any]
+from robo_comp.protocol.logfile import FORMAT, FORMAT_VERSION, RECORD_LENGTH as _LEN
 
 
 class StorageFault(Exception):
@@ -119,74 +103,3 @@ class EventLog:
         except StorageFault:
             pass
         os.close(self._fd)
-
-
-class LogCorrupt(Exception):
-    """Raised by :func:`read_log` in strict mode when the log's tail is damaged."""
-
-    def __init__(self, offset: int, reason: str) -> None:
-        super().__init__(f"event log damaged at byte {offset}: {reason}")
-        self.offset = offset
-        self.reason = reason
-
-
-class LogReader:
-    """Iterates over a log's records; afterwards ``good_end`` is the byte offset just past the
-    last good record and ``damage`` says what was wrong past it (None for a clean log)."""
-
-    def __init__(self, path: Path) -> None:
-        self.path = path
-        self.good_end = 0
-        self.damage: LogCorrupt | None = None
-        self.last_seq = 0
-
-    def __iter__(self) -> Iterator[LogRecord]:
-        with open(self.path, "rb") as f:
-            data = f.read()
-        view = memoryview(data)  # slices without copying
-        off = 0
-        first = True
-        unpack = msgpack.unpackb
-        while off < len(data):
-            if off + 4 > len(data):
-                self.damage = LogCorrupt(off, "truncated length prefix")
-                return
-            (n,) = _LEN.unpack_from(data, off)
-            if n > MAX_RECORD or off + 4 + n > len(data):
-                self.damage = LogCorrupt(off, "truncated record")
-                return
-            try:
-                obj = unpack(view[off + 4: off + 4 + n], raw=False)
-            except Exception:
-                self.damage = LogCorrupt(off, "record is not valid msgpack")
-                return
-            if first:
-                if type(obj) is not dict or obj.get("format") != FORMAT:
-                    self.damage = LogCorrupt(off, "not a robo_comp event log")
-                    return
-                if obj.get("version") != FORMAT_VERSION:
-                    self.damage = LogCorrupt(off, f"log format version {obj.get('version')} is not supported")
-                    return
-                first = False
-            else:
-                try:
-                    rec = LogRecord(obj["seq"], obj["t"], obj["topic"], obj.get("team"), obj["data"])
-                except (KeyError, TypeError):
-                    self.damage = LogCorrupt(off, "record lacks seq/t/topic/data")
-                    return
-                self.last_seq = rec.seq
-                yield rec
-            off += 4 + n
-            self.good_end = off
-
-
-def read_log(path: Path, strict: bool = True) -> Iterator[LogRecord]:
-    """Yield the events of a log in order.
-
-    A truncated or corrupt tail raises :class:`LogCorrupt` in strict mode, after every good
-    record before it was yielded; otherwise reading stops quietly at the damage.
-    """
-    reader = LogReader(path)
-    yield from reader
-    if strict and reader.damage is not None:
-        raise reader.damage

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
-from robo_comp.core.eventlog import LogReader
+from robo_comp.protocol.logfile import LogReader
 from robo_comp.core.registry import Registry, RobotRecord, RobotStatus
 from robo_comp.core.tasks import TaskMachine, TaskMode, TaskRecord, TaskState
 from robo_comp.protocol.taskspec import check_specs

@@ -20,11 +20,10 @@ import os
 import shutil
 import time
 from pathlib import Path
-from typing import Any
 
 from robo_comp import protocol as P
 from robo_comp.protocol.curve import keys_dir
-from robo_comp.core.eventlog import LogRecord, read_log
+from robo_comp.protocol.logfile import LogRecord, read_recording
 from robo_comp.core.recovery import Replayer
 from robo_comp.core.server import Core
 from robo_comp.errors import FieldError, ForbiddenError
@@ -35,20 +34,6 @@ READ_ONLY = frozenset({"hello", "heartbeat", "bye", "watch", "robots", "monitor"
                        "snapshot", "stats", "score", "map", "map.delta", "picture.get"})
 #: How often the replay plays what is due (seconds of wall-clock time); also its heartbeat.
 STEP = 0.1
-
-
-def read_recording(log: Path) -> tuple[list[LogRecord], dict[str, Any]]:
-    """The records of ``log`` and its ``core.started`` data (which carries the arena)."""
-    if not log.is_file():
-        raise FieldError(f"{log}: no such event log (a core writes STATE/events.log)")
-    try:
-        records = list(read_log(log, strict=False))
-    except OSError as e:
-        raise FieldError(f"cannot read the event log {log}: {e.strerror}") from None
-    started = next((r.data for r in records if r.topic == "core.started" and "arena" in r.data), None)
-    if started is None:
-        raise FieldError(f"{log}: no core.started record with the arena; is this a robo_comp event log?")
-    return records, started
 
 
 class ReplayCore(Core):

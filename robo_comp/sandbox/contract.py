@@ -35,7 +35,7 @@ import re
 from dataclasses import dataclass, field
 from typing import Any
 
-from robo_comp.errors import BadTaskError, UploadError
+from robo_comp.errors import UploadError
 
 __all__ = [
     "ARG_TYPES", "BUILTIN_TASKS", "MAX_SOURCE_BYTES", "ContractError", "ModuleInfo",

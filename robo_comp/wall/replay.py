@@ -10,7 +10,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from robo_comp.core.eventlog import LogRecord, read_log
+from robo_comp.protocol.logfile import LogRecord, read_log
 from robo_comp.errors import FieldError
 from robo_comp.wall.model import WallModel
 

@@ -22,7 +22,7 @@ from typing import Any
 
 from robo_comp import protocol as P
 from robo_comp.errors import AuthError, FieldError
-from robo_comp.core.replay import read_recording
+from robo_comp.protocol.logfile import read_recording
 from robo_comp.wall.model import WallModel
 from robo_comp.web.state import TaskNames, jsonable, map_png, public_event, state_json
 

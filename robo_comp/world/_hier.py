@@ -14,12 +14,12 @@ anything still fails the planner falls back to a full optimal search.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import Any
 
 import numpy as np
 
-if TYPE_CHECKING:
-    from robo_comp.world.planner import PathResult, Planner
+from robo_comp.world.paths import PathResult
+from robo_comp.world.paths import kernels as _k
 
 
 def default_block(width: int, height: int) -> int:
@@ -51,9 +51,8 @@ def _runs(lines: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray, 
 class Hierarchy:
     """The portal graph of one planner's map."""
 
-    def __init__(self, planner: Planner, block: int | None = None) -> None:
-        from robo_comp.world.planner import _k
-
+    def __init__(self, planner: Any, block: int | None = None) -> None:
+        """``planner``: the :class:`~robo_comp.world.planner.Planner` whose map this graph covers."""
         k = _k()
         self.p = planner
         w, h = planner.width, planner.height
@@ -113,8 +112,6 @@ class Hierarchy:
 
     def corridor(self, s: int, t: int, margin: int = 1) -> np.ndarray | None:
         """Block mask (uint8, bh*bw) around the abstract route s→t, or None if none."""
-        from robo_comp.world.planner import _k
-
         w, b = self.p.width, self.block
         sx, sy, tx, ty = s % w, s // w, t % w, t // w
         rs, rt = int(self.labels[s]), int(self.labels[t])
@@ -141,8 +138,6 @@ class Hierarchy:
 
     def find(self, s: int, t: int) -> PathResult:
         """Near-optimal path s→t: portal search, then exact A* inside the corridor."""
-        from robo_comp.world.planner import PathResult
-
         w = self.p.width
         if abs(s % w - t % w) + abs(s // w - t // w) <= 4 * self.block:
             # Short hop: a plain exact search is as cheap as the abstraction.

@@ -12,28 +12,12 @@ from __future__ import annotations
 
 import math
 import threading
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
-if TYPE_CHECKING:
-    from types import ModuleType
-
-Cell = tuple[int, int]
-
-_kernels: ModuleType | None = None
-
-
-def _k() -> Any:
-    """The compiled kernel module, imported on first use."""
-    global _kernels
-    if _kernels is None:
-        from robo_comp.world import _kernels as mod
-
-        _kernels = mod
-    return _kernels
-
+from robo_comp.world.paths import Cell, PathResult
+from robo_comp.world.paths import kernels as _k
 
 def warm_up() -> float:
     """Compile (or load from cache) every kernel now; returns the seconds it took."""
@@ -48,16 +32,6 @@ def warm_up() -> float:
     p.find((0, 0), (3, 3))
     p.reachable((0, 0), (3, 3))
     return time.perf_counter() - t0
-
-
-@dataclass
-class PathResult:
-    """Outcome of one query: ``path`` (cells start..goal) and ``cost`` are None when there is
-    no path; ``expanded`` counts the A* nodes expanded (0 when connectivity answered)."""
-
-    path: list[Cell] | None
-    cost: float | None
-    expanded: int = 0
 
 
 def obstacle_costs(walls: np.ndarray, near_cost: float = 10.0, radius: int = 1) -> np.ndarray:
