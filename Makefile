@@ -17,7 +17,7 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m mypy  # the packages in pyproject's [tool.mypy]: core, protocol, sandbox, plugins
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n 4  # four workers: most tests wait on real processes, not on a core
 
 bench: $(STAMP)
 	for b in bench/bench_*.py; do echo "== $$b"; $(BIN)/python $$b || exit 1; done

@@ -31,10 +31,13 @@ ROOT = Path(__file__).resolve().parents[1]
 TREE = Path(sys.argv[sys.argv.index("--tree") + 1]).resolve() if "--tree" in sys.argv else ROOT
 sys.path.insert(0, str(TREE))
 #: The last revision of protocol 1 (sessions keyed by routing id, no secret): the "before".
-BASELINE_REV = "a7f9924"
+BASELINE_REV = "7a837f8"  # main before the architecture issue (17); a7f9924: before protocol 2 (14)
 
 from robo_comp.client import Client  # noqa: E402
-from robo_comp import protocol as P  # noqa: E402
+try:
+    from robo_comp import protocol as P  # noqa: E402
+except ImportError:  # a --baseline tree from before the protocol package (child mode)
+    from robo_comp.core import protocol as P  # type: ignore[no-redef]  # noqa: E402
 from robo_comp.launch import start_core, start_robots, stop_all  # noqa: E402
 from robo_comp.robots.host import RobotHost  # noqa: E402
 
@@ -308,6 +311,15 @@ def measure_tree(robots: int, seconds: float, stop_samples: int) -> dict:
             "protocol": P.PROTOCOL_VERSION, "handle_ns": handle_ns()}
 
 
+def _map_entry_points(tree: Path) -> None:
+    """The plugins' entry points are read from the installed package's metadata, which names
+    this tree's modules; give an older tree the modules those names point to."""
+    moved = {"robo_comp/robots/builtin.py": "robo_comp.plugins.builtin"}
+    for new, old in moved.items():
+        if not (tree / new).exists() and (tree / (old.replace(".", "/") + ".py")).exists():
+            (tree / new).write_text(f"from {old} import plugin  # noqa: F401  (bench shim)\n")
+
+
 def before_after(a: argparse.Namespace) -> None:
     """The session proof's cost: --baseline's core against this tree's, interleaved, same run."""
     with tempfile.TemporaryDirectory() as tmp:
@@ -320,6 +332,7 @@ def before_after(a: argparse.Namespace) -> None:
             print(f"before/after: skipped, cannot export revision {a.baseline} ({e})")
             return
         subprocess.run(["tar", "-x", "-C", str(old)], input=archive, check=True)
+        _map_entry_points(old)
         runs: dict[str, list[dict]] = {"before": [], "after": []}
         for rep in range(a.reps):
             order = [("before", old), ("after", ROOT)] if rep % 2 == 0 else [("after", ROOT), ("before", old)]
@@ -337,10 +350,10 @@ def before_after(a: argparse.Namespace) -> None:
         print(f"before/after ({a.reps} interleaved runs each, medians; before = {a.baseline}, "
               f"protocol {runs['before'][0]['protocol']}; after = this tree, protocol {runs['after'][0]['protocol']}):")
         print(f"  reports absorbed: {b['rate']:10,.0f} -> {n['rate']:10,.0f} msg/s  "
-              f"({n['rate'] / b['rate'] - 1:+.1%}; target: the check costs < 2%)")
+              f"({n['rate'] / b['rate'] - 1:+.1%})")
         print(f"  one report through Core._handle, in-process (best of 7 x 100,000): {b['handle_ns']:,.0f} -> "
-              f"{n['handle_ns']:,.0f} ns ({n['handle_ns'] / b['handle_ns'] - 1:+.1%}); the proof costs "
-              f"{n['handle_ns'] - b['handle_ns']:,.0f} ns = {(n['handle_ns'] - b['handle_ns']) / (1e9 / b['rate']):.1%} "
+              f"{n['handle_ns']:,.0f} ns ({n['handle_ns'] / b['handle_ns'] - 1:+.1%}): "
+              f"{n['handle_ns'] - b['handle_ns']:+,.0f} ns = {(n['handle_ns'] - b['handle_ns']) / (1e9 / b['rate']):+.1%} "
               "of a report's time in the core at the rate above")
         print(f"  stop p50 {b['stop_p50']:.2f} -> {n['stop_p50']:.2f} ms; p99 {b['stop_p99']:.2f} -> "
               f"{n['stop_p99']:.2f} ms (target: nothing measurable)")

@@ -280,7 +280,7 @@ def test_import_is_lazy():
     import subprocess
     import sys
 
-    code = ("import sys, robo_comp.world.planner as p; "
+    code = ("import sys, robo_comp.world.planner, robo_comp.world.paths as p; "
             "print('numba' in sys.modules, p._kernels is None)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.split() == ["False", "True"]

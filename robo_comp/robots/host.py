@@ -370,15 +370,16 @@ class RobotHost:
             log.error("unreadable message from the core; ignored")
             return
         if type_ == "reply":
-            err = msg.get("error") or {}
-            if not msg.get("ok") and err.get("code") == "E_AUTH" and self.state == "up":
+            exc = P.reply_error(msg)
+            if exc is not None and exc.code == "E_AUTH" and self.state == "up":
                 self._reconnect("the core does not know this connection")
                 return
             cb = self.replies.pop(rid, None)
-            if cb is not None:
-                cb(bool(msg.get("ok")), body if msg.get("ok") else err)
-            elif not msg.get("ok"):
-                log.warning("core: %s", err.get("message"))
+            if cb is not None:  # an error reaches the callback as {"code", "message", "details"}
+                cb(exc is None, body if exc is None else {"code": exc.code, "message": exc.message,
+                                                        "details": exc.details})
+            elif exc is not None:
+                log.warning("core: %s", exc.message)
             return
         if type_ == "heartbeat":
             if self.state == "up" and body.get("core_id") not in (None, self.core_id):
