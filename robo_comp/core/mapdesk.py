@@ -1,7 +1,7 @@
 """The map service behind the protocol: whole map, pieces around robots, pushed deltas.
 
-Robot positions reach the map with every ``robot.positions`` batch (the robots that
-reported), discoveries when a team reports a find. Every heartbeat each robot host gets a
+Robot positions reach the map when it is read (the robots that reported since the last
+read, with their newest poses), discoveries when a team reports a find. Every heartbeat each robot host gets a
 ``map.delta`` push with what changed since the version it has, as its team may see it, but
 robot positions; a host that is new, or whose version the service no longer knows, gets a
 full snapshot (``type: "full"``).
@@ -14,6 +14,7 @@ from typing import Any
 
 from robo_comp import protocol as P
 from robo_comp.core.desk import Access, Outbox
+from robo_comp.core.registry import RobotStatus
 from robo_comp.errors import FieldError
 from robo_comp.world.mapservice import MapService
 from robo_comp.world.scenario import Scenario
@@ -29,6 +30,7 @@ class MapDesk:
         self.out = out
         self.service = MapService.from_scenario(scenario)
         self.pushed: dict[bytes, int] = {}  # host routing id -> map version it has
+        self._synced = 0.0  # when robot positions last went onto the map (see _sync_robots)
 
     def handlers(self) -> dict[str, Callable[[bytes, P.Message], dict[str, Any] | None]]:
         """Request handlers this module adds to the core."""
@@ -40,6 +42,7 @@ class MapDesk:
 
     def _on_map(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
         team = self._team(ident)
+        self._sync_robots()
         tag = msg.body.get("tag")
         if tag is None:
             return self.service.snapshot(team)
@@ -52,13 +55,20 @@ class MapDesk:
         return self.service.piece(str(r.tag), radius, team)
 
     def _on_delta(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
+        self._sync_robots()
         return self.service.delta_since(msg.body["since"], self._team(ident))
 
-    def positions(self, rows: list[Any]) -> None:
-        """Put the robots that moved on the map."""
-        now = time.time()
-        for r in rows:
-            self.service.report_position(str(r.tag), r.team, r.x, r.y, r.heading, now)
+    def _sync_robots(self) -> None:
+        """Put the robots that reported since the last read on the map, with their newest poses.
+
+        Robots report many times a second and the map is read seldom (``map`` and ``map.delta``
+        requests; the pushes to hosts carry no robots), so positions go onto the map when it is
+        read, not with every ``robot.positions`` batch: the core's loop pays per read, not per
+        report."""
+        since, self._synced = self._synced, time.time()
+        for r in self.access.registry.robots.values():
+            if r.last_report >= since and r.status == RobotStatus.CONNECTED:
+                self.service.report_position(str(r.tag), r.team, r.x, r.y, r.heading, r.last_report)
 
     def discovery(self, tag: int, team: str, x: float, y: float, kind: str, evidence: list[int]) -> dict[str, Any]:
         """Record a reported find on the map (the team's, unless the scenario shares finds)."""

@@ -12,20 +12,22 @@ walls) and, in full, to the sessions that ``watch`` and may see them.
 from __future__ import annotations
 
 import contextlib
-import math
 import ctypes
 import gc
 import hmac
 import json
 import logging
+import math
 import os
 import secrets
 import signal
 import socket
 import time
 import traceback
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -72,6 +74,9 @@ STOP_TIMEOUT = 2.0
 PUB_QUEUE = 2_000
 #: Position batches per second: reports that arrive in between are conflated (the newest pose wins).
 POSE_HZ = 10.0
+#: Robots per ``robot.positions`` event (and per logged sample record): one such chunk is the
+#: largest piece of background work between two looks at the socket.
+POSE_CHUNK = 500
 MAX_RESULT = 64 * 1024
 #: Frames held back while the log cannot be written, at most (the oldest go first).
 HELD_FRAMES = 50_000
@@ -150,6 +155,11 @@ class Core:
         self._refused_anon: dict[tuple[str, str], list[Any]] = {}
         self._moved: set[int] = set()  # moved since the last heartbeat (the log's sample)
         self._posed: dict[str, set[int]] = {}  # team -> robots that reported since the last batch
+        # Background work cut into slices of bounded size (position batches, position samples for the
+        # log): the loop does one slice per turn and looks at its socket in between, so that a stop
+        # never waits behind a whole batch of 10,000 robots.
+        self._slices: deque[Callable[[], None]] = deque()
+        self._urgent = False  # an urgent frame (a stop, its answer) is queued: send before handling more
         self.pose_period = 1.0 / pose_hz
         self._handlers: dict[str, Callable[[bytes, P.Message], dict[str, Any] | None]] = {
             "hello": self._on_hello, "heartbeat": self._on_heartbeat, "bye": self._on_bye,
@@ -279,6 +289,8 @@ class Core:
                     timeout = min(timeout, 0.2)
                 if self._posed:
                     timeout = min(timeout, max(0.0, next_pose - time.monotonic()))
+                if self._slices:  # background work left: look at the socket, then do the next slice
+                    timeout = 0.0
                 if poller.poll(math.ceil(timeout * 1000)):
                     if self._zap is not None:
                         self._zap.serve()
@@ -291,11 +303,13 @@ class Core:
                 if self.uploads.busy:
                     self.uploads.expire(now)
                 if now >= next_pose:
-                    self._publish_positions()
+                    self._queue_positions()
                     next_pose = now + self.pose_period
                 if now >= next_tick:
                     self._tick(now)
                     next_tick = now + self.heartbeat
+                if self._slices:
+                    self._slices.popleft()()
                 self._commit()
         finally:
             if old_wakeup is not None:
@@ -334,6 +348,8 @@ class Core:
                     f"expected exactly one frame per message, got {len(frames) - 1}"), None)
                 continue
             self._handle(ident, frames[1])
+            if self._urgent:  # a stop (or its answer) waits: send it before handling more
+                return
 
     def _handle(self, ident: bytes, frame: bytes) -> None:
         req_id = 0
@@ -438,6 +454,8 @@ class Core:
         if self._unproven and ident in self._unproven:
             self.stats["unrouted"] += 1
             return
+        if urgent:
+            self._urgent = True
         # the router exists once bound, and nothing is queued before: no None check on this hot path
         self._out.append((self.router, [ident, frame], urgent))  # type: ignore[arg-type]
 
@@ -452,6 +470,7 @@ class Core:
         Nothing is acknowledged before the events it caused were handed to the OS (and, with
         ``--fsync``, forced to disk): an acknowledged event survives ``kill -9`` of the core.
         """
+        self._urgent = False
         self.competition.flush_score()
         try:
             self.events.flush()
@@ -632,32 +651,52 @@ class Core:
             self.emit("robot.returned", r.team, {"tag": r.tag, "x": r.x, "y": r.y})
 
     # ------------------------------------------------------------------ timers
-    def _publish_positions(self) -> None:
-        """Publish the newest pose of every robot that reported since the last batch, one
-        ``robot.positions`` event per team: however often robots report, subscribers get at
-        most ``pose_hz`` position events per team per second (conflation). A robot that was
-        lost or left since it reported is left out: its ``robot.lost``/``robot.left`` went first."""
+    def _queue_positions(self) -> None:
+        """Queue the newest pose of every robot that reported since the last batch for publishing,
+        in ``robot.positions`` events per team of at most :data:`POSE_CHUNK` robots, one per loop
+        turn: however often robots report, subscribers get at most ``pose_hz`` positions per robot
+        per second (conflation)."""
         posed, self._posed = self._posed, {}
-        robots = self.registry.robots
         for team in sorted(posed):
-            rows = [r for r in (robots[t] for t in sorted(posed[team])) if r.status == RobotStatus.CONNECTED]
-            if not rows:
-                continue
-            self.maps.positions(rows)
+            tags = sorted(posed[team])
+            for k in range(0, len(tags), POSE_CHUNK):
+                self._slices.append(partial(self._publish_chunk, team, tags[k:k + POSE_CHUNK]))
+
+    def _publish_chunk(self, team: str, tags: list[int]) -> None:
+        """One ``robot.positions`` event for robots ``tags`` of ``team``. A robot that was lost or
+        left since it reported is left out: its ``robot.lost``/``robot.left`` went first."""
+        robots = self.registry.robots
+        connected = RobotStatus.CONNECTED
+        rows = [r for r in map(robots.__getitem__, tags) if r.status is connected]
+        if rows:
             self.emit("robot.positions", team, {
                 "team": team, "tags": [r.tag for r in rows], "x": [r.x for r in rows],
                 "y": [r.y for r in rows], "heading": [r.heading for r in rows],
                 "moving": [r.moving for r in rows]}, log_it=False)
 
+    def _publish_positions(self) -> None:
+        """Publish every robot that reported since the last batch now (a replay's step)."""
+        self._queue_positions()
+        while self._slices:
+            self._slices.popleft()()
+
     def _log_positions(self) -> None:
-        """Log the robots that moved since the last heartbeat as one batched record
-        (the feed had a batch every pose period; the log keeps one sample per robot per beat)."""
+        """Queue the robots that moved since the last heartbeat for the log, as batched records of
+        at most :data:`POSE_CHUNK` robots (the feed had a batch every pose period; the log keeps one
+        sample per robot per beat)."""
         if not self._moved or self.storage_fault is not None:  # samples: none kept while the log is down
             return
-        rows = [self.registry.robots[t] for t in sorted(self._moved)]
+        tags = sorted(self._moved)
         self._moved.clear()
+        for k in range(0, len(tags), POSE_CHUNK):
+            self._slices.append(partial(self._log_chunk, tags[k:k + POSE_CHUNK]))
+
+    def _log_chunk(self, tags: list[int]) -> None:
+        if self.storage_fault is not None:
+            return
+        rows = [self.registry.robots[t] for t in tags]
         self.events.append("robot.positions", None, {
-            "tags": [r.tag for r in rows], "x": [r.x for r in rows], "y": [r.y for r in rows],
+            "tags": tags, "x": [r.x for r in rows], "y": [r.y for r in rows],
             "heading": [r.heading for r in rows]})
 
     def _tick(self, now: float) -> None:
@@ -889,22 +928,37 @@ class Core:
         return None
 
     def _on_reports(self, ident: bytes, msg: P.Message) -> None:
-        """Many robots of one host in one message (a host reports its robots in batches)."""
+        """Many robots of one host in one message (a host reports its robots in batches).
+
+        The rows are taken in one loop without calls (the checks of :meth:`hosted` and the work of
+        :meth:`_pose`, inlined): a core with 10,000 robots at 10 Hz takes 100,000 rows a second."""
         b = msg.body
         n = P.check_reports(b)
         self._check_known(ident)
-        xs, ys, hs = b["x"], b["y"], b["heading"]
         moving = b.get("moving") or [False] * n
         sensors = b.get("sensors") or [None] * n
         now = time.time()
         foreign = []
-        for i, tag in enumerate(b["tags"]):
-            try:
-                r = self.hosted(ident, tag)
-            except NotYoursError:
+        robots = self.registry.robots
+        moved = self._moved
+        posed = self._posed
+        connected = RobotStatus.CONNECTED
+        for tag, x, y, h, mv, sn in zip(b["tags"], b["x"], b["y"], b["heading"], moving, sensors):
+            r = robots.get(tag)
+            if r is None or r.session != ident:
                 foreign.append(tag)
                 continue
-            self._pose(r, xs[i], ys[i], hs[i], moving[i], sensors[i], now)
+            if r.status is not connected:
+                self._mark_returned(r)
+            r.x, r.y, r.heading, r.moving = x, y, h, mv
+            if sn is not None:
+                r.sensors = sn
+            r.last_report = now
+            moved.add(tag)
+            team = posed.get(r.team)
+            if team is None:
+                team = posed[r.team] = set()
+            team.add(tag)
         if foreign:  # the others' rows were taken
             raise NotYoursError(f"robots {foreign[:10]} are not hosted by this connection; register them first")
         return None
