@@ -42,41 +42,15 @@ from robo_comp.launch import start_core, start_robots, stop_all  # noqa: E402
 from robo_comp.robots.host import RobotHost  # noqa: E402
 
 
-def _echo_server(port_q: mp.Queue, seconds: float, out_q: mp.Queue) -> None:
-    """The baseline: a raw pyzmq ROUTER that echoes every message, counting them."""
-    ctx = zmq.Context()
-    s = ctx.socket(zmq.ROUTER)
-    s.setsockopt(zmq.SNDHWM, 100_000)
-    s.setsockopt(zmq.RCVHWM, 100_000)
-    port_q.put(s.bind_to_random_port("tcp://127.0.0.1"))
-    n = 0
-    t_first = None
-    poller = zmq.Poller()
-    poller.register(s, zmq.POLLIN)
-    while True:
-        if not poller.poll(2000):
-            break
-        while True:
-            try:
-                frames = s.recv_multipart(zmq.NOBLOCK)
-            except zmq.Again:
-                break
-            if t_first is None:
-                t_first = time.perf_counter()
-            s.send_multipart(frames)
-            n += 1
-        if t_first and time.perf_counter() - t_first > seconds:
-            break
-    out_q.put(n / (time.perf_counter() - t_first))
-
-
-def _sink_server(port_q: mp.Queue, seconds: float, out_q: mp.Queue, decode: bool) -> None:
-    """The peer of the report path: a raw pyzmq ROUTER that only receives (and, with ``decode``,
-    unpacks each frame's msgpack), counting; a report needs no answer, so this is its shape."""
+def _raw_server(port_q: mp.Queue, seconds: float, out_q: mp.Queue, mode: str) -> None:
+    """A peer: a raw pyzmq ROUTER that counts what it takes. ``echo`` sends every message back;
+    ``sink`` only receives (the shape of the report path: a report needs no answer); ``unpack``
+    receives and unpacks each frame's msgpack."""
     import msgpack
 
     ctx = zmq.Context()
     s = ctx.socket(zmq.ROUTER)
+    s.setsockopt(zmq.SNDHWM, 100_000)
     s.setsockopt(zmq.RCVHWM, 100_000)
     port_q.put(s.bind_to_random_port("tcp://127.0.0.1"))
     n = 0
@@ -94,7 +68,9 @@ def _sink_server(port_q: mp.Queue, seconds: float, out_q: mp.Queue, decode: bool
                 break
             if t_first is None:
                 t_first = time.perf_counter()
-            if decode:
+            if mode == "echo":
+                s.send_multipart(frames)
+            elif mode == "unpack":
                 unpack(frames[1], raw=False)
             n += 1
         if t_first and time.perf_counter() - t_first > seconds:
@@ -106,7 +82,7 @@ def raw_sink_rate(robots: int, seconds: float, decode: bool) -> float:
     """Messages per second a receive-only raw ROUTER takes from ``robots`` clients sending reports."""
     port_q: mp.Queue = mp.Queue()
     out_q: mp.Queue = mp.Queue()
-    proc = mp.Process(target=_sink_server, args=(port_q, seconds, out_q, decode))
+    proc = mp.Process(target=_raw_server, args=(port_q, seconds, out_q, "unpack" if decode else "sink"))
     proc.start()
     port = port_q.get(timeout=10)
     frame = _frame("report", 0, {"tag": 101, "x": 1.5, "y": 2.5, "heading": 90.0, "moving": True}, "0" * 32)
@@ -154,7 +130,7 @@ def raw_echo_rate(robots: int, seconds: float) -> float:
     """Messages per second a raw ROUTER echo loop handles with ``robots`` clients."""
     port_q: mp.Queue = mp.Queue()
     out_q: mp.Queue = mp.Queue()
-    p = mp.Process(target=_echo_server, args=(port_q, seconds, out_q))
+    p = mp.Process(target=_raw_server, args=(port_q, seconds, out_q, "echo"))
     p.start()
     port = port_q.get(timeout=10)
     frame = P.request("report", 0, {"tag": 101, "x": 1.5, "y": 2.5, "heading": 90.0, "moving": True})
