@@ -5,7 +5,9 @@
 1. upload → checked → available: spawn a sandbox and load ``square.py`` (spawn + compile +
    contract + init), and a warm re-upload (new version into a running child).
 2. robot-API round trip from sandboxed team code, with a handler that answers at once:
-   the interval between successive calls of ``robot.sense()`` in a loop, seen by the host.
+   the interval between successive calls of ``robot.sense()`` in a loop, seen by the host, in
+   the default configuration and without rate limit and niceness, beside its peer in the same
+   run: a bare msgpack call and answer between two processes over a socketpair.
 3. isolation: 4 teams on one host loop; two run RPC loops, one spins forever (killed and
    restarted over and over), one allocates without bound. The RPC rate of the two well-behaved
    teams is compared with an undisturbed run.
@@ -13,14 +15,17 @@
 from __future__ import annotations
 
 import argparse
+import multiprocessing as mp
 import pathlib
 import select
+import socket
 import statistics
 import sys
 import time
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent.parent))
 
+from robo_comp.sandbox.child import FrameReader, pack  # noqa: E402
 from robo_comp.sandbox.parent import (  # noqa: E402
     Limits, Sandbox, SandboxStopped, TaskDone, TaskFailed, poll_many,
 )
@@ -66,14 +71,46 @@ def bench_upload(n: int) -> None:
           f"median {statistics.median(warm) * 1e3:.1f} ms, p99 {pct(warm, 99) * 1e3:.1f} ms")
 
 
-def bench_rpc(calls: int) -> None:
+def _echo_child(sock: socket.socket) -> None:
+    """The peer: a process that answers length-prefixed msgpack calls over a socketpair."""
+    reader = FrameReader(1 << 20)
+    while True:
+        data = sock.recv(1 << 16)
+        if not data:
+            return
+        for msg in reader.feed(data):
+            sock.sendall(pack({"t": "reply", "c": msg["c"], "ok": True, "v": [1.0, 2.0, 3.0]}))
+
+
+def bare_round_trip(calls: int) -> float:
+    """Median seconds of a bare msgpack call and answer between two processes over a socketpair
+    (what a robot-API call cannot do without: two processes, one message each way)."""
+    a, b = socket.socketpair()
+    child = mp.Process(target=_echo_child, args=(b,))
+    child.start()
+    b.close()
+    reader = FrameReader(1 << 20)
+    gaps = []
+    for i in range(calls):
+        t0 = time.perf_counter()
+        a.sendall(pack({"t": "call", "c": i, "r": 1, "g": 1, "n": "sense", "a": []}))
+        got: list = []
+        while not got:
+            got = reader.feed(a.recv(1 << 16))
+        gaps.append(time.perf_counter() - t0)
+    a.close()
+    child.join(5)
+    return statistics.median(gaps)
+
+
+def bench_rpc(calls: int, limits: Limits, label: str, bare: float) -> None:
     stamps: list[float] = []
 
     def handler(tag, name, args):
         stamps.append(time.perf_counter())
         return [1.0, 2.0, 3.0]
 
-    sb = Sandbox("bench", [1], handler, Limits(rpc_per_second=0))  # measure the path, not the limiter
+    sb = Sandbox("bench", [1], handler, limits)
     sb.load("pinger.py", PINGER)
     sb.run_task(1, "ping", [200])  # warm-up
     stamps.clear()
@@ -91,9 +128,10 @@ def bench_rpc(calls: int) -> None:
     total = time.perf_counter() - t0
     sb.close()
     gaps = [b - a for a, b in zip(stamps, stamps[1:])]
-    print(f"robot-API round trip (team code -> host handler -> team code), {len(gaps)} calls: "
-          f"median {statistics.median(gaps) * 1e6:.0f} us, p99 {pct(gaps, 99) * 1e6:.0f} us, "
-          f"mean {total / calls * 1e6:.0f} us, {calls / total:,.0f} calls/s (target median < 200 us)")
+    med = statistics.median(gaps)
+    print(f"robot-API round trip (team code -> host handler -> team code), {label}, {len(gaps)} calls: "
+          f"median {med * 1e6:.0f} us = {med / bare:.1f}x the bare round trip, p99 {pct(gaps, 99) * 1e6:.0f} us, "
+          f"mean {total / calls * 1e6:.0f} us, {calls / total:,.0f} calls/s (target median < 2x the bare one)")
 
 
 def rpc_rate(seconds: float, disturb: bool, rate: float) -> tuple[list[float], dict[str, int]]:
@@ -162,7 +200,11 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="fewer repetitions")
     opts = ap.parse_args()
     bench_upload(5 if opts.quick else 20)
-    bench_rpc(2000 if opts.quick else 20000)
+    calls = 2000 if opts.quick else 20000
+    bare = bare_round_trip(calls)
+    print(f"bare msgpack round trip between two processes over a socketpair, {calls} calls: median {bare * 1e6:.0f} us")
+    bench_rpc(calls, Limits(), "default limits", bare)
+    bench_rpc(calls, Limits(rpc_per_second=0, nice=0), "no rate limit, not niced", bare)
     bench_isolation(2.0 if opts.quick else 6.0)
 
 
