@@ -24,6 +24,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
 import zmq
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -381,6 +382,55 @@ def scale(robots: int, hosts: int, hz: float, seconds: float, samples: int) -> d
             stop_all([core])
 
 
+def hosted(robots: int, hosts: int, seconds: float, samples: int) -> dict:
+    """``robots`` robots over ``hosts`` of the project's own hosts (``robo-comp robots``) on
+    ``big_rooms`` (512×512), every robot given a goTo to a far cell at once: stop latency sampled
+    over ``seconds`` while they plan and drive, stops that failed, robots the core marked lost."""
+    with tempfile.TemporaryDirectory() as tmp:
+        state = Path(tmp)
+        core = start_core(state, "--teams", "red,blue", "--heartbeat", "1", "--practice", "--scenario", str(BIG))
+        procs = []
+        try:
+            per = robots // hosts
+            for h in range(hosts):
+                procs.append(start_robots(state, ("red", "blue")[h % 2], per, "--prefix", f"h{h}"))
+            ref = Client(str(state), (state / "referee.token").read_text().strip(), timeout=10)
+            t_end = time.monotonic() + 120
+            while len([r for r in ref.robots() if r["status"] == "connected"]) < per * hosts:
+                assert time.monotonic() < t_end, "the robots did not all register"
+                time.sleep(0.5)
+            walls = P.unpack_walls(ref.arena())
+            ys, xs = np.nonzero(~walls)
+            rows = ref.robots()
+            given = 0
+            for r in rows:  # the farthest of a few free cells: long plans across the building
+                k = np.random.default_rng(r["tag"]).integers(0, len(xs), 8)
+                far = max(zip(xs[k], ys[k]), key=lambda c: abs(c[0] - r["x"]) + abs(c[1] - r["y"]))
+                ref.give(r["tag"], "goTo", [int(far[0]), int(far[1])])
+                given += 1
+            lat: list[float] = []
+            failed = 0
+            gap = seconds / samples
+            t0 = time.monotonic()
+            for k in range(samples):
+                tag = rows[(k * 7919) % len(rows)]["tag"]
+                t1 = time.perf_counter()
+                try:
+                    ref.stop(tag)
+                    lat.append((time.perf_counter() - t1) * 1000)
+                except Exception:  # a refused or timed-out stop: counted
+                    failed += 1
+                time.sleep(max(0.0, t0 + (k + 1) * gap - time.monotonic()))
+            stats = ref.request("stats")
+            lost = sum(1 for r in ref.robots() if r["status"] == "lost")
+            ref.close()
+            return {"stop_p50": statistics.median(lat) if lat else float("nan"),
+                    "stop_p99": pct(lat, 99) if lat else float("nan"), "stop_max": max(lat, default=float("nan")),
+                    "failed": failed, "lost": lost, "given": given, "connected": stats["robots"].get("connected", 0)}
+        finally:
+            stop_all(procs + [core])
+
+
 def register_time(state: Path, robots: int) -> float:
     """Seconds for ``robots`` robots of one host to say hello and all be registered."""
     url = json.loads((state / "core.json").read_text())["router"]
@@ -460,19 +510,25 @@ def _map_entry_points(tree: Path) -> None:
             (tree / new).write_text(f"from {old} import plugin  # noqa: F401  (bench shim)\n")
 
 
+def _export(rev: str, tmp: Path) -> Path:
+    """The ``robo_comp`` of git revision ``rev`` in a folder under ``tmp`` (raises if it cannot)."""
+    old = tmp / "baseline"
+    old.mkdir()
+    archive = subprocess.run(["git", "-C", str(ROOT), "archive", rev, "robo_comp"],
+                             capture_output=True, check=True).stdout
+    subprocess.run(["tar", "-x", "-C", str(old)], input=archive, check=True)
+    _map_entry_points(old)
+    return old
+
+
 def before_after(a: argparse.Namespace) -> None:
-    """The session proof's cost: --baseline's core against this tree's, interleaved, same run."""
+    """This tree's core against --baseline's, interleaved, same run."""
     with tempfile.TemporaryDirectory() as tmp:
-        old = Path(tmp) / "baseline"
-        old.mkdir()
         try:
-            archive = subprocess.run(["git", "-C", str(ROOT), "archive", a.baseline, "robo_comp"],
-                                     capture_output=True, check=True).stdout
+            old = _export(a.baseline, Path(tmp))
         except (OSError, subprocess.CalledProcessError) as e:
             print(f"before/after: skipped, cannot export revision {a.baseline} ({e})")
             return
-        subprocess.run(["tar", "-x", "-C", str(old)], input=archive, check=True)
-        _map_entry_points(old)
         runs: dict[str, list[dict]] = {"before": [], "after": []}
         for rep in range(a.reps):
             order = [("before", old), ("after", ROOT)] if rep % 2 == 0 else [("after", ROOT), ("before", old)]
@@ -510,11 +566,34 @@ def main() -> int:
     ap.add_argument("--reps", type=int, default=3, help="interleaved before/after runs")
     ap.add_argument("--tree", help="child mode: measure the robo_comp of this folder and print JSON")
     ap.add_argument("--scale", type=int, nargs="*", help="only the scale figure: these numbers of light robots")
-    ap.add_argument("--hosts", type=int, default=10, help="light host processes of the scale figure")
+    ap.add_argument("--hosts", type=int, default=10, help="host processes of the scale and hosted figures")
+    ap.add_argument("--hosted", type=int, help="only the hosted figure: this many robots on the project's own hosts")
     ap.add_argument("--scale-seconds", type=float, default=20.0, help="how long the scale figure samples stops")
     a = ap.parse_args()
-    if a.tree:
+    if a.tree and not a.hosted:
         print(json.dumps(measure_tree(a.robots, a.seconds, a.stop_samples)))
+        return 0
+    if a.hosted:
+        r = hosted(a.hosted, a.hosts, a.scale_seconds, a.stop_samples)
+        if a.tree:
+            print(json.dumps(r))
+            return 0
+        print(f"hosted: {a.hosted:,} robots over {a.hosts} robot hosts on big_rooms, every one given goTo at once: "
+              f"stop p50 {r['stop_p50']:.2f} ms p99 {r['stop_p99']:.2f} ms max {r['stop_max']:.2f} ms (target p99 < 10 ms); "
+              f"{r['failed']} stops failed, {r['lost']} robots lost (target 0, 0)")
+        if a.baseline:
+            with tempfile.TemporaryDirectory() as tmp:
+                old = _export(a.baseline, Path(tmp))
+                out = subprocess.run([sys.executable, __file__, "--tree", str(old), "--hosted", str(a.hosted),
+                                      "--hosts", str(a.hosts), "--scale-seconds", str(a.scale_seconds),
+                                      "--stop-samples", str(a.stop_samples)], capture_output=True, text=True,
+                                     env=dict(os.environ, PYTHONPATH=str(old)), cwd=str(old), timeout=900)
+                if out.returncode != 0:
+                    print(f"hosted, before ({a.baseline}): the run failed: {out.stderr[-1500:]}")
+                else:
+                    b = json.loads(out.stdout.strip().splitlines()[-1])
+                    print(f"hosted, same run, before ({a.baseline}): stop p50 {b['stop_p50']:.2f} ms p99 {b['stop_p99']:.2f} ms "
+                          f"max {b['stop_max']:.2f} ms; {b['failed']} stops failed, {b['lost']} robots lost")
         return 0
     if a.scale:
         for n in a.scale:

@@ -4,14 +4,14 @@ from __future__ import annotations
 from collections.abc import Iterator
 from typing import Any
 
-from robo_comp.robots.steps import Capture, Move, RobotView, Step, TaskFailed, TaskSpec, Turn
+from robo_comp.robots.steps import Capture, Move, Plan, RobotView, Step, TaskFailed, TaskSpec, Turn
 
 
 def _walk(robot: RobotView, goal: tuple[int, int]) -> Iterator[Step]:
     gx, gy = int(round(goal[0])), int(round(goal[1]))
     if not robot.in_bounds(gx, gy):
         raise TaskFailed(f"({gx}, {gy}) is a wall or outside the arena")
-    path = robot.plan_to((gx, gy))
+    path = yield Plan((gx, gy))  # planned off the host's loop
     if path is None:
         raise TaskFailed(f"no path from {robot.cell()} to ({gx}, {gy})")
     for x, y in path[1:]:

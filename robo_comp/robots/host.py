@@ -14,7 +14,8 @@ import random
 import signal
 import time
 from collections import deque
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Generator
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -28,7 +29,7 @@ from robo_comp.protocol.taskspec import check_args
 from robo_comp.errors import RoboCompError
 from robo_comp.plugins.manager import get_plugin_manager
 from robo_comp.robots.drivers import ArenaDriver
-from robo_comp.robots.steps import Capture, Step, TaskFailed, TaskSpec
+from robo_comp.robots.steps import Capture, Plan, Step, TaskFailed, TaskSpec
 from robo_comp.robots.teamcode import TeamCode, free_cell, in_bounds, stop_status
 from robo_comp.world.arena import Arena
 from robo_comp.world.localization import Localization
@@ -49,12 +50,15 @@ REPORT_CHUNK = 100
 
 @dataclass(slots=True)
 class RunningTask:
-    """A task a robot is running: its id, name and generator of steps."""
+    """A task a robot is running: its id, name and generator of steps (and, while it waits for
+    one, the path being planned off the loop; what comes back is sent into the generator)."""
 
     id: int
     name: str
-    gen: Iterator[Step]
+    gen: Generator[Step, Any, Any]
     pictures: list[int] = field(default_factory=list)
+    plan: Future[list[tuple[int, int]] | None] | None = None
+    answer: Any = None
 
 
 @dataclass(slots=True)
@@ -88,21 +92,30 @@ class SimRobot:
     def plan_to(self, goal: tuple[int, int]) -> list[tuple[int, int]] | None:
         """A 4-connected path from the (free) cell the robot believes it is in to ``goal``, around
         the cells where the host's other robots are now; straight through them when there is no
-        way around."""
-        start = self.free_cell()
-        occupied = {r.cell() for r in self.host.robots.values() if r is not self}
-        occupied.discard(start)
-        occupied.discard(goal)
-        if occupied:
-            walls = self.host.walls.copy()
-            h, w = walls.shape
-            for x, y in occupied:
-                if 0 <= x < w and 0 <= y < h:
-                    walls[y, x] = True
-            path = find_path(walls, start, goal)
-            if path is not None:
-                return path
-        return find_path(self.host.walls, start, goal)
+        way around. (Tasks ``yield Plan(goal)`` instead: the host plans that off its loop.)"""
+        return plan_around(self.host.walls, self.free_cell(), goal, self.others_cells())
+
+    def others_cells(self) -> set[tuple[int, int]]:
+        """The cells the host's other robots stand in now."""
+        me = self
+        return {r.cell() for r in self.host.robots.values() if r is not me}
+
+
+def plan_around(walls: np.ndarray, start: tuple[int, int], goal: tuple[int, int],
+                occupied: set[tuple[int, int]]) -> list[tuple[int, int]] | None:
+    """A path from ``start`` to ``goal`` around the ``occupied`` cells, straight through them when
+    there is no way around (None: no path at all). Pure: it runs in the host's planner thread."""
+    occupied = occupied - {start, goal}
+    if occupied:
+        blocked = walls.copy()
+        h, w = blocked.shape
+        for x, y in occupied:
+            if 0 <= x < w and 0 <= y < h:
+                blocked[y, x] = True
+        path = find_path(blocked, start, goal)
+        if path is not None:
+            return path
+    return find_path(walls, start, goal)
 
 
 def collect_tasks(pm: Any) -> dict[str, TaskSpec]:
@@ -166,6 +179,11 @@ class RobotHost:
         self.map = MapView()
         #: Uploaded team code: the sandbox, its modules per robot, the runs of its tasks.
         self.code = TeamCode(self)
+        # The host's one planner thread: tasks ``yield Plan(goal)`` and the path is found there (the
+        # compiled search releases the GIL), so that a burst of goTo tasks never holds up a stop,
+        # a heartbeat or a report behind hundreds of plans.
+        self.planner = ThreadPoolExecutor(max_workers=1, thread_name_prefix="planner")
+        self._planning: dict[str, SimRobot] = {}  # robots waiting for a plan, by robot id
         self._code_fd: int | None = None
 
     # ------------------------------------------------------------------ sending
@@ -448,7 +466,8 @@ class RobotHost:
         assert t is not None
         while True:
             try:
-                step = next(t.gen)
+                step = t.gen.send(t.answer)
+                t.answer = None
             except StopIteration as stop:
                 self._done(r, True, "done", stop.value)
                 return
@@ -457,6 +476,11 @@ class RobotHost:
                 return
             except Exception as e:  # a task bug must not take the host down
                 self._done(r, False, f"task {t.name} crashed: {e!r}")
+                return
+            if isinstance(step, Plan):  # the robot waits at its boundary; the loop goes on
+                occupied = r.others_cells() if step.avoid_robots else set()
+                t.plan = self.planner.submit(plan_around, self.walls, r.free_cell(), step.goal, occupied)
+                self._planning[r.robot_id] = r
                 return
             if isinstance(step, Capture):
                 self._take_picture(r, t, step.label)
@@ -534,6 +558,25 @@ class RobotHost:
                     self._start(r, nxt)
                 elif r.task is not None:
                     self._advance(r)
+        if self._planning:
+            self._take_plans()
+
+    def _take_plans(self) -> None:
+        """Hand finished plans to their tasks (a task replaced or stopped meanwhile drops its plan)."""
+        for rid, r in list(self._planning.items()):
+            t = r.task
+            if t is None or t.plan is None:
+                del self._planning[rid]
+            elif t.plan.done():
+                del self._planning[rid]
+                try:
+                    t.answer = t.plan.result()
+                except Exception as e:  # a planner bug fails this task, not the host
+                    t.plan = None
+                    self._done(r, False, f"planning failed: {e!r}")
+                    continue
+                t.plan = None
+                self._advance(r)
 
     def _report_one(self, r: SimRobot, now: float) -> None:
         """Report what one robot believes (the positioning system's estimate) at once, and
@@ -675,6 +718,7 @@ class RobotHost:
                 self._send("leave", {"tag": r.tag})
             time.sleep(0.05)
         self.code.close()
+        self.planner.shutdown(wait=False, cancel_futures=True)
         if self.sock is not None:
             self.sock.close(0)
 

@@ -8,7 +8,7 @@ value is the task's result; raising :class:`TaskFailed` ends it with a clear sta
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Generator
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -42,7 +42,18 @@ class Wait:
     seconds: float
 
 
-Step = Move | Turn | Capture | Wait
+@dataclass(frozen=True, slots=True)
+class Plan:
+    """Plan a path from the robot's cell to ``goal``, off the host's loop: the robot stands at a
+    movement boundary meanwhile, and the path (a list of cells, start and goal included, or None
+    when there is none) comes back as the value of the ``yield``. ``avoid_robots``: around the
+    cells the host's other robots stand in (straight through them when there is no way around)."""
+
+    goal: tuple[int, int]
+    avoid_robots: bool = True
+
+
+Step = Move | Turn | Capture | Wait | Plan
 
 
 class TaskFailed(Exception):
@@ -64,7 +75,7 @@ class RobotView(Protocol):
         """True when ``(x, y)`` is a free cell of the arena."""
 
 
-TaskFn = Callable[..., Iterator[Step]]
+TaskFn = Callable[..., Generator[Step, Any, Any]]
 
 
 @dataclass(slots=True)

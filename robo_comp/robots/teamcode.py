@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Generator
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -30,7 +30,7 @@ from robo_comp.sandbox.parent import (
     PENDING, Limits, LoadFailed, Loaded, LogLine, RpcCall, Sandbox, SandboxRestarted, SandboxStopped, TaskDone,
     TaskFailed as SbFailed,
 )
-from robo_comp.robots.steps import Move, Step, TaskFailed, TaskSpec, Turn, Wait
+from robo_comp.robots.steps import Move, Plan, Step, TaskFailed, TaskSpec, Turn, Wait
 from robo_comp.world.planner import find_path
 
 log = logging.getLogger("robo_comp.robots.teamcode")
@@ -153,7 +153,7 @@ class CodeRun:
     run_id: int
     tag: int
     task: str
-    call: tuple[int, Iterator[Step], Callable[[], Any]] | None = None
+    call: tuple[int, Generator[Step, Any, Any], Callable[[], Any]] | None = None
     outcome: TaskDone | SbFailed | None = None
 
 
@@ -300,7 +300,7 @@ class TeamCode:
         return TaskSpec(name, lambda robot, *args: self._run(robot, name, list(args)), advert["args"],
                         advert["description"], source="upload")
 
-    def _run(self, r: CodeRobot, name: str, args: list[Any]) -> Iterator[Step]:
+    def _run(self, r: CodeRobot, name: str, args: list[Any]) -> Generator[Step, Any, Any]:
         """The task generator of a team-code task: movement steps from the sandbox's calls."""
         sb = self._sandbox()
         try:
@@ -316,8 +316,13 @@ class TeamCode:
                 call_id, steps, answer = run.call
                 run.call = None
                 try:
-                    for step in steps:
-                        yield step
+                    sent = None
+                    while True:  # forwards what the host answers (a planned path) into the steps
+                        try:
+                            step = steps.send(sent)
+                        except StopIteration:
+                            break
+                        sent = yield step
                         if r.driver.bump is not None:
                             raise Refused("bumped into something and stopped")
                 except Refused as e:
@@ -427,7 +432,7 @@ class TeamCode:
         except RoboCompError:
             pass  # the run ended meanwhile
 
-    def _steps(self, r: CodeRobot, name: str, args: list[Any]) -> Iterator[Step]:
+    def _steps(self, r: CodeRobot, name: str, args: list[Any]) -> Generator[Step, Any, Any]:
         if name == "turn":
             yield Turn(float(args[0]))
             return
@@ -442,7 +447,12 @@ class TeamCode:
                     raise Refused(f"({nx}, {ny}) is a wall or outside the arena; stopped at ({x}, {y})")
                 yield Move(nx, ny)
             return
-        path = plan_path(self.host.walls, r.free_cell(), (int(args[0]), int(args[1])))
+        goal = (int(args[0]), int(args[1]))
+        if not in_bounds(self.host.walls, *goal):
+            raise Refused(f"({goal[0]}, {goal[1]}) is a wall or outside the arena")
+        path = yield Plan(goal, avoid_robots=False)  # planned off the host's loop
+        if path is None:
+            raise Refused(f"no path to ({goal[0]}, {goal[1]})")
         for x, y in path[1:]:
             yield Move(x, y)
 

@@ -18,7 +18,7 @@ DIAG_A = np.array([0, 2, 2, 0], dtype=np.int64)
 DIAG_B = np.array([1, 1, 3, 3], dtype=np.int64)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", nogil=True)
 def _less(f1, h1, k1, f2, h2, k2):
     # Order by f; ties go to smaller h (deeper nodes), then to the most recently pushed
     # entry (k packs a decreasing push counter above the cell index): on plateaus of equal
@@ -26,7 +26,7 @@ def _less(f1, h1, k1, f2, h2, k2):
     return f1 < f2 or (f1 == f2 and (h1 < h2 or (h1 == h2 and k1 < k2)))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _heuristic(x, y, tx, ty, diagonal, hmul):
     dx = abs(x - tx)
     dy = abs(y - ty)
@@ -37,7 +37,7 @@ def _heuristic(x, y, tx, ty, diagonal, hmul):
     return hmul * (dx + dy)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _astar_core(free, cost, w, h, t, diagonal, hmul, allow, bsize, bw, g, stamp, epoch, pdir,
                 reverse, budget, hf, hh, hv, size, seq, expanded):
     """The A* loop, resumable: expands from the heap ``hf``/``hh``/``hv`` (``size`` entries)
@@ -149,7 +149,7 @@ def _astar_core(free, cost, w, h, t, diagonal, hmul, allow, bsize, bw, g, stamp,
     return 0, np.inf, size, seq, expanded
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def trace(s, t, w, pdir):
     """Flat cells of the path from ``s`` to ``t`` by following ``pdir`` backwards."""
     n = 1
@@ -170,7 +170,7 @@ def trace(s, t, w, pdir):
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def label(free, w, h, bsize):
     """Label 4-connected free regions, never crossing ``bsize`` block borders.
 
@@ -212,7 +212,7 @@ def label(free, w, h, bsize):
     return labels, nlab
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def portal_search(indptr, indices, weights, px, py, src_d, tgt_d, direct, diagonal, hmul, tx, ty):
     """Abstract search over portals (points on block borders) for the hierarchical mode.
 
@@ -315,7 +315,7 @@ def portal_search(indptr, indices, weights, px, py, src_d, tgt_d, direct, diagon
     return out, best
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def region_pair_edges(starts, members, px, py, diagonal, hmul):
     """All ordered pairs of portals bordering the same region, with their distance.
 
@@ -348,7 +348,7 @@ def region_pair_edges(starts, members, px, py, diagonal, hmul):
     return src, dst, wt
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _heap_init(s, t, w, diagonal, hmul, g, stamp, epoch):
     cap = 4096
     hf = np.empty(cap, dtype=np.float64)
@@ -363,14 +363,14 @@ def _heap_init(s, t, w, diagonal, hmul, g, stamp, epoch):
     return hf, hh, hv, seq
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _grow(a, size):
     out = np.empty(a.shape[0] * 2, dtype=a.dtype)
     out[:size] = a[:size]
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def astar_both(free, cost, w, h, s, t, diagonal, hmul, allow, bsize, bw,
                g, stamp, pdir, g2, stamp2, pdir2, epoch, first_budget):
     """Exact A* s→t that hedges against a bad search direction.
