@@ -10,8 +10,11 @@ from __future__ import annotations
 
 import gc
 import logging
+import os
 import random
 import signal
+import sys
+import threading
 import time
 from collections import deque
 from collections.abc import Callable, Generator
@@ -35,6 +38,7 @@ from robo_comp.world.arena import Arena
 from robo_comp.world.localization import Localization
 from robo_comp.world.mapservice import MapView
 from robo_comp.world.planner import find_path, warm_up
+from robo_comp.world.sensors import warm_up as sensors_warm_up
 from robo_comp.world.public import scenario_from_payload
 from robo_comp.world.scenario import Scenario
 
@@ -99,6 +103,19 @@ class SimRobot:
         """The cells the host's other robots stand in now."""
         me = self
         return {r.cell() for r in self.host.robots.values() if r is not me}
+
+
+#: How much lower the planner thread's scheduling priority is than the host loop's (Linux
+#: schedules threads on their own): when many hosts plan at once on a few cores, the loops win.
+PLANNER_NICE = 10
+
+
+def _lower_priority() -> None:
+    """Run in the planner thread: lower this thread's priority (where the OS has per-thread nice)."""
+    try:
+        os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), PLANNER_NICE)
+    except (AttributeError, OSError):  # not Linux, or not allowed: plans then compete as equals
+        pass
 
 
 def plan_around(walls: np.ndarray, start: tuple[int, int], goal: tuple[int, int],
@@ -182,7 +199,8 @@ class RobotHost:
         # The host's one planner thread: tasks ``yield Plan(goal)`` and the path is found there (the
         # compiled search releases the GIL), so that a burst of goTo tasks never holds up a stop,
         # a heartbeat or a report behind hundreds of plans.
-        self.planner = ThreadPoolExecutor(max_workers=1, thread_name_prefix="planner")
+        self.planner = ThreadPoolExecutor(max_workers=1, thread_name_prefix="planner",
+                                          initializer=_lower_priority)
         self._planning: dict[str, SimRobot] = {}  # robots waiting for a plan, by robot id
         self._code_fd: int | None = None
 
@@ -341,6 +359,7 @@ class RobotHost:
             self.robots[rid] = SimRobot(rid, driver, self)
         self.loc.update()  # type: ignore[union-attr]
         if self.robots:  # compile/load the sensor kernels now, not in the middle of a report
+            sensors_warm_up()
             self.world.sense_many([next(iter(self.robots))])
 
     def _on_registered(self, r: SimRobot, ok: bool, body: dict[str, Any]) -> None:
@@ -676,6 +695,9 @@ class RobotHost:
         gc.collect()  # long-lived modules and kernels out of the collector's way (see Core.run)
         gc.freeze()
         gc.set_threshold(20_000, 50, 100)
+        # The planner thread holds the GIL in its numpy glue: make the loop's wait for it short
+        # (CPython's default lets a thread keep it 5 ms before it must hand it over).
+        sys.setswitchinterval(0.0005)
         self.last_rx = time.monotonic()
         self._open()
         last = time.monotonic()

@@ -29,6 +29,14 @@ DOWN_LOOKAHEAD = 0.75
 
 
 _KERNEL: list = []          # [compiled kernel or None] once tried
+#: Rays from which the compiled kernel is used (below, numpy's loop costs less than the call).
+COMPILED_FROM = 16
+
+
+def warm_up() -> None:
+    """Compile (or load from the disk cache) the ray-casting kernel now, not during a report."""
+    one = np.zeros(1)
+    cast_rays(np.zeros((2, 2), dtype=bool), one, one, one, 1.0, compiled=True)
 
 
 def _compiled_kernel():  # pragma: no cover - exercised when numba is installed
@@ -100,7 +108,7 @@ def cast_rays(blocked: np.ndarray, x: np.ndarray, y: np.ndarray, angle: np.ndarr
     over cell crossings.
     """
     n = len(x)
-    use = compiled if compiled is not None else n >= 256
+    use = compiled if compiled is not None else n >= COMPILED_FROM
     if use and n:
         k = _compiled_kernel()
         if k is not None:
