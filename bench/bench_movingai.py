@@ -61,18 +61,27 @@ def tcod_query(graph, sx: int, sy: int, gx: int, gy: int) -> float | None:
     return float(pf.distance[gy, gx]) / TCOD_CARD
 
 
+def uniform_sample(entries: list, n: int | None) -> list:
+    """``n`` entries evenly spaced over ``entries`` (all of them when ``n`` is None or larger)."""
+    if n is None or n >= len(entries):
+        return list(entries)
+    return [entries[int(i * len(entries) / n)] for i in range(n)]
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the scenarios and print a table per map."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     here = Path(__file__).resolve().parent.parent
     ap.add_argument("--maps-dir", default=str(here.parent / "shared" / "maps" / "movingai"))
-    ap.add_argument("--limit", type=int, default=None, help="scenarios per map")
+    ap.add_argument("--limit", type=int, default=None,
+                    help="scenarios per map: an evenly spaced sample over the whole .scen (its lines run "
+                         "from the shortest queries to the longest, so the first N would be the easiest)")
     ap.add_argument("--no-tcod", action="store_true")
     ap.add_argument("--hier", action="store_true", help="also run hierarchical mode")
     ap.add_argument("--markdown", action="store_true")
     args = ap.parse_args(argv)
 
-    from robo_comp.world.planner import Planner, warm_up
+    from robo_comp.world.planner import Planner, find_path, warm_up
 
     print(f"first-call JIT (compile or cache load): {warm_up():.2f} s", flush=True)
     maps = sorted(Path(args.maps_dir).glob("*/*.map"))
@@ -86,8 +95,12 @@ def main(argv: list[str] | None = None) -> int:
         except ImportError:
             print("tcod not installed: skipping it")
             use_tcod = False
+    try:
+        import pyastar2d
+    except ImportError:
+        pyastar2d = None
     head = ["map", "size", "queries", "mismatches", "ours ms/q", "tcod ms/q", "tcod mism.",
-            "speed-up", "prep ms"]
+            "speed-up", "prep ms", "pyastar2d ms/q", "vs pyastar2d", "one-shot ms/q"]
     if args.hier:
         head += ["hier ms/q", "hier max/opt", "hier mean/opt"]
     rows = []
@@ -97,7 +110,7 @@ def main(argv: list[str] | None = None) -> int:
         if not scen.exists():
             continue
         gm = load_map(mp)
-        entries = load_scen(scen)[:args.limit]
+        entries = uniform_sample(load_scen(scen), args.limit)
         t0 = time.perf_counter()
         pl = Planner(gm.walls, diagonal=True).prepare()
         prep = time.perf_counter() - t0
@@ -123,6 +136,21 @@ def main(argv: list[str] | None = None) -> int:
         else:
             row += ["-", "-", "-"]
         row.append(f"{prep * 1e3:.1f}")
+        if pyastar2d is not None:  # C++ A*; its diagonal moves cost 1 and may cut corners: a speed peer only
+            weights = np.where(gm.walls, np.inf, 1.0).astype(np.float32)
+            t_p = 0.0
+            for e in entries:
+                t0 = time.perf_counter()
+                pyastar2d.astar_path(weights, (e.sy, e.sx), (e.gy, e.gx), allow_diagonal=True)
+                t_p += time.perf_counter() - t0
+            row += [f"{t_p / len(entries) * 1e3:.3f}", f"{t_p / t_ours:.2f}x"]
+        else:
+            row += ["-", "-"]
+        few = entries[:: max(1, len(entries) // 20)]  # one-shot: a planner built per query (20 of them)
+        t0 = time.perf_counter()
+        for e in few:
+            find_path(gm.walls, (e.sx, e.sy), (e.gx, e.gy), diagonal=True)
+        row.append(f"{(time.perf_counter() - t0) / len(few) * 1e3:.3f}")
         if args.hier:
             ph = Planner(gm.walls, diagonal=True, hierarchical=True).prepare()
             t_h = 0.0

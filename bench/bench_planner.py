@@ -2,7 +2,10 @@
 
 Compares, per map kind 1..5 and size: the thesis-style baseline (bench/thesis_astar.py),
 python-tcod's C A* (tcod.path.AStar, 4-connected), our optimal A* and our hierarchical
-mode. Query times exclude preparation, which is reported separately.
+mode, and pyastar2d's C++ A* (4-connected, nothing to prepare). "ours" is a query on a prepared
+planner; "one-shot" is ``find_path`` (a planner built for one query, no preparation kept);
+"prep+query" is preparation plus one query; "vs pyastar2d" compares pyastar2d with the better
+of our one-shot and prep+query (above 1: we are faster with preparation counted).
 
     .venv/bin/python bench/bench_planner.py [--sizes 100,300,1000,2000,5000]
         [--baseline-cap 30] [--baseline-max 2000] [--markdown]
@@ -43,7 +46,7 @@ def _fmt(t: float | None) -> str:
 def _ratio(a: float | None, b: float | None) -> str:
     if a is None or b is None or b <= 0:
         return "-"
-    return f"{a / b:.0f}x" if a / b >= 10 else f"{a / b:.1f}x"
+    return f"{a / b:.0f}x" if a / b >= 10 else f"{a / b:.2f}x"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -75,8 +78,13 @@ def main(argv: list[str] | None = None) -> int:
         except ImportError:
             print("tcod not installed (pip install -e '.[bench]'): skipping it")
 
-    head = ["size", "map", "baseline", "tcod A*", "ours", "vs tcod", "vs base",
-            "hier", "hier/opt", "prep opt", "prep hier", "expanded"]
+    try:
+        import pyastar2d
+    except ImportError:
+        pyastar2d = None
+        print("pyastar2d not installed (pip install -e '.[bench]'): skipping it")
+    head = ["size", "map", "baseline", "tcod A*", "pyastar2d", "ours", "vs tcod", "vs base",
+            "one-shot", "prep+query", "vs pyastar2d", "hier", "hier/opt", "prep opt", "prep hier", "expanded"]
     rows = []
     for n in sizes:
         for kind in range(1, 6):
@@ -101,6 +109,12 @@ def main(argv: list[str] | None = None) -> int:
                 tc, tpath = _timed(lambda: astar.get_path(s[0], s[1], g[0], g[1]),
                                    rep if n < 5000 else 1)
                 del astar
+            pa = None
+            if pyastar2d is not None:  # C++ A*, 4-connected, weights 1 and inf for walls: nothing to prepare
+                weights = np.where(m.walls, np.inf, 1.0).astype(np.float32)
+                pa, _ = _timed(lambda: pyastar2d.astar_path(weights, (s[1], s[0]), (g[1], g[0])), rep)
+                del weights
+            one, _ = _timed(lambda: pl.find_path(m.walls, s, g), rep)  # a one-off query: no preparation kept
             prep_o, p = _timed(lambda: pl.Planner(m.walls).prepare())
             t_opt, r = _timed(lambda: p.find(s, g), rep)
             del p
@@ -111,9 +125,10 @@ def main(argv: list[str] | None = None) -> int:
                 quality = f"{rh.cost / r.cost:.4f}"
             else:
                 quality = "no path" if rh.cost is None else "WRONG"
-            rows.append([str(n), str(kind), base_s, _fmt(tc), _fmt(t_opt), _ratio(tc, t_opt),
-                         _ratio(base, t_opt), _fmt(t_h), quality, _fmt(prep_o), _fmt(prep_h),
-                         str(r.expanded)])
+            best_ours = min(one, prep_o + t_opt)  # what a single query costs us, preparation counted
+            rows.append([str(n), str(kind), base_s, _fmt(tc), _fmt(pa), _fmt(t_opt), _ratio(tc, t_opt),
+                         _ratio(base, t_opt), _fmt(one), _fmt(prep_o + t_opt), _ratio(pa, best_ours),
+                         _fmt(t_h), quality, _fmt(prep_o), _fmt(prep_h), str(r.expanded)])
             print("  ".join(rows[-1]), flush=True)
     print()
     if args.markdown:
