@@ -21,6 +21,10 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	for b in bench/bench_*.py; do echo "== $$b"; $(BIN)/python $$b || exit 1; done
+	# the figures at scale (docs/performance.md, "Figures that hold"), each beside its peer or baseline
+	$(BIN)/python bench/bench_core.py --scale 2000 10000 --hosts 10 --stop-samples 300
+	$(BIN)/python bench/bench_core.py --hosted 2000 --hosts 8 --stop-samples 300 --baseline b6547c5
+	$(BIN)/python bench/bench_movingai.py --limit 100
 
 # coverage-guided fuzzing with atheris (optional extra), both targets, 10 minutes
 fuzz: $(STAMP)

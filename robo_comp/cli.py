@@ -85,9 +85,19 @@ def _robots(args: argparse.Namespace) -> int:
     host = RobotHost(resolve_core(args.core), token, args.count,
                      prefix=args.prefix, speed=args.speed, report_hz=args.report_hz, seed=args.seed,
                      truth=truth, driver=args.driver, driver_options=options,
-                     curve=client_keys(args.core, token, args.curve_cert, args.core_key))
+                     curve=client_keys(args.core, token, args.curve_cert, args.core_key),
+                     positioning=_positioning(args.positioning), truth_pub=args.truth_pub)
     host.run(duration=args.duration or None)
     return 0
+
+
+def _positioning(spec: str | None) -> str | None:
+    if spec is None:
+        return None
+    kind, _, url = spec.partition(":")
+    if kind != "camera" or not url:
+        raise FieldError(f"--positioning takes camera:URL (a robo-comp camera run --pub address), not {spec!r}")
+    return url
 
 
 def _replay(args: argparse.Namespace) -> int:
@@ -170,6 +180,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help="sim: simulated robots (default); er1: real ER1 robots through their robot control centers")
     r.add_argument("--rcc", metavar="HOST:PORT[,HOST:PORT...]",
                    help="for --driver er1: each robot's robot control center (one per robot, in order)")
+    r.add_argument("--positioning", metavar="camera:URL",
+                   help="take positions from an overhead camera (robo-comp camera run --pub URL) instead of "
+                        "the simulated positioning system (docs/positioning.md)")
+    r.add_argument("--truth-pub", metavar="URL",
+                   help="simulation only: publish the robots' true poses here for synthetic cameras "
+                        "(robo-comp camera run --synthetic URL)")
     r.set_defaults(func=_robots)
 
     ctl.add_parser(sub)
@@ -197,6 +213,9 @@ def build_parser() -> argparse.ArgumentParser:
     d.set_defaults(func=_demo)
 
     plan_cli.add_parser(sub)
+    from robo_comp.world.overhead import cli as camera_cli
+
+    camera_cli.add_parser(sub)
     from robo_comp.protocol import curve
 
     curve.add_parser(sub)

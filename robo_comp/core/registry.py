@@ -39,6 +39,8 @@ class RobotRecord:
     y: float = 0.0
     heading: float = 0.0
     moving: bool = False
+    #: the host's uncertainty of the position, σ in cells (grows while no positioning fix comes)
+    sigma: float = 0.0
     sensors: dict[str, Any] = field(default_factory=dict)
     tasks: dict[str, dict[str, Any]] = field(default_factory=dict)
     current: TaskRecord | None = None
@@ -55,7 +57,7 @@ class RobotRecord:
         """One row of the ``robots`` listing."""
         return {"tag": self.tag, "team": self.team, "robot_id": self.robot_id, "status": self.status,
                 "x": self.x, "y": self.y, "heading": self.heading, "moving": self.moving,
-                "task": self.current.summary() if self.current else None,
+                "sigma": self.sigma, "task": self.current.summary() if self.current else None,
                 "queue": len(self.queue)}
 
     def monitor(self) -> dict[str, Any]:

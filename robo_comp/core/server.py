@@ -672,7 +672,7 @@ class Core:
             self.emit("robot.positions", team, {
                 "team": team, "tags": [r.tag for r in rows], "x": [r.x for r in rows],
                 "y": [r.y for r in rows], "heading": [r.heading for r in rows],
-                "moving": [r.moving for r in rows]}, log_it=False)
+                "moving": [r.moving for r in rows], "sigma": [r.sigma for r in rows]}, log_it=False)
 
     def _publish_positions(self) -> None:
         """Publish every robot that reported since the last batch now (a replay's step)."""
@@ -937,20 +937,21 @@ class Core:
         self._check_known(ident)
         moving = b.get("moving") or [False] * n
         sensors = b.get("sensors") or [None] * n
+        sigmas = b.get("sigma") or [0.0] * n
         now = time.time()
         foreign = []
         robots = self.registry.robots
         moved = self._moved
         posed = self._posed
         connected = RobotStatus.CONNECTED
-        for tag, x, y, h, mv, sn in zip(b["tags"], b["x"], b["y"], b["heading"], moving, sensors):
+        for tag, x, y, h, mv, sn, sg in zip(b["tags"], b["x"], b["y"], b["heading"], moving, sensors, sigmas):
             r = robots.get(tag)
             if r is None or r.session != ident:
                 foreign.append(tag)
                 continue
             if r.status is not connected:
                 self._mark_returned(r)
-            r.x, r.y, r.heading, r.moving = x, y, h, mv
+            r.x, r.y, r.heading, r.moving, r.sigma = x, y, h, mv, sg
             if sn is not None:
                 r.sensors = sn
             r.last_report = now

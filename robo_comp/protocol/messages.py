@@ -80,7 +80,7 @@ REQUESTS: dict[str, dict[str, tuple[str, bool]]] = {
     # many robots of one host in one message: lists of the same length, row i is one report
     "reports": {
         "tags": (_LIST, True), "x": (_LIST, True), "y": (_LIST, True), "heading": (_LIST, True),
-        "moving": (_LIST, False), "sensors": (_LIST, False),
+        "moving": (_LIST, False), "sensors": (_LIST, False), "sigma": (_LIST, False),
     },
     "task.next": {"tag": (_INT, True)},
     "task.done": {
@@ -131,7 +131,7 @@ def check_reports(body: dict[str, Any]) -> int:
     n = len(tags)
     if n > MAX_REPORTS:
         raise FieldError(f"'reports' holds {n} robots; the limit is {MAX_REPORTS} per message")
-    for name in ("x", "y", "heading", "moving", "sensors"):
+    for name in ("x", "y", "heading", "moving", "sensors", "sigma"):
         if name in body and len(body[name]) != n:
             raise FieldError(f"'reports' needs one {name!r} per tag: {n} tags, {len(body[name])} {name!r}")
     if _rows_fine(body):  # the common case, checked in C loops
@@ -139,10 +139,11 @@ def check_reports(body: dict[str, Any]) -> int:
     for i, tag in enumerate(tags):
         if type(tag) is not int:
             raise FieldError(f"'tags'[{i}] of 'reports' must be an integer, got {describe_type(tag)}")
-    for name in ("x", "y", "heading"):
-        for i, v in enumerate(body[name]):
-            if type(v) not in (int, float) or not is_finite(v):
-                raise FieldError(f"{name!r}[{i}] of 'reports' must be a finite number, got {v!r}")
+    for name in ("x", "y", "heading", "sigma"):
+        for i, v in enumerate(body.get(name, ())):
+            if type(v) not in (int, float) or not is_finite(v) or (name == "sigma" and v < 0):
+                raise FieldError(f"{name!r}[{i}] of 'reports' must be a finite number"
+                                 f"{' of 0 or more' if name == 'sigma' else ''}, got {v!r}")
     for i, v in enumerate(body.get("moving", ())):
         if type(v) is not bool:
             raise FieldError(f"'moving'[{i}] of 'reports' must be true/false, got {describe_type(v)}")
@@ -160,10 +161,12 @@ def _rows_fine(body: dict[str, Any]) -> bool:
     try:
         if not {int}.issuperset(map(type, body["tags"])):
             return False
-        for name in ("x", "y", "heading"):
-            col = body[name]
+        for name in ("x", "y", "heading", "sigma"):
+            col = body.get(name, ())
             if not _NUMBER_TYPES.issuperset(map(type, col)) or not all(map(math.isfinite, col)):
                 return False
+        if "sigma" in body and min(body["sigma"], default=0) < 0:
+            return False
     except OverflowError:  # an integer too large for a float: the slow path names it
         return False
     if not {bool}.issuperset(map(type, body.get("moving", ()))):

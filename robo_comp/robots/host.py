@@ -151,7 +151,8 @@ class RobotHost:
                  speed: float | None = None, report_hz: float = 10.0, sensor_hz: float = 2.0,
                  tick_hz: float = 20.0, driver: str = "sim", driver_options: dict[str, Any] | None = None,
                  plugins: Any = None, ctx: zmq.Context | None = None, seed: int = 0,
-                 truth: Scenario | None = None, curve: ClientKeys | None = None) -> None:
+                 truth: Scenario | None = None, curve: ClientKeys | None = None,
+                 positioning: str | None = None, truth_pub: str | None = None) -> None:
         self.url = core_url
         self.token = token
         self.count = count
@@ -202,6 +203,23 @@ class RobotHost:
         self.planner = ThreadPoolExecutor(max_workers=1, thread_name_prefix="planner",
                                           initializer=_lower_priority)
         self._planning: dict[str, SimRobot] = {}  # robots waiting for a plan, by robot id
+        # A real positioning system: the fixes of an overhead camera (robo-comp camera run), instead
+        # of the simulated one; and, in simulation, the true poses its synthetic cameras draw.
+        self.positioning = positioning
+        self.fix_sock: zmq.Socket | None = None
+        if positioning is not None:
+            self.fix_sock = self.ctx.socket(zmq.SUB)
+            self.fix_sock.setsockopt(zmq.LINGER, 0)
+            for topic in (b"fixes", b"camera"):
+                self.fix_sock.setsockopt(zmq.SUBSCRIBE, topic)
+            self.fix_sock.connect(positioning)
+        self.truth_sock: zmq.Socket | None = None
+        if truth_pub is not None:
+            self.truth_sock = self.ctx.socket(zmq.PUB)
+            self.truth_sock.setsockopt(zmq.LINGER, 0)
+            self.truth_sock.setsockopt(zmq.SNDHWM, 10)
+            self.truth_sock.bind(truth_pub)
+        self.camera_fixes = 0
         self._code_fd: int | None = None
 
     # ------------------------------------------------------------------ sending
@@ -333,7 +351,7 @@ class RobotHost:
         self.world = Arena(scenario, capacity=max(16, self.count))
         if self.speed:
             self.world.speed = self.speed
-        self.loc = Localization(self.world)
+        self.loc = Localization(self.world, external=self.positioning is not None)
         self.walls = self.world.walls
 
     def _create_robots(self, arena: dict[str, Any]) -> None:
@@ -610,7 +628,8 @@ class RobotHost:
     def _pose_rows(self, robots: list[SimRobot], now: float,
                    readings: dict[int, dict[str, Any]]) -> dict[str, Any]:
         """The body of one ``reports`` message for ``robots`` (sensors where ``readings`` has them)."""
-        tags, xs, ys, hs, moving, sensors = [], [], [], [], [], []
+        tags, xs, ys, hs, moving, sensors, sigmas = [], [], [], [], [], [], []
+        loc = self.loc
         for r in robots:
             r.last_report = now
             x, y, heading = r.driver.pose
@@ -619,11 +638,12 @@ class RobotHost:
             ys.append(round(y, 3))
             hs.append(round(heading, 1))
             moving.append(r.driver.moving)
+            sigmas.append(round(loc.sigma(r.robot_id), 3) if loc is not None else 0.0)
             s = readings.get(r.tag)
             if s is not None:
                 r.last_sensed = now
             sensors.append(s)
-        body: dict[str, Any] = {"tags": tags, "x": xs, "y": ys, "heading": hs, "moving": moving}
+        body: dict[str, Any] = {"tags": tags, "x": xs, "y": ys, "heading": hs, "moving": moving, "sigma": sigmas}
         if readings:
             body["sensors"] = sensors
         return body
@@ -678,6 +698,54 @@ class RobotHost:
                 return
             self._dispatch(frame)
 
+    def _take_fixes(self) -> None:
+        """Correct this host's robots with the camera's fixes (a fix for a robot this host does not
+        host is not its to take: a team's host moves its own robots only)."""
+        assert self.fix_sock is not None
+        while True:
+            try:
+                topic, body = self.fix_sock.recv_multipart(zmq.NOBLOCK)
+            except zmq.Again:
+                return
+            except ValueError:  # not two frames: not the camera's
+                continue
+            try:
+                msg = P.unpack(body)
+                if topic == b"camera":
+                    log.warning("positioning: %s", str(msg.get("message"))[:300])
+                    continue
+                fixes = msg["fixes"]
+                t = float(msg["t"])
+            except Exception:
+                log.warning("positioning: an unreadable message from the camera; ignored")
+                continue
+            if self.loc is None:
+                continue
+            for f in fixes if isinstance(fixes, list) else ():
+                try:
+                    rid = f["robot"]
+                    if rid in self.robots:
+                        self.loc.camera_fix(rid, float(f["x"]), float(f["y"]), float(f["heading"]),
+                                            float(f["sigma"]), t)
+                        self.camera_fixes += 1
+                except (KeyError, TypeError, ValueError):
+                    continue
+
+    def _publish_truth(self) -> None:
+        """The robots' true poses for synthetic cameras (simulation only: ``--truth-pub``)."""
+        assert self.truth_sock is not None and self.world is not None
+        w = self.world
+        robots = []
+        for rid in self.robots:
+            p = w.pose(rid)
+            robots.append([rid, round(p.x, 4), round(p.y, 4), round(p.heading, 3)])
+        h, wd = w.walls.shape
+        body = {"w": wd, "h": h, "walls": np.packbits(w.walls.astype(bool), axis=None).tobytes(), "robots": robots}
+        try:
+            self.truth_sock.send_multipart([b"truth", P.pack(body)], zmq.NOBLOCK)
+        except zmq.Again:
+            pass
+
     def stop(self) -> None:
         """End the loop after the current turn."""
         self._running = False
@@ -714,6 +782,8 @@ class RobotHost:
                 wake = min(wake, code_deadline)
             if self.poller.poll(max(0.0, wake - time.monotonic()) * 1000):
                 self._drain()
+            if self.fix_sock is not None:
+                self._take_fixes()
             try:
                 self.code.pump()
             except Exception:  # a bug on the team-code path must not take the robots down
@@ -724,6 +794,8 @@ class RobotHost:
                     # a clock that jumps (a virtual machine resumed, an injected clock) never moves a
                     # robot backwards or across the arena in one step
                     self.step(min(max(0.0, now - last), MAX_STEP))
+                    if self.truth_sock is not None:
+                        self._publish_truth()
                     self._drain()  # a stop that came in meanwhile goes first
                     if now >= next_report:
                         self._report(now)
@@ -741,6 +813,9 @@ class RobotHost:
             time.sleep(0.05)
         self.code.close()
         self.planner.shutdown(wait=False, cancel_futures=True)
+        for s in (self.fix_sock, self.truth_sock):
+            if s is not None:
+                s.close(0)
         if self.sock is not None:
             self.sock.close(0)
 

@@ -134,7 +134,7 @@ class ConsoleModel:
             if "tasks" in data and tag in self.details:
                 self.details[tag]["advertised"] = data["tasks"]
         elif topic == "robot.positions":
-            cols = [(k, data[k]) for k in ("x", "y", "heading", "moving") if k in data]  # once a batch
+            cols = [(k, data[k]) for k in ("x", "y", "heading", "moving", "sigma") if k in data]  # once a batch
             for i, t in enumerate(data.get("tags") or ()):
                 pose = self.robots.get(t)
                 if pose is not None:

@@ -66,6 +66,7 @@ class Robot:
     heading: float = 0.0
     status: str = "connected"  # connected, lost, left, disqualified
     moving: bool = False
+    sigma: float = 0.0  # position uncertainty (cells): drawn as a ring when it grows
     robot_id: str = ""
     trail: deque[tuple[float, float]] = field(default_factory=lambda: deque(maxlen=TRAIL_LEN))
     trail_n: int = 0  # points ever appended (renderers convert only the new ones)
@@ -238,10 +239,12 @@ def _on_positions(m: WallModel, d: dict[str, Any]) -> None:
     team = d.get("team")
     xs, ys, hs = d["x"], d["y"], d["heading"]
     moving = d.get("moving") or [True] * len(xs)
+    sigma = d.get("sigma") or [0.0] * len(xs)
     for i, tag in enumerate(d["tags"]):
         r = m._robot(tag, team)
         r.move(float(xs[i]), float(ys[i]), float(hs[i]))
         r.moving = bool(moving[i])
+        r.sigma = float(sigma[i])
 
 
 def _on_registered(m: WallModel, d: dict[str, Any]) -> None:

@@ -50,6 +50,9 @@ ERROR: RGB = (255, 86, 70)
 BROADCAST: RGB = (255, 220, 90)
 TEXT_CACHE_MAX = 8192
 
+#: Position uncertainty (σ, cells) above which the wall rings a robot with where it may be.
+SIGMA_SHOWN = 0.5
+
 
 def hex_rgb(colour: str) -> RGB:
     """``#rrggbb`` to an RGB tuple (grey when malformed)."""
@@ -416,6 +419,10 @@ class Renderer:
             dirty((cx - reach, cy - reach - (size if label else 0), box_w, box_h))
             base, grey, _ = self._colours(r.team)
             ok = r.status == "connected"
+            if r.sigma > SIGMA_SHOWN:  # where it may be: a ring of radius 2σ (no camera sees it now)
+                ring = min(int(2 * r.sigma * s), reach)
+                if ring > rad:
+                    circle(surf, grey, (cx, cy), ring, 1)
             circle(surf, base if ok else grey, (cx, cy), rad)
             if rad >= 4:
                 circle(surf, OUTLINE, (cx, cy), rad, 1)

@@ -211,15 +211,18 @@ class DeadReckoner:
             self.var += (d.distance * distance) ** 2 + lateral ** 2
         self.heading %= 360.0
 
-    def correct(self, fix: Fix, gain: float | None = None) -> None:
+    def correct(self, fix: Fix, gain: float | None = None, heading: float | None = None) -> None:
         """Move the estimate toward ``fix``: by ``gain`` (0..1) if given, else by the
-        Kalman gain ``var / (var + fix_noise²)``."""
+        Kalman gain ``var / (var + fix_noise²)``; a fix that measured the ``heading`` too (a
+        camera) turns the estimate toward it by the same gain."""
         r2 = self.fix_noise ** 2
         if gain is None:
             gain = 1.0 if r2 == 0 else self.var / (self.var + r2)
         g = min(max(float(gain), 0.0), 1.0)
         self.x += g * (fix.x - self.x)
         self.y += g * (fix.y - self.y)
+        if heading is not None:
+            self.heading = (self.heading + g * ((heading - self.heading + 180.0) % 360.0 - 180.0)) % 360.0
         # Posterior variance of a blend with weight g: (1-g)² var + g² r².
         self.var = (1.0 - g) ** 2 * self.var + g * g * r2
         self.last_fix = fix.time
@@ -242,7 +245,11 @@ class Localization:
     """
 
     def __init__(self, arena: "Arena", positioning: Positioning | None = None,  # noqa: F821
-                 drift: Drift | None = None, rng: np.random.Generator | None = None) -> None:
+                 drift: Drift | None = None, rng: np.random.Generator | None = None, *,
+                 external: bool = False) -> None:
+        """``external``: fixes come from a real positioning system (:meth:`camera_fix`), not from
+        the simulated one."""
+        self.external = external
         self.arena = arena
         sc = arena.scenario
         self.positioning_cfg = positioning or sc.positioning
@@ -284,10 +291,26 @@ class Localization:
                 r = reckoners[tags[i]]
                 r.advance(d, a)
                 r.time = now
+        if self.external:
+            return []
         fixes = self.system.poll(arena.time, tags, arena.x[slots], arena.y[slots])
         for f in fixes:
             self.reckoners[f.tag].correct(f)
         return fixes
+
+    def camera_fix(self, tag: str, x: float, y: float, heading: float, sigma: float, time: float) -> None:
+        """Correct robot ``tag``'s estimate with a fix of an overhead camera: position and heading,
+        with the camera's uncertainty ``sigma`` (cells) as the fix noise."""
+        if tag not in self.reckoners and tag not in self.arena.tags:
+            return
+        r = self._reckoner(tag)
+        r.fix_noise = max(float(sigma), 0.01)
+        r.correct(Fix(tag, x, y, 0.0, time), heading=heading)
+
+    def sigma(self, tag: str) -> float:
+        """Robot ``tag``'s position uncertainty σ (cells): it grows while no fix comes."""
+        r = self.reckoners.get(tag)
+        return r.sigma if r is not None else 0.0
 
     def estimate(self, tag: str) -> tuple[float, float, float]:
         """The estimated (x, y, heading) of ``tag`` -- what its team sees."""

@@ -64,7 +64,9 @@ class MonitorPanel(VerticalScroll):
         if row.get("team"):
             head.append(f"  team {row['team']}", style="dim")
         grid.add_row("robot", head)
-        grid.add_row("position", f"({row.get('x', 0):.2f}, {row.get('y', 0):.2f})  heading {row.get('heading', 0):.0f}°")
+        sigma = row.get("sigma") or 0.0
+        grid.add_row("position", f"({row.get('x', 0):.2f}, {row.get('y', 0):.2f}) ± {sigma:.2f} cells  "
+                                 f"heading {row.get('heading', 0):.0f}°")
         grid.add_row("task", task_label(d.get("task", row.get("task")) if d else row.get("task")))
         queued = d.get("queued") or []
         grid.add_row("queue", ", ".join(task_label(q) for q in queued) if queued
