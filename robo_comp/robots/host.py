@@ -213,6 +213,7 @@ class RobotHost:
             for topic in (b"fixes", b"camera"):
                 self.fix_sock.setsockopt(zmq.SUBSCRIBE, topic)
             self.fix_sock.connect(positioning)
+            self.poller.register(self.fix_sock, zmq.POLLIN)  # a fix wakes the loop
         self.truth_sock: zmq.Socket | None = None
         if truth_pub is not None:
             self.truth_sock = self.ctx.socket(zmq.PUB)
@@ -721,15 +722,24 @@ class RobotHost:
                 continue
             if self.loc is None:
                 continue
+            moved: dict[int, SimRobot] = {}
             for f in fixes if isinstance(fixes, list) else ():
                 try:
                     rid = f["robot"]
-                    if rid in self.robots:
+                    r = self.robots.get(rid)
+                    if r is not None:
+                        before = self.loc.estimate(rid)
                         self.loc.camera_fix(rid, float(f["x"]), float(f["y"]), float(f["heading"]),
                                             float(f["sigma"]), t)
                         self.camera_fixes += 1
+                        after = self.loc.estimate(rid)
+                        if abs(after[0] - before[0]) + abs(after[1] - before[1]) > 0.05 and r.tag:
+                            moved[r.tag] = r  # moved by the fix: reported now, not at the next tick
                 except (KeyError, TypeError, ValueError):
                     continue
+            if moved and self.state == "up" and self.sock is not None:
+                rows = list(moved.values())
+                self.sock.send(P.request("reports", 0, self._pose_rows(rows, time.monotonic(), {}), self.session))
 
     def _publish_truth(self) -> None:
         """The robots' true poses for synthetic cameras (simulation only: ``--truth-pub``)."""

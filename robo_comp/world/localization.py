@@ -235,6 +235,10 @@ class DeadReckoner:
         self.var = 0.0
 
 
+#: The least position uncertainty (σ, cells) a robot's estimate has when a camera fix comes.
+CAMERA_PRIOR = 0.1
+
+
 class Localization:
     """Runs the positioning system over an arena and keeps every robot's estimate.
 
@@ -305,6 +309,9 @@ class Localization:
             return
         r = self._reckoner(tag)
         r.fix_noise = max(float(sigma), 0.01)
+        # between two frames a robot's pose is never known better than this (wheels slip, it is
+        # lifted and put down): a camera's fix always weighs, even on a robot standing still
+        r.var = max(r.var, CAMERA_PRIOR ** 2)
         r.correct(Fix(tag, x, y, 0.0, time), heading=heading)
 
     def sigma(self, tag: str) -> float:
