@@ -48,7 +48,8 @@ class Detector:
         """Marker id → its 4 corners in pixels (float32, 4×2: top-left, top-right, bottom-right,
         bottom-left of the marker as printed). A marker seen twice keeps its first sighting."""
         gray = frame if frame.ndim == 2 else cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
-        corners, ids, _ = self._det.detectMarkers(gray)
+        # a light blur first: sensor noise otherwise makes thousands of candidate squares
+        corners, ids, _ = self._det.detectMarkers(cv2.GaussianBlur(gray, (3, 3), 0))
         out: dict[int, np.ndarray] = {}
         if ids is None:
             return out
