@@ -119,7 +119,7 @@ def _demo(args: argparse.Namespace) -> int:
     from robo_comp.demo import run_demo
 
     duration = args.duration if args.duration is not None else (120.0 if args.web is not None else 20.0)
-    return run_demo(duration=duration, robots=args.robots, web=args.web)
+    return run_demo(duration=duration, robots=args.robots, web=args.web, camera=args.camera)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -210,6 +210,8 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--robots", type=int, default=3, help="robots per team")
     d.add_argument("--web", type=int, metavar="PORT",
                    help="also show the match in a browser: serve the page on this port (see docs/web.md)")
+    d.add_argument("--camera", action="store_true",
+                   help="robots localize only from synthetic overhead-camera frames (docs/positioning.md)")
     d.set_defaults(func=_demo)
 
     plan_cli.add_parser(sub)

@@ -43,9 +43,41 @@ def _start_web(state: Path, port: int, out: Any) -> Any:
     return proc
 
 
-def run_demo(duration: float = 20.0, robots: int = 3, out: Any = None, web: int | None = None) -> int:
+def _start_camera(state: Path, teams: list[str], robots: int, out: Any) -> list[Any]:
+    """The teams' hosts with positions from a camera process drawing synthetic frames of them."""
+    import socket
+    import subprocess
+
+    from robo_comp.world.overhead.binding import Bindings
+    from robo_comp.world.overhead.synth import floor_markers
+    from robo_comp.world.scenario import default_scenario
+
+    def port() -> int:
+        with socket.socket() as s:
+            s.bind(("127.0.0.1", 0))
+            return int(s.getsockname()[1])
+
+    h, w = default_scenario().walls.shape
+    bind = Bindings({10 + i * robots + k: f"{t}-{k + 1}" for i, t in enumerate(teams) for k in range(robots)},
+                    floor_markers(w, h))
+    (state / "markers.toml").write_text(bind.to_toml())
+    fixes = f"tcp://127.0.0.1:{port()}"
+    truths = [f"tcp://127.0.0.1:{port()}" for _ in teams]
+    procs = [start_robots(state, t, robots, "--positioning", f"camera:{fixes}", "--truth-pub", u)
+             for t, u in zip(teams, truths)]
+    log = open(state / "camera.log", "wb")
+    procs.append(subprocess.Popen([sys.executable, "-m", "robo_comp.cli", "camera", "run", "--markers",
+                                   str(state / "markers.toml"), "--pub", fixes, "--synthetic", ",".join(truths),
+                                   "--cameras", "2"], stdout=log, stderr=subprocess.STDOUT))
+    print("demo: robot positions come from two synthetic overhead cameras (robo-comp camera run)", file=out)
+    return procs
+
+
+def run_demo(duration: float = 20.0, robots: int = 3, out: Any = None, web: int | None = None,
+             camera: bool = False) -> int:
     """Run the demo match; prints a live summary and a final table; returns 0 on success.
-    ``web``: also serve the match on a page at this port (0: a free one)."""
+    ``web``: also serve the match on a page at this port (0: a free one). ``camera``: the robots'
+    positions come only from synthetic overhead-camera frames (docs/positioning.md)."""
     out = out or sys.stdout
     rng = random.Random(7)
     with tempfile.TemporaryDirectory(prefix="robo-comp-demo-") as tmp:
@@ -56,7 +88,10 @@ def run_demo(duration: float = 20.0, robots: int = 3, out: Any = None, web: int 
             teams = json.loads((state / "core.json").read_text())["teams"][:2]
             if web is not None:
                 procs.append(_start_web(state, web, out))
-            procs += [start_robots(state, t, robots) for t in teams]
+            if camera:
+                procs += _start_camera(state, teams, robots, out)
+            else:
+                procs += [start_robots(state, t, robots) for t in teams]
             clients = {t: Client(str(state), (state / "teams" / f"{t}.token").read_text().strip(),
                                  client="demo") for t in teams}
             for c in clients.values():

@@ -90,8 +90,8 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     r.add_argument("--pub", default="tcp://127.0.0.1:5570", help="where hosts subscribe (default tcp://127.0.0.1:5570)")
     r.add_argument("--source", action="append", help="a camera: device number, video file or image folder (repeat for several)")
     r.add_argument("--calibration", action="append", help="its calibration file (one per --source, in order)")
-    r.add_argument("--synthetic", metavar="TRUTH_URL",
-                   help="no camera: draw synthetic frames of a simulating host's arena (robots --truth-pub URL)")
+    r.add_argument("--synthetic", metavar="TRUTH_URL[,TRUTH_URL...]",
+                   help="no camera: draw synthetic frames of simulating hosts' arena (robots --truth-pub URL)")
     r.add_argument("--cameras", type=int, default=1, help="synthetic cameras side by side (default 1)")
     r.add_argument("--fps", type=float, default=10.0, help="synthetic frames per second (default 10)")
     r.add_argument("--duration", type=float, default=0.0, help="stop after S seconds (0 = run until stopped)")

@@ -112,31 +112,35 @@ def open_frames(spec: str) -> Iterator[np.ndarray]:
 
 
 class TruthFeed:
-    """The true poses a simulating robot host publishes (``robo-comp robots --truth-pub URL``):
-    what the synthetic cameras draw. The latest message wins."""
+    """The true poses simulating robot hosts publish (``robo-comp robots --truth-pub URL``, one
+    URL per host, comma-separated): what the synthetic cameras draw. Each robot's newest pose wins."""
 
-    def __init__(self, ctx: zmq.Context, url: str) -> None:
+    def __init__(self, ctx: zmq.Context, urls: str) -> None:
         self.sock = ctx.socket(zmq.SUB)
         self.sock.setsockopt(zmq.LINGER, 0)
-        self.sock.setsockopt(zmq.RCVHWM, 10)
+        self.sock.setsockopt(zmq.RCVHWM, 100)
         self.sock.setsockopt(zmq.SUBSCRIBE, b"truth")
-        self.sock.connect(url)
-        self.latest: dict[str, Any] | None = None
+        for url in urls.split(","):
+            self.sock.connect(url.strip())
+        self.robots: dict[str, tuple[float, float, float]] = {}
         self.walls: np.ndarray | None = None
 
-    def poll(self, timeout_ms: int = 0) -> dict[str, Any] | None:
-        """The newest truth (waiting up to ``timeout_ms`` for the first one)."""
-        if self.sock.poll(timeout_ms if self.latest is None else 0):
+    def poll(self, timeout_ms: int = 0) -> dict[str, tuple[float, float, float]] | None:
+        """Every robot's newest true pose (waiting up to ``timeout_ms`` for the first message);
+        None before any came."""
+        if self.sock.poll(timeout_ms if self.walls is None else 0):
             while True:
                 try:
                     _, body = self.sock.recv_multipart(zmq.NOBLOCK)
                 except zmq.Again:
                     break
-                self.latest = P.unpack(body)
-            assert self.latest is not None
-            h, w = self.latest["h"], self.latest["w"]
-            self.walls = np.unpackbits(np.frombuffer(self.latest["walls"], np.uint8), count=h * w).reshape(h, w).astype(bool)
-        return self.latest
+                msg = P.unpack(body)
+                if self.walls is None:
+                    h, w = msg["h"], msg["w"]
+                    self.walls = np.unpackbits(np.frombuffer(msg["walls"], np.uint8), count=h * w).reshape(h, w).astype(bool)
+                for rid, x, y, hd in msg["robots"]:
+                    self.robots[rid] = (x, y, hd)
+        return self.robots if self.walls is not None else None
 
 
 def synthetic_rig(bindings: Bindings, walls: np.ndarray, cameras: int) -> tuple[list[SyntheticCamera], list[Calibration]]:
@@ -190,7 +194,7 @@ def run(bindings: Bindings, pub_url: str, *, sources: list[str] | None = None,
                 next_frame = max(next_frame + 1.0 / fps, time.monotonic())
                 state = truth.poll()
                 assert state is not None and truth.walls is not None
-                robots = [(robot_marker[r], x, y, hd) for r, x, y, hd in state["robots"] if r in robot_marker]
+                robots = [(robot_marker[r], x, y, hd) for r, (x, y, hd) in state.items() if r in robot_marker]
                 frames: list[np.ndarray | None] = [cam.render(truth.walls, robots, bindings.floor) for cam in rig]
             else:
                 frames = [next(s, None) for s in streams]
