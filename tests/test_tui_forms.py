@@ -62,7 +62,11 @@ def test_task_form_sends_typed_arguments() -> None:
             form = await until(pilot, lambda: isinstance(app.screen, GiveTaskScreen) and app.screen, 15, "the form")
             form.query_one("#task").value = "followPath"
             await until(pilot, lambda: len(form.query("ArgField")) == 1, 15, "followPath's field")
+            field = form.query_one("#arg-0")
+            field.focus()  # a loaded machine may not have moved the focus there yet
+            await until(pilot, lambda: field.has_focus, 15, "the field's focus")
             await pilot.press(*"1,1; 5,1; 5,6")
+            await until(pilot, lambda: field.value == "1,1; 5,1; 5,6", 15, "the typed points")
             await pilot.click("#queue")
             await pilot.press("ctrl+g")
             await until(pilot, lambda: any(t == "give" for t, _ in link.sent), 15, "the give request")
