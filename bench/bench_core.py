@@ -264,6 +264,29 @@ def stop_latency(state: Path, robots: int, samples: int) -> list[float]:
         stop_all([host])
 
 
+def sample_stops(client: Client, tags: list[int], seconds: float, samples: int) -> dict:
+    """``samples`` stops spread evenly over ``seconds`` on robots of ``tags`` (a prime stride):
+    the client's latency p50/p99/max, the core's own p99 (from the stop's arrival to the host's
+    answer), and how many failed."""
+    lat: list[float] = []
+    inner: list[float] = []
+    failed = 0
+    gap = seconds / samples
+    t0 = time.monotonic()
+    for k in range(samples):
+        tag = tags[(k * 7919) % len(tags)]
+        t1 = time.perf_counter()
+        try:
+            inner.append(client.stop(tag)["ms"])
+            lat.append((time.perf_counter() - t1) * 1000)
+        except Exception:  # a refused or timed-out stop: counted
+            failed += 1
+        time.sleep(max(0.0, t0 + (k + 1) * gap - time.monotonic()))
+    nan = float("nan")
+    return {"stop_p50": statistics.median(lat) if lat else nan, "stop_p99": pct(lat, 99) if lat else nan,
+            "stop_max": max(lat, default=nan), "inner_p99": pct(inner, 99) if inner else nan, "failed": failed}
+
+
 def _light_host(url: str, token: str, name: str, count: int, hz: float, seconds: float, ready: mp.Queue,
                 out_q: mp.Queue) -> None:
     """A light robot host (the load of the scale figure): ``count`` robots on one connection, every
@@ -352,26 +375,10 @@ def scale(robots: int, hosts: int, hz: float, seconds: float, samples: int) -> d
             tags = [t for _ in range(hosts) for t in ready.get(timeout=120)]
             time.sleep(3.0)  # every host reporting at its rate
             red = Client(str(state), (state / "referee.token").read_text().strip(), timeout=10)
-            lat: list[float] = []
-            inner: list[float] = []  # the core's own count: from the stop's arrival to the host's answer
-            failed = 0
-            gap = seconds / samples
-            t0 = time.monotonic()
-            for k in range(samples):
-                tag = tags[(k * 7919) % len(tags)]
-                t1 = time.perf_counter()
-                try:
-                    inner.append(red.stop(tag)["ms"])
-                    lat.append((time.perf_counter() - t1) * 1000)
-                except Exception:  # a refused or timed-out stop: counted
-                    failed += 1
-                time.sleep(max(0.0, t0 + (k + 1) * gap - time.monotonic()))
+            stops = sample_stops(red, tags, seconds, samples)
             stats = red.request("stats")
             red.close()
-            return {"stop_p50": statistics.median(lat) if lat else float("nan"),
-                    "stop_p99": pct(lat, 99) if lat else float("nan"), "stop_max": max(lat, default=float("nan")),
-                    "inner_p99": pct(inner, 99) if inner else float("nan"),
-                    "failed": failed, "lost": stats["robots"].get("lost", 0),
+            return {**stops, "lost": stats["robots"].get("lost", 0),
                     "connected": stats["robots"].get("connected", 0), "received": stats["received"],
                     "dropped": stats.get("dropped", 0)}
         finally:
@@ -408,27 +415,11 @@ def hosted(robots: int, hosts: int, seconds: float, samples: int) -> dict:
                 far = max(zip(xs[k], ys[k]), key=lambda c: abs(c[0] - r["x"]) + abs(c[1] - r["y"]))
                 ref.give(r["tag"], "goTo", [int(far[0]), int(far[1])])
                 given += 1
-            lat: list[float] = []
-            inner: list[float] = []  # the core's own count: from the stop's arrival to the host's answer
-            failed = 0
-            gap = seconds / samples
-            t0 = time.monotonic()
-            for k in range(samples):
-                tag = rows[(k * 7919) % len(rows)]["tag"]
-                t1 = time.perf_counter()
-                try:
-                    inner.append(ref.stop(tag)["ms"])
-                    lat.append((time.perf_counter() - t1) * 1000)
-                except Exception:  # a refused or timed-out stop: counted
-                    failed += 1
-                time.sleep(max(0.0, t0 + (k + 1) * gap - time.monotonic()))
+            stops = sample_stops(ref, [r["tag"] for r in rows], seconds, samples)
             stats = ref.request("stats")
             lost = sum(1 for r in ref.robots() if r["status"] == "lost")
             ref.close()
-            return {"stop_p50": statistics.median(lat) if lat else float("nan"),
-                    "stop_p99": pct(lat, 99) if lat else float("nan"), "stop_max": max(lat, default=float("nan")),
-                    "inner_p99": pct(inner, 99) if inner else float("nan"),
-                    "failed": failed, "lost": lost, "given": given, "connected": stats["robots"].get("connected", 0)}
+            return {**stops, "lost": lost, "given": given, "connected": stats["robots"].get("connected", 0)}
         finally:
             stop_all(procs + [core])
 
