@@ -34,7 +34,7 @@ def one_run(scenario: str, robots: int, seconds: float, spacing: int, seed: int)
         out = bench.run_match(sweep_plan(bench, spacing), seconds=seconds, on_done=report_seen(bench))
     total = time.perf_counter() - t0
     topics = Counter(e["topic"] for e in out.events)
-    return {"total": total, "match": out.wall_seconds, "sim": out.events[-1]["t"], "calls": topics["call"],
+    return {"total": total, "match": out.wall_seconds, "sim": out.events[-1]["t"], "calls": topics["robot.call"],
             "pictures": topics["picture"], "bumps": topics["robot.bump"], "finds": len(out.finds),
             "victims": len(out.victims), "score": out.score, "events": len(out.events)}
 

@@ -22,10 +22,10 @@ from robo_comp.protocol.logfile import read_log
 from robo_comp.errors import FieldError, ForbiddenError, NotYoursError, PhaseError, TooLargeError
 from robo_comp.scoring.board import Scoreboard, ScoreLine
 from robo_comp.scoring.config import ScoringConfig
+from robo_comp.scoring.judge import FindJudge
 from robo_comp.scoring.match import MatchClock
 from robo_comp.teams.policy import check_owner, check_referee
 from robo_comp.world.scenario import Scenario
-from robo_comp.world.visibility import in_view
 
 if TYPE_CHECKING:
     from robo_comp.core.mapdesk import MapDesk
@@ -67,14 +67,21 @@ class Competition:
                                 phase="running" if practice else "setup",
                                 running_since=time.monotonic() if practice else None)
         self.board = Scoreboard(teams, pm, config)
-        self.pictures: dict[int, dict[str, Any]] = {}
-        self.examined: dict[str, dict[str, set[int]]] = {t: {} for t in teams}
-        self.finds: list[dict[str, Any]] = []
+        #: Pictures and finds, judged as on the bench and in league matches (one judge).
+        self.judge = FindJudge(scenario, teams, self.board)
         self.disqualified_robots: dict[int, str] = {}
-        self.next_picture = 1
         self.picture_dir = state_dir / "pictures"
-        self.victims = [v.to_dict() for v in scenario.victims]
         self.score_dirty = False
+
+    @property
+    def pictures(self) -> dict[int, dict[str, Any]]:
+        """Every picture taken, by id (the judge's)."""
+        return self.judge.pictures
+
+    @property
+    def finds(self) -> list[dict[str, Any]]:
+        """Every find reported, with its verdict (the judge's)."""
+        return self.judge.finds
 
     def handlers(self) -> dict[str, Callable[[bytes, P.Message], dict[str, Any] | None]]:
         """Request handlers this module adds to the core."""
@@ -219,27 +226,16 @@ class Competition:
             raise TooLargeError(f"a picture may be at most {MAX_PICTURE // 1024} KiB")
         if not png.startswith(b"\x89PNG\r\n\x1a\n"):
             raise FieldError("'png' must be a PNG image")
-        pid = self.next_picture
-        self.next_picture += 1
+        pid = self.judge.next_picture
         self.picture_dir.mkdir(exist_ok=True)
         (self.picture_dir / f"{pid}.png").write_bytes(png)
-        seen = self._victims_seen(b["x"], b["y"], b["heading"])
-        for vid in seen:
-            self.examined[r.team].setdefault(vid, set()).add(pid)
-        meta = {"id": pid, "tag": r.tag, "team": r.team, "x": b["x"], "y": b["y"], "heading": b["heading"],
-                "t": time.time(), "sha256": hashlib.sha256(png).hexdigest()[:16], "victims": seen,
-                "label": b.get("label", "")}
-        self.pictures[pid] = meta
+        meta = self.judge.picture(r.team, r.tag, b["x"], b["y"], b["heading"], t=time.time(),
+                                  sha256=hashlib.sha256(png).hexdigest()[:16], label=b.get("label", ""))
+        seen = meta["victims"]
         public = {k: meta[k] for k in ("id", "tag", "team", "x", "y", "heading", "t")}
         self.out.emit("picture", r.team, dict(public, victims=seen, sha256=meta["sha256"]), public=False)
         self.out.emit("picture", r.team, public, log_it=False)
-        return {"id": pid}
-
-    def _victims_seen(self, x: float, y: float, heading: float) -> list[str]:
-        cam = self.scenario.camera
-        pts = [(v["x"], v["y"]) for v in self.victims]
-        flags = in_view(self.scenario.walls, pts, x, y, heading, cam.fov, cam.range)
-        return [v["id"] for v, f in zip(self.victims, flags) if f]
+        return {"id": pid, "seen": self.judge.describe(seen)}
 
     def _on_picture_get(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
         who = self.access.session(ident).who
@@ -260,21 +256,9 @@ class Competition:
             r = self.access.robot_for(ident, b["tag"])
         self.check_robot(r.tag)
         self.check_phase("find")
-        evidence = b.get("evidence", [])
-        if type(evidence) is not list or not all(type(e) is int for e in evidence) or len(evidence) > 32:
-            raise FieldError("'evidence' must be a list of at most 32 picture ids")
-        for pid in evidence:
-            meta = self.pictures.get(pid)
-            if meta is None or meta["team"] != r.team:
-                raise NotYoursError(f"picture {pid} is not one of team {r.team}'s pictures")
-        find: dict[str, Any] = {"team": r.team, "tag": r.tag, "x": float(b["x"]), "y": float(b["y"]),
-                "kind": str(b.get("kind", ""))[:32], "evidence": evidence}
-        truth = {"victims": self.victims, "examined": self.examined[r.team]}
-        verdict = self.board.judge(find, truth)
-        fid = len(self.finds) + 1
-        record = dict(find, id=fid, verdict=verdict, t=self.clock.elapsed(time.monotonic()))
-        self.finds.append(record)
-        state = "confirmed" if verdict["valid"] else ("duplicate" if verdict.get("duplicate") else "rejected")
+        record, state = self.judge.find(r.team, r.tag, b["x"], b["y"], b.get("kind", ""), b.get("evidence", []),
+                                        self.clock.elapsed(time.monotonic()))
+        find, verdict, fid, evidence = record, record["verdict"], record["id"], record["evidence"]
         if state != "duplicate":
             self.maps.discovery(r.tag, r.team, find["x"], find["y"], find["kind"], evidence)
         self.out.emit("find.reported", r.team, {"id": fid, "team": r.team, "tag": r.tag, "x": find["x"],

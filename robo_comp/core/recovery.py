@@ -175,14 +175,10 @@ class Replayer:
     def _picture(self, team: str | None, d: dict[str, Any], t: float) -> None:
         if "victims" not in d:  # the public copy carries no evidence facts
             return
-        comp = self.core.competition
-        comp.pictures[d["id"]] = dict(d)
-        comp.next_picture = max(comp.next_picture, d["id"] + 1)
-        for vid in d["victims"]:
-            comp.examined.setdefault(d["team"], {}).setdefault(vid, set()).add(d["id"])
+        self.core.competition.judge.restore_picture(d)
 
     def _find(self, team: str | None, d: dict[str, Any], t: float) -> None:
-        self.core.competition.finds.append(dict(d))
+        self.core.competition.judge.finds.append(dict(d))
 
 
 def recover(core: Recoverable, path: Path) -> RecoveryReport:

@@ -146,6 +146,158 @@ def map_piece(walls: Any, x: int, y: int, radius: int) -> dict[str, Any]:
     return {"x0": x - radius, "y0": y - radius, "walls": rows}
 
 
+class CallSite(Protocol):
+    """Where one robot's calls are answered: a robot of a robot host, or of the bench.
+
+    The robot call table (:data:`ROBOT_CALLS`, :func:`movement_steps`) answers team code through
+    this interface only, so a host and the seeded bench give the same answers."""
+
+    walls: Any  # the arena's wall grid ``[y, x]``
+
+    def pose(self) -> tuple[float, float, float]:
+        """The robot's believed ``(x, y, heading)``."""
+
+    def cell(self) -> tuple[int, int]:
+        """The cell the robot believes it is in."""
+
+    def free_cell(self) -> tuple[int, int]:
+        """The free cell the robot believes it is in (see :func:`free_cell`)."""
+
+    def sense(self) -> dict[str, Any]:
+        """The range-sensor readings."""
+
+    def picture(self, on_reply: Reply) -> None:
+        """Take a camera picture; ``on_reply(ok, body)`` gets ``{"id", "seen"}`` (or an error)."""
+
+    def request(self, type_: str, body: dict[str, Any], on_reply: Reply) -> None:
+        """A request to the match (``find``, ``radio``) on this robot's behalf."""
+
+
+Settle = Callable[[bool, Any], None]
+
+
+def _position(s: CallSite, args: list[Any], settle: Settle) -> Any:
+    return [round(v, 3) for v in s.pose()]
+
+
+def _sense(s: CallSite, args: list[Any], settle: Settle) -> Any:
+    return s.sense()
+
+
+def _plan(s: CallSite, args: list[Any], settle: Settle) -> Any:
+    return [list(p) for p in plan_path(s.walls, s.free_cell(), (int(args[0]), int(args[1])))]
+
+
+def _map_piece(s: CallSite, args: list[Any], settle: Settle) -> Any:
+    return map_piece(s.walls, *s.cell(), int(args[0]))
+
+
+def _take_picture(s: CallSite, args: list[Any], settle: Settle) -> Any:
+    s.picture(lambda ok, body: settle(ok, body.get("id") if ok else body))
+    return PENDING
+
+
+def _look(s: CallSite, args: list[Any], settle: Settle) -> Any:
+    s.picture(lambda ok, body: settle(ok, {"picture": body.get("id"), "victims": list(body.get("seen") or [])}
+                                      if ok else body))
+    return PENDING
+
+
+def _report_find(s: CallSite, args: list[Any], settle: Settle) -> Any:
+    x, y, kind, evidence = (list(args) + [None, None, None, None])[:4]
+    body = {"x": float(x), "y": float(y), "kind": str(kind or "victim")[:32],
+            "evidence": [int(e) for e in (evidence or [])][:MAX_EVIDENCE]}
+    s.request("find", body, settle)
+    return PENDING
+
+
+def _radio(s: CallSite, args: list[Any], settle: Settle) -> Any:
+    to, data = (list(args) + [None, None])[:2]
+    s.request("radio", {"to": to, "data": data}, lambda ok, b: settle(ok, b.get("delivered") if ok else b))
+    return PENDING
+
+
+#: The robot calls that take no simulated time: name -> answer(site, args, settle). An answer
+#: returns the value, or PENDING and later calls ``settle(ok, value or error body)``.
+ROBOT_CALLS: dict[str, Callable[[CallSite, list[Any], Settle], Any]] = {
+    "position": _position, "sense": _sense, "plan": _plan, "map_piece": _map_piece,
+    "take_picture": _take_picture, "upload_picture": _take_picture, "look": _look,
+    "report_find": _report_find, "radio": _radio,
+}
+#: The robot calls that move the robot: they become movement steps (:func:`movement_steps`).
+MOVEMENT_CALLS = ("move", "turn", "go_to")
+
+
+def answer_call(site: CallSite, name: str, args: list[Any], settle: Settle) -> Any:
+    """Answer robot call ``name(*args)`` that takes no time, from the table; :class:`Refused`
+    for an unknown call or one that cannot be carried out."""
+    answer = ROBOT_CALLS.get(name)
+    if answer is None:
+        raise Refused(f"unknown robot call {name!r}")
+    return answer(site, list(args), settle)
+
+
+def movement_steps(site: CallSite, name: str, args: list[Any]) -> Generator[Step, Any, Any]:
+    """The movement steps of ``move``, ``turn`` or ``go_to``: what the host's driver carries
+    out and the bench's arena simulates. ``go_to`` yields a :class:`Plan` and expects the path
+    (None: no path) sent back. Raises :class:`Refused` when the way is blocked."""
+    if name == "turn":
+        yield Turn(float(args[0]))
+        return
+    walls = site.walls
+    if name == "move":
+        cells = int(args[0])
+        dx, dy = move_direction(site.pose()[2])
+        sign = 1 if cells >= 0 else -1
+        for _ in range(abs(cells)):
+            x, y = site.cell()
+            nx, ny = x + sign * dx, y + sign * dy
+            if not in_bounds(walls, nx, ny):
+                raise Refused(f"({nx}, {ny}) is a wall or outside the arena; stopped at ({x}, {y})")
+            yield Move(nx, ny)
+        return
+    goal = (int(args[0]), int(args[1]))
+    if not in_bounds(walls, *goal):
+        raise Refused(f"({goal[0]}, {goal[1]}) is a wall or outside the arena")
+    path = yield Plan(goal, avoid_robots=False)  # the host plans off its loop; the bench at once
+    if path is None:
+        raise Refused(f"no path to ({goal[0]}, {goal[1]})")
+    for x, y in path[1:]:
+        yield Move(x, y)
+
+
+@dataclass(slots=True)
+class HostSite:
+    """A hosted robot as a :class:`CallSite`: its driver's belief, the host's world and link."""
+
+    host: CodeHost
+    r: CodeRobot
+
+    @property
+    def walls(self) -> Any:  # noqa: D102
+        return self.host.walls
+
+    def pose(self) -> tuple[float, float, float]:  # noqa: D102
+        x, y, h = self.r.driver.pose
+        return x, y, h
+
+    def cell(self) -> tuple[int, int]:  # noqa: D102
+        return self.r.cell()
+
+    def free_cell(self) -> tuple[int, int]:  # noqa: D102
+        return self.r.free_cell()
+
+    def sense(self) -> dict[str, Any]:  # noqa: D102
+        world = self.host.world
+        return world.sense(self.r.robot_id) if world is not None else {}
+
+    def picture(self, on_reply: Reply) -> None:  # noqa: D102
+        self.host.code_picture(self.r, on_reply)
+
+    def request(self, type_: str, body: dict[str, Any], on_reply: Reply) -> None:  # noqa: D102
+        self.host.code_request(type_, dict(body, tag=self.r.tag), on_reply)
+
+
 @dataclass(slots=True)
 class CodeRun:
     """A task of team code running on one robot."""
@@ -379,10 +531,11 @@ class TeamCode:
         try:
             if r is None or run is None:
                 raise Refused("this robot is not running that task any more")
-            if c.name in ("move", "turn", "go_to"):
-                run.call = (c.call_id, self._steps(r, c.name, c.args), lambda: list(r.driver.pose))
+            site = HostSite(self.host, r)
+            if c.name in MOVEMENT_CALLS:
+                run.call = (c.call_id, movement_steps(site, c.name, list(c.args)), lambda: list(r.driver.pose))
                 return
-            value = self._immediate(r, c)
+            value = answer_call(site, c.name, list(c.args), lambda ok, v: self._settle(c.call_id, ok, v))
             if value is not PENDING:
                 sb.resolve(c.call_id, value)
         except Refused as e:
@@ -392,33 +545,6 @@ class TeamCode:
         except Exception as e:  # a host bug must not hang team code
             log.exception("robot call %s failed", c.name)
             sb.reject(c.call_id, call_failed(c.name, c.args, e))
-
-    def _immediate(self, r: CodeRobot, c: RpcCall) -> Any:
-        host = self.host
-        args = c.args
-        if c.name == "position":
-            return [round(v, 3) for v in r.driver.pose]
-        if c.name == "sense":
-            return host.world.sense(r.robot_id) if host.world is not None else {}
-        if c.name == "plan":
-            return [list(p) for p in plan_path(host.walls, r.free_cell(), (int(args[0]), int(args[1])))]
-        if c.name == "map_piece":
-            return map_piece(host.walls, *r.cell(), int(args[0]))
-        if c.name in ("take_picture", "upload_picture"):
-            host.code_picture(r, lambda ok, body: self._settle(c.call_id, ok, body.get("id") if ok else body))
-            return PENDING
-        if c.name == "report_find":
-            x, y, kind, evidence = (list(args) + [None, None, None, None])[:4]
-            body = {"tag": r.tag, "x": float(x), "y": float(y), "kind": str(kind or "victim")[:32],
-                    "evidence": [int(e) for e in (evidence or [])][:MAX_EVIDENCE]}
-            host.code_request("find", body, lambda ok, b: self._settle(c.call_id, ok, b))
-            return PENDING
-        if c.name == "radio":
-            to, data = (list(args) + [None, None])[:2]
-            host.code_request("radio", {"tag": r.tag, "to": to, "data": data},
-                              lambda ok, b: self._settle(c.call_id, ok, b.get("delivered") if ok else b))
-            return PENDING
-        raise Refused(f"unknown robot call {c.name!r}")
 
     def _settle(self, call_id: int, ok: bool, value: Any) -> None:
         """Answer a call that went to the core, once the core has answered."""
@@ -432,30 +558,7 @@ class TeamCode:
         except RoboCompError:
             pass  # the run ended meanwhile
 
-    def _steps(self, r: CodeRobot, name: str, args: list[Any]) -> Generator[Step, Any, Any]:
-        if name == "turn":
-            yield Turn(float(args[0]))
-            return
-        if name == "move":
-            cells = int(args[0])
-            dx, dy = move_direction(r.driver.heading)
-            sign = 1 if cells >= 0 else -1
-            for _ in range(abs(cells)):
-                x, y = r.cell()
-                nx, ny = x + sign * dx, y + sign * dy
-                if not r.in_bounds(nx, ny):
-                    raise Refused(f"({nx}, {ny}) is a wall or outside the arena; stopped at ({x}, {y})")
-                yield Move(nx, ny)
-            return
-        goal = (int(args[0]), int(args[1]))
-        if not in_bounds(self.host.walls, *goal):
-            raise Refused(f"({goal[0]}, {goal[1]}) is a wall or outside the arena")
-        path = yield Plan(goal, avoid_robots=False)  # planned off the host's loop
-        if path is None:
-            raise Refused(f"no path to ({goal[0]}, {goal[1]})")
-        for x, y in path[1:]:
-            yield Move(x, y)
 
-
-__all__ = ["TeamCode", "CodeRun", "LoadJob", "Refused", "in_bounds", "free_cell", "move_direction", "plan_path",
+__all__ = ["TeamCode", "CodeRun", "LoadJob", "Refused", "CallSite", "HostSite", "ROBOT_CALLS", "MOVEMENT_CALLS",
+           "answer_call", "movement_steps", "in_bounds", "free_cell", "move_direction", "plan_path",
            "map_piece", "MAX_PIECE_RADIUS", "MAX_EVIDENCE"]

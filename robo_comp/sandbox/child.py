@@ -292,6 +292,10 @@ class Child:
             """Take a picture; returns its id."""
             return rpc(tag, "take_picture", [])
 
+        def look():
+            """Take a picture and say what it shows: ``{"picture": id, "victims": [{"x", "y", "kind"}]}``."""
+            return rpc(tag, "look", [])
+
         def upload_picture(picture=None):
             """Upload a picture (the last one if not given) to the environment."""
             return rpc(tag, "upload_picture", [picture])
@@ -304,7 +308,7 @@ class Child:
             """Write a line to the team's log (counts against the output limit)."""
             sink(str(text) + "\n", "log")
 
-        funcs = (move, turn, go_to, sense, position, map_piece, plan, report_find, take_picture,
+        funcs = (move, turn, go_to, sense, position, map_piece, plan, report_find, take_picture, look,
                  upload_picture, radio, log)
         items = {f.__name__: f for f in funcs}
         items["tag"] = tag

@@ -53,7 +53,7 @@ def test_office_scenario_score_follows_the_rules():
     out, victims, config = play("office", robots=4, seconds=900, spacing=8)
     assert len(out.victims) >= 3, out.finds
     assert out.score == expected_score(out, victims, config)
-    assert out.events[-1]["topic"] == "match.end" and out.events[-1]["score"] == out.score
+    assert out.events[-1]["topic"] == "match.phase" and out.events[-1]["scores"]["red"] == out.score
     bumps = [e for e in out.events if e["topic"] == "robot.bump"]
     # a bump ends the robot's task, as on a robot host ("bumped into ... and stopped")
     failed = [o for done in out.outcomes.values() for o in done if not o["ok"]]
@@ -64,7 +64,7 @@ def test_five_minute_match_with_eight_robots():
     """The issue's 5-minute, 8-robot match in-process (its wall time is bench/bench_scenario.py's figure)."""
     out, victims, config = play("office", robots=8, seconds=300, spacing=3)
     assert out.sim_seconds == 300  # the robots had work for the whole 5 minutes
-    assert sum(1 for e in out.events if e["topic"] == "call") > 1000
+    assert sum(1 for e in out.events if e["topic"] == "robot.call") > 1000
     assert out.score == expected_score(out, victims, config)
 
 
@@ -88,7 +88,8 @@ def test_two_runs_give_identical_event_logs(tmp_path):
     lines = [json.loads(line) for line in logs[0].splitlines()]
     assert len(lines) > 300
     topics = {e["topic"] for e in lines}
-    assert {"task.start", "call", "picture", "find.reported", "score.change", "task.done", "match.end"} <= topics
+    assert {"task.started", "robot.call", "picture", "find.reported", "score.change", "task.done",
+            "match.phase"} <= topics
     # the log records the noisy readings: another seed gives another log, so the comparison can fail
     with Bench("office", "red", robots=4, seed=4) as bench:
         bench.load(EXPLORER)
