@@ -1,0 +1,203 @@
+"""``robo-comp league``: a season from the first submission to the final.
+
+::
+
+    robo-comp league init season --reference 16          # a league folder, a 16-entrant reference field
+    robo-comp league submit season rescuers ./rescuers    # a team's code (checked like an upload)
+    robo-comp league run season --format round-robin     # schedule and play (local processes)
+    robo-comp league run season --format swiss --rounds 4 --ray auto
+    robo-comp league table season                        # the leaderboard (--json for data)
+    robo-comp league report season season/report.html    # one static page with plots
+
+See docs/league.md.
+"""
+from __future__ import annotations
+
+import argparse
+import getpass
+import json
+import os
+import sys
+from pathlib import Path
+from typing import Any
+
+from robo_comp.errors import FieldError
+
+DESCRIPTION = __doc__
+
+
+def add_parser(sub: Any) -> None:
+    """Add ``league`` and its subcommands to the ``robo-comp`` parser."""
+    from robo_comp.league.schedule import FORMATS
+
+    p = sub.add_parser("league", help="ranked scrimmages and tournaments over many matches (docs/league.md)",
+                       description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
+    lsub = p.add_subparsers(dest="league_command", required=True, metavar="COMMAND")
+
+    i = lsub.add_parser("init", help="start a league in a folder")
+    i.add_argument("league", metavar="LEAGUE", help="the league's folder (created)")
+    i.add_argument("--name", help="the league's name (shown in the table and report)")
+    i.add_argument("--scenarios", help="comma-separated scenario pool: bundled names, files, or "
+                   "generated:SEED[:DIFFICULTY] (default: office,generated:1:0.5)")
+    i.add_argument("--generated", type=int, metavar="N", help="add N generated scenarios (seeds 1..N) to the pool")
+    i.add_argument("--difficulty", type=float, default=0.5, help="difficulty of the --generated scenarios (0..1)")
+    i.add_argument("--robots", type=int, help="robots per team (default 4)")
+    i.add_argument("--seconds", type=float, help="match length in simulated seconds (default 300)")
+    i.add_argument("--teams-per-match", type=int, help="teams in one match (default 2)")
+    i.add_argument("--seed", type=int, help="the league's seed (every match's seed follows from it)")
+    i.add_argument("--reference", type=int, default=0, metavar="N",
+                   help="submit a reference field of N entrants (4 or fewer: the reference teams; more: "
+                        "ref-00..ref-NN of known strength order)")
+    i.set_defaults(func=_init)
+
+    s = lsub.add_parser("submit", help="store a version of a team's code (checked like an upload)")
+    s.add_argument("league", metavar="LEAGUE")
+    s.add_argument("team", metavar="TEAM", help="team name (lowercase letters, digits, - and _)")
+    s.add_argument("path", metavar="PATH", help="a .py file, or a team folder (its extensions/*.py)")
+    s.add_argument("--who", default=None, help="who submits (default: the login name)")
+    s.set_defaults(func=_submit)
+
+    r = lsub.add_parser("run", help="schedule a format and play it (or play what is scheduled)")
+    r.add_argument("league", metavar="LEAGUE")
+    r.add_argument("--format", choices=FORMATS, help="the format to schedule and play; without it, play the "
+                   "scheduled and failed matches")
+    r.add_argument("--rounds", type=int, help="rounds (scrimmage: each team plays once a round; swiss)")
+    r.add_argument("--teams", help="comma-separated teams (default: every team with a submission)")
+    r.add_argument("--unranked", action="store_true", help="test matches: played and logged, ratings untouched")
+    r.add_argument("--workers", type=int, default=None, help="local processes (default: the CPU count)")
+    r.add_argument("--ray", metavar="ADDRESS", help="play on a Ray cluster: auto (this machine's cluster), "
+                   "an address such as 10.0.0.1:6379, or local (start one here)")
+    r.set_defaults(func=_run)
+
+    t = lsub.add_parser("table", help="the leaderboard (μ − 3σ)")
+    t.add_argument("league", metavar="LEAGUE")
+    t.add_argument("--json", action="store_true", help="print the league as JSON (standings, history, matches)")
+    t.set_defaults(func=_table)
+
+    o = lsub.add_parser("report", help="write one static HTML page: table, rating plots, score plots, matches")
+    o.add_argument("league", metavar="LEAGUE")
+    o.add_argument("out", metavar="OUT.html")
+    o.set_defaults(func=_report)
+
+    p.set_defaults(func=lambda args: p.print_help() or 2)
+
+
+def _store(args: argparse.Namespace, create: bool = False) -> Any:
+    from robo_comp.league.store import LeagueStore
+
+    return LeagueStore(args.league, create=create)
+
+
+def _init(args: argparse.Namespace) -> int:
+    from robo_comp.league import season
+
+    root = Path(args.league)
+    if (root / "league.db").exists():
+        raise FieldError(f"{root} already holds a league; submit to it or run it")
+    changes: dict[str, Any] = {}
+    pool = [s.strip() for s in args.scenarios.split(",") if s.strip()] if args.scenarios else None
+    if args.generated:
+        pool = (pool or ["office"]) + [f"generated:{k}:{args.difficulty:g}" for k in range(1, args.generated + 1)]
+    if pool is not None:
+        from robo_comp.league.engine import load_match_scenario
+
+        for spec in pool:
+            load_match_scenario(spec)  # a bad pool fails now, not in the middle of a season
+        changes["scenarios"] = pool
+    for key in ("name", "robots", "seconds", "teams_per_match", "seed"):
+        v = getattr(args, key)
+        if v is not None:
+            changes[key] = v
+    if changes.get("robots", 1) < 1 or changes.get("seconds", 1) <= 0 or changes.get("teams_per_match", 2) < 2:
+        raise FieldError("robots must be at least 1, seconds above 0 and teams per match at least 2")
+    with _store(args, create=True) as store:
+        store.set(**changes)
+        subs = season.submit_reference(store, args.reference) if args.reference else []
+        cfg = store.settings()
+    print(f"league {cfg['name']!r} in {root}: scenarios {', '.join(cfg['scenarios'])}; {cfg['robots']} robots "
+          f"per team, {cfg['seconds']:g} s matches, {cfg['teams_per_match']} teams per match")
+    if subs:
+        print(f"reference field: {', '.join(s.team for s in subs)}")
+    return 0
+
+
+def _submit(args: argparse.Namespace) -> int:
+    from robo_comp.league import season
+
+    files = season.read_submission(args.path)
+    with _store(args) as store:
+        sub, new = season.submit(store, args.team, files, args.who or getpass.getuser())
+    what = "stored" if new else "already stored (same files)"
+    print(f"{sub.team} version {sub.version} {what}: {', '.join(sorted(sub.files))}")
+    return 0
+
+
+def runner_for(args: argparse.Namespace) -> Any:
+    """The runner the arguments ask for: Ray with ``--ray``, else local processes."""
+    from robo_comp.league.runner import LocalRunner, RayRunner
+
+    if args.ray:
+        return RayRunner(args.ray)
+    return LocalRunner(args.workers or os.cpu_count() or 1)
+
+
+def _run(args: argparse.Namespace) -> int:
+    from robo_comp.league import season
+
+    with _store(args) as store:
+        runner = runner_for(args)
+        try:
+            if args.format:
+                teams = [t.strip() for t in args.teams.split(",")] if args.teams else None
+                fig = season.run_format(store, runner, args.format, rounds=args.rounds, ranked=not args.unranked,
+                                        teams=teams)
+            else:
+                fig = season.play(store, runner)
+        finally:
+            runner.close()
+        n = int(fig["matches"])
+        print(f"played {n} match{'es' if n != 1 else ''} in {fig['wall_seconds']:.1f} s"
+              + (f", {int(fig['failed'])} failed (run again to retry)" if fig.get("failed") else ""))
+        if fig.get("champion"):
+            print(f"champion: {fig['champion']}")
+        print(_text(store))
+    return 1 if fig.get("failed") else 0
+
+
+def _text(store: Any) -> str:
+    from robo_comp.league.report import standings_text
+    from robo_comp.league.season import league_view
+
+    return standings_text(league_view(store))
+
+
+def _table(args: argparse.Namespace) -> int:
+    from robo_comp.league.season import league_view
+
+    with _store(args) as store:
+        if args.json:
+            json.dump(league_view(store), sys.stdout, indent=1)
+            print()
+        else:
+            print(_text(store))
+    return 0
+
+
+def _report(args: argparse.Namespace) -> int:
+    from robo_comp.league.report import write_report
+    from robo_comp.league.season import league_view
+
+    with _store(args) as store:
+        view = league_view(store)
+        out = Path(args.out)
+        root = store.root.resolve()
+    # the match logs are linked relative to the page
+    rel = Path(os.path.relpath(root, out.resolve().parent))
+    for m in view["matches"]:
+        m["log"] = str(rel / m["log"])
+    write_report(out, view)
+    print(f"wrote {out} ({len(view['standings'])} teams, {len(view['matches'])} matches)")
+    return 0
+
+
+__all__ = ["add_parser", "runner_for"]

@@ -1,0 +1,109 @@
+"""Where league matches are played: in this process, on a local process pool, or on Ray.
+
+Every runner takes match specs (plain data, see :func:`robo_comp.league.engine.play_match`)
+and calls ``on_result(spec, result)`` or ``on_error(spec, message)`` as matches end, in the
+order they end. A match is deterministic, so where it ran does not change its result.
+
+* :class:`LocalRunner` — ``workers`` processes of a :class:`~concurrent.futures.ProcessPoolExecutor`
+  (one worker: played in this process, no pool);
+* :class:`RayRunner` — each match a Ray task of 1 CPU on a Ray cluster (``ray.init(address)``:
+  ``"auto"`` joins the cluster this machine belongs to, ``"local"`` starts one here). A task
+  whose worker dies mid-match (a node lost, a ``kill -9``) is run again by Ray
+  (``max_retries``), and gives the same result.
+"""
+from __future__ import annotations
+
+import multiprocessing
+import traceback
+from collections.abc import Callable
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from typing import Any
+
+from robo_comp.league.engine import play_match
+
+OnResult = Callable[[dict[str, Any], dict[str, Any]], None]
+OnError = Callable[[dict[str, Any], str], None]
+#: How often Ray runs a match again after its worker died.
+RAY_RETRIES = 3
+
+
+class LocalRunner:
+    """Matches on ``workers`` local processes (1: in this process)."""
+
+    def __init__(self, workers: int = 1) -> None:
+        self.workers = max(1, int(workers))
+
+    @property
+    def slots(self) -> int:
+        """How many matches run at once."""
+        return self.workers
+
+    def run(self, specs: list[dict[str, Any]], on_result: OnResult, on_error: OnError) -> None:
+        """Play every spec; report each as it ends."""
+        if self.workers == 1:
+            for spec in specs:
+                try:
+                    result = play_match(spec)
+                except Exception:
+                    on_error(spec, traceback.format_exc(limit=5))
+                    continue
+                on_result(spec, result)
+            return
+        ctx = multiprocessing.get_context("spawn")  # a clean interpreter: no inherited threads or sockets
+        with ProcessPoolExecutor(self.workers, mp_context=ctx) as pool:
+            running: dict[Future[dict[str, Any]], dict[str, Any]] = {pool.submit(play_match, s): s for s in specs}
+            while running:
+                done, _ = wait(running, return_when=FIRST_COMPLETED)
+                for fut in done:
+                    spec = running.pop(fut)
+                    try:
+                        result = fut.result()
+                    except Exception as e:
+                        on_error(spec, f"{type(e).__name__}: {e}")
+                        continue
+                    on_result(spec, result)
+
+    def close(self) -> None:
+        """Nothing to release."""
+
+
+class RayRunner:
+    """Matches as Ray tasks (1 CPU each) on the cluster at ``address``."""
+
+    def __init__(self, address: str = "auto", **init: Any) -> None:
+        import ray
+
+        self.ray = ray
+        if not ray.is_initialized():
+            if address == "local":
+                ray.init(include_dashboard=False, log_to_driver=False, **init)
+            else:
+                ray.init(address=address, log_to_driver=False, **init)
+        self._remote = ray.remote(num_cpus=1, max_retries=RAY_RETRIES, retry_exceptions=False)(play_match)
+
+    @property
+    def slots(self) -> int:
+        """The cluster's CPUs (matches that run at once)."""
+        return int(self.ray.cluster_resources().get("CPU", 1))
+
+    def run(self, specs: list[dict[str, Any]], on_result: OnResult, on_error: OnError) -> None:
+        """Play every spec on the cluster; report each as it ends."""
+        ray = self.ray
+        refs = {self._remote.remote(s): s for s in specs}
+        while refs:
+            ready, _ = ray.wait(list(refs), num_returns=1)
+            for ref in ready:
+                spec = refs.pop(ref)
+                try:
+                    result = ray.get(ref)
+                except Exception as e:
+                    on_error(spec, f"{type(e).__name__}: {e}")
+                    continue
+                on_result(spec, result)
+
+    def close(self) -> None:
+        """Leave the cluster (it keeps running)."""
+        self.ray.shutdown()
+
+
+__all__ = ["LocalRunner", "RAY_RETRIES", "RayRunner"]

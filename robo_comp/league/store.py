@@ -1,0 +1,268 @@
+"""A league's state in one SQLite file: submissions, matches, results and ratings.
+
+``LEAGUE/league.db`` holds everything but the match logs, which go to
+``LEAGUE/matches/<id>/events.log``. SQLite is the embedded default: one file, nothing to start,
+safe against a crash mid-write (each change is one transaction).
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import sqlite3
+import time
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from robo_comp.errors import FieldError
+from robo_comp.league.ratings import initial
+
+SCHEMA = """
+CREATE TABLE IF NOT EXISTS settings (key TEXT PRIMARY KEY, value TEXT NOT NULL);
+CREATE TABLE IF NOT EXISTS submissions (
+    id INTEGER PRIMARY KEY, team TEXT NOT NULL, version TEXT NOT NULL, who TEXT NOT NULL,
+    at REAL NOT NULL, files TEXT NOT NULL, UNIQUE (team, version));
+CREATE TABLE IF NOT EXISTS matches (
+    id INTEGER PRIMARY KEY, format TEXT NOT NULL, round INTEGER NOT NULL, scenario TEXT NOT NULL,
+    seed INTEGER NOT NULL, ranked INTEGER NOT NULL, status TEXT NOT NULL, entrants TEXT NOT NULL,
+    result TEXT, error TEXT, attempts INTEGER NOT NULL DEFAULT 0, scheduled REAL NOT NULL,
+    finished REAL, rated INTEGER NOT NULL DEFAULT 0);
+CREATE TABLE IF NOT EXISTS ratings (
+    team TEXT PRIMARY KEY, mu REAL NOT NULL, sigma REAL NOT NULL, matches INTEGER NOT NULL,
+    wins INTEGER NOT NULL);
+CREATE TABLE IF NOT EXISTS rating_history (
+    match_id INTEGER NOT NULL, team TEXT NOT NULL, mu REAL NOT NULL, sigma REAL NOT NULL,
+    PRIMARY KEY (match_id, team));
+"""
+
+#: Settings a new league gets (``robo-comp league init`` can change them).
+DEFAULTS: dict[str, Any] = {"name": "League", "scenarios": ["office", "generated:1:0.5"], "robots": 4,
+                            "seconds": 300, "teams_per_match": 2, "seed": 0}
+
+
+@dataclass(frozen=True)
+class Submission:
+    """One version of a team's code: ``files`` maps a module's file name to its source."""
+
+    id: int
+    team: str
+    version: str
+    who: str
+    at: float
+    files: dict[str, str]
+
+
+@dataclass(frozen=True)
+class MatchRow:
+    """A scheduled or played match. ``entrants`` are ``(team, submission id)`` pairs; ``result``
+    is what :func:`robo_comp.league.engine.play_match` returned (None until played)."""
+
+    id: int
+    format: str
+    round: int
+    scenario: str
+    seed: int
+    ranked: bool
+    status: str
+    entrants: list[tuple[str, int]]
+    result: dict[str, Any] | None
+    error: str | None
+    attempts: int
+
+    @property
+    def teams(self) -> list[str]:
+        """The teams of the match, in slot order."""
+        return [t for t, _ in self.entrants]
+
+
+def version_of(files: dict[str, str]) -> str:
+    """A submission's version: the first 12 hex digits of the SHA-256 of its files."""
+    h = hashlib.sha256()
+    for name in sorted(files):
+        h.update(name.encode() + b"\0" + files[name].encode() + b"\0")
+    return h.hexdigest()[:12]
+
+
+class LeagueStore:
+    """The league folder ``root``: its SQLite database and its match logs."""
+
+    def __init__(self, root: str | Path, *, create: bool = False) -> None:
+        self.root = Path(root)
+        db = self.root / "league.db"
+        if not db.exists() and not create:
+            raise FieldError(f"{self.root} is not a league (no league.db); start one with "
+                             f"'robo-comp league init {self.root}'")
+        self.root.mkdir(parents=True, exist_ok=True)
+        self.db = sqlite3.connect(db, isolation_level=None, timeout=30.0)
+        self.db.execute("PRAGMA journal_mode=WAL")
+        self.db.executescript(SCHEMA)
+        if create:
+            for k, v in DEFAULTS.items():
+                self.db.execute("INSERT OR IGNORE INTO settings VALUES (?, ?)", (k, json.dumps(v)))
+
+    def close(self) -> None:
+        """Close the database."""
+        self.db.close()
+
+    def __enter__(self) -> LeagueStore:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # ------------------------------------------------------------------ settings
+    def settings(self) -> dict[str, Any]:
+        """The league's settings (name, scenario pool, robots, seconds, teams per match, seed)."""
+        out = dict(DEFAULTS)
+        out.update({k: json.loads(v) for k, v in self.db.execute("SELECT key, value FROM settings")})
+        return out
+
+    def set(self, **values: Any) -> None:
+        """Change settings."""
+        with self.db:
+            for k, v in values.items():
+                self.db.execute("INSERT OR REPLACE INTO settings VALUES (?, ?)", (k, json.dumps(v)))
+
+    # ------------------------------------------------------------------ submissions
+    def add_submission(self, team: str, files: dict[str, str], who: str) -> tuple[Submission, bool]:
+        """Store a version of ``team``'s code; returns it and whether it is new (the same files
+        again are the same version)."""
+        version = version_of(files)
+        row = self.db.execute("SELECT id FROM submissions WHERE team = ? AND version = ?", (team, version)).fetchone()
+        if row is not None:
+            return self.submission(row[0]), False
+        cur = self.db.execute("INSERT INTO submissions (team, version, who, at, files) VALUES (?, ?, ?, ?, ?)",
+                              (team, version, who, time.time(), json.dumps(files, sort_keys=True)))
+        sid = int(cur.lastrowid or 0)
+        self.db.execute("INSERT OR IGNORE INTO ratings VALUES (?, ?, ?, 0, 0)", (team, *initial()))
+        return self.submission(sid), True
+
+    def submission(self, sid: int) -> Submission:
+        """Submission ``sid``."""
+        row = self.db.execute("SELECT id, team, version, who, at, files FROM submissions WHERE id = ?",
+                              (sid,)).fetchone()
+        if row is None:
+            raise FieldError(f"there is no submission {sid}")
+        return Submission(row[0], row[1], row[2], row[3], row[4], json.loads(row[5]))
+
+    def submissions(self, team: str | None = None) -> list[Submission]:
+        """Every submission (of ``team``), oldest first."""
+        q = "SELECT id FROM submissions" + (" WHERE team = ?" if team else "") + " ORDER BY id"
+        return [self.submission(r[0]) for r in self.db.execute(q, (team,) if team else ())]
+
+    def newest(self) -> dict[str, Submission]:
+        """Each team's newest submission, by team name."""
+        out: dict[str, Submission] = {}
+        for s in self.submissions():
+            out[s.team] = s
+        return dict(sorted(out.items()))
+
+    # ------------------------------------------------------------------ matches
+    def schedule(self, fmt: str, rnd: int, groups: Iterable[list[str]], *, ranked: bool = True) -> list[int]:
+        """Schedule one match per group of team names (each team's newest version), with the
+        scenario taken in turn from the pool and a seed from the league's seed and the match id."""
+        cfg = self.settings()
+        newest = self.newest()
+        pool = list(cfg["scenarios"])
+        ids = []
+        with self.db:
+            for teams in groups:
+                missing = [t for t in teams if t not in newest]
+                if missing:
+                    raise FieldError(f"team(s) {', '.join(missing)} have no submission")
+                n = self.db.execute("SELECT COUNT(*) FROM matches").fetchone()[0]
+                entrants = [[t, newest[t].id] for t in teams]
+                cur = self.db.execute(
+                    "INSERT INTO matches (format, round, scenario, seed, ranked, status, entrants, scheduled) "
+                    "VALUES (?, ?, ?, ?, ?, 'scheduled', ?, ?)",
+                    (fmt, rnd, pool[n % len(pool)], 0, int(ranked), json.dumps(entrants), time.time()))
+                mid = int(cur.lastrowid or 0)
+                self.db.execute("UPDATE matches SET seed = ? WHERE id = ?", (match_seed(int(cfg["seed"]), mid), mid))
+                ids.append(mid)
+        return ids
+
+    def match(self, mid: int) -> MatchRow:
+        """Match ``mid``."""
+        row = self.db.execute("SELECT id, format, round, scenario, seed, ranked, status, entrants, result, error, "
+                              "attempts FROM matches WHERE id = ?", (mid,)).fetchone()
+        if row is None:
+            raise FieldError(f"there is no match {mid}")
+        return MatchRow(row[0], row[1], row[2], row[3], row[4], bool(row[5]), row[6],
+                        [(t, s) for t, s in json.loads(row[7])], json.loads(row[8]) if row[8] else None,
+                        row[9], row[10])
+
+    def matches(self, status: str | None = None, fmt: str | None = None) -> list[MatchRow]:
+        """Matches (with ``status``, of format ``fmt``), by id."""
+        where, args = [], []
+        if status:
+            where.append("status = ?")
+            args.append(status)
+        if fmt:
+            where.append("format = ?")
+            args.append(fmt)
+        q = "SELECT id FROM matches" + (" WHERE " + " AND ".join(where) if where else "") + " ORDER BY id"
+        return [self.match(r[0]) for r in self.db.execute(q, args)]
+
+    def log_path(self, mid: int) -> Path:
+        """Where match ``mid``'s event log goes."""
+        return self.root / "matches" / str(mid) / "events.log"
+
+    def spec(self, mid: int) -> dict[str, Any]:
+        """What :func:`robo_comp.league.engine.play_match` needs to play match ``mid``."""
+        m = self.match(mid)
+        cfg = self.settings()
+        entrants = []
+        for team, sid in m.entrants:
+            s = self.submission(sid)
+            entrants.append({"team": team, "version": s.version, "files": s.files})
+        return {"id": m.id, "scenario": m.scenario, "seed": m.seed, "seconds": cfg["seconds"],
+                "robots": cfg["robots"], "entrants": entrants, "log": str(self.log_path(m.id))}
+
+    def started(self, mid: int) -> None:
+        """Match ``mid`` is being played (one more attempt)."""
+        self.db.execute("UPDATE matches SET status = 'running', attempts = attempts + 1 WHERE id = ?", (mid,))
+
+    def finished(self, mid: int, result: dict[str, Any]) -> None:
+        """Store match ``mid``'s result."""
+        self.db.execute("UPDATE matches SET status = 'done', result = ?, error = NULL, finished = ? WHERE id = ?",
+                        (json.dumps(result, sort_keys=True), time.time(), mid))
+
+    def failed(self, mid: int, error: str) -> None:
+        """Match ``mid`` could not be played (``error`` says why); it stays to be played again."""
+        self.db.execute("UPDATE matches SET status = 'failed', error = ? WHERE id = ?", (error[:2000], mid))
+
+    # ------------------------------------------------------------------ ratings
+    def ratings(self) -> dict[str, tuple[float, float, int, int]]:
+        """Team → (μ, σ, matches rated, wins)."""
+        return {r[0]: (r[1], r[2], r[3], r[4]) for r in self.db.execute("SELECT team, mu, sigma, matches, wins FROM ratings")}
+
+    def unrated(self) -> list[MatchRow]:
+        """Played ranked matches whose result has not moved the ratings yet, by id."""
+        return [self.match(r[0]) for r in self.db.execute(
+            "SELECT id FROM matches WHERE status = 'done' AND ranked = 1 AND rated = 0 ORDER BY id")]
+
+    def store_rating(self, mid: int, new: dict[str, tuple[float, float]], winners: set[str]) -> None:
+        """Record the ratings after match ``mid`` (one transaction)."""
+        with self.db:
+            for team, (mu, sigma) in new.items():
+                self.db.execute("UPDATE ratings SET mu = ?, sigma = ?, matches = matches + 1, wins = wins + ? "
+                                "WHERE team = ?", (mu, sigma, int(team in winners), team))
+                self.db.execute("INSERT OR REPLACE INTO rating_history VALUES (?, ?, ?, ?)", (mid, team, mu, sigma))
+            self.db.execute("UPDATE matches SET rated = 1 WHERE id = ?", (mid,))
+
+    def history(self) -> dict[str, list[tuple[int, float, float]]]:
+        """Team → [(match id, μ, σ), ...] in match order."""
+        out: dict[str, list[tuple[int, float, float]]] = {}
+        for mid, team, mu, sigma in self.db.execute(
+                "SELECT match_id, team, mu, sigma FROM rating_history ORDER BY match_id"):
+            out.setdefault(team, []).append((mid, mu, sigma))
+        return out
+
+
+def match_seed(league_seed: int, mid: int) -> int:
+    """A match's seed: fixed by the league's seed and the match id (so a re-run is identical)."""
+    return int.from_bytes(hashlib.sha256(f"{league_seed}:{mid}".encode()).digest()[:4], "big")
+
+
+__all__ = ["DEFAULTS", "LeagueStore", "MatchRow", "Submission", "match_seed", "version_of"]
