@@ -21,9 +21,11 @@ MANIFEST = {
 HANDICAP = 0
 #: Waypoints every this many cells (at least 4), from the arena's size; each new pass shifts the grid.
 PARTS = 7
-#: A reading below this (cm) in front means something is in the next cell.
-NEAR = 40
+#: Cells ahead that must be clear (by the range sensor, where the map has no wall) before a move.
+AHEAD = 2
 TRIES = 4
+#: The cell size of the bundled and generated scenarios (cm).
+CELL_CM = 25
 
 claimed = []
 passes = [0]
@@ -42,10 +44,12 @@ def heading_to(dx, dy):
 
 
 def face(robot, target):
+    """Turn to heading ``target``; returns the cell the robot believes it is in."""
     here = robot.position()
     delta = (target - here[2] + 540) % 360 - 180
-    if abs(delta) > 20:
+    if abs(delta) > 5:
         robot.turn(delta)
+    return [int(round(here[0])), int(round(here[1]))]
 
 
 def report_seen(robot):
@@ -64,6 +68,20 @@ def taken(tag, cell):
     return False
 
 
+def clear_ahead(robot, x, y, dx, dy):
+    """True when the range sensor sees no robot in the next AHEAD cells: the reading is at
+    least the distance to the first wall the map shows in that direction."""
+    piece = robot.map_piece(AHEAD)
+    walls = piece["walls"]
+    free = 0
+    while free < AHEAD and walls[AHEAD + dy * (free + 1)][AHEAD + dx * (free + 1)] == 0:
+        free = free + 1
+    front = robot.sense().get("front")
+    if front is None:
+        return True
+    return front >= CELL_CM * (free + 0.5) - 5
+
+
 def step(robot, here, cell):
     """One cell along the path, from cell ``here``; False when the way stays blocked."""
     x = here[0]
@@ -72,10 +90,10 @@ def step(robot, here, cell):
     dy = cell[1] - y
     if abs(dx) + abs(dy) != 1:
         return False
-    face(robot, heading_to(dx, dy))
+    if face(robot, heading_to(dx, dy)) != [x, y]:
+        return False  # the position fix moved the robot off its path: plan again from there
     for attempt in range(TRIES):
-        front = robot.sense().get("front")
-        if not taken(robot.tag, cell) and (front is None or front > NEAR):
+        if not taken(robot.tag, cell) and clear_ahead(robot, x, y, dx, dy):
             held[robot.tag] = [[x, y], cell]
             try:
                 robot.move(1)

@@ -1,0 +1,270 @@
+"""The league: one engine, submissions, formats, ratings, runners (local and Ray) and the CLI.
+
+Matches here are short (demo_room, two robots a team, 60 simulated seconds, about half a
+second each) so the whole file stays fast; the figures for full matches are bench/bench_league.py's.
+"""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from robo_comp.errors import FieldError, UploadError
+from robo_comp.league import reference, schedule, season
+from robo_comp.league.engine import play_match, ranks_of
+from robo_comp.league.ratings import kendall_tau
+from robo_comp.league.runner import LocalRunner
+from robo_comp.league.store import LeagueStore, version_of
+from robo_comp.protocol.logfile import read_recording
+
+SHORT = {"scenarios": ["demo_room"], "robots": 2, "seconds": 60}
+
+
+def spec(tmp_path: Path, a: str = "frontier", b: str = "explorer", *, seed: int = 5, scenario: str = "demo_room",
+         robots: int = 2, seconds: float = 60, log: str = "m.log") -> dict:
+    return {"id": 1, "scenario": scenario, "seed": seed, "seconds": seconds, "robots": robots,
+            "entrants": [{"team": a, "version": "x", "files": {"play.py": reference.source(a)}},
+                         {"team": b, "version": "y", "files": {"play.py": reference.source(b)}}],
+            "log": str(tmp_path / log)}
+
+
+@pytest.fixture
+def league(tmp_path):
+    with LeagueStore(tmp_path / "lg", create=True) as store:
+        store.set(**SHORT)
+        season.submit_reference(store, 4)
+        yield store
+
+
+# ------------------------------------------------------------------ one engine
+def test_a_league_match_is_deterministic_to_the_byte(tmp_path):
+    one = play_match(spec(tmp_path, "frontier", "random_walker", log="a.log"))
+    two = play_match(spec(tmp_path, "frontier", "random_walker", log="b.log"))
+    assert one["scores"] == two["scores"] and one["digest"] == two["digest"]
+    assert (tmp_path / "a.log").read_bytes() == (tmp_path / "b.log").read_bytes()
+    assert one["scores"]["frontier"] > 0  # the match did something worth comparing
+    other = play_match(spec(tmp_path, "frontier", "random_walker", seed=6, log="c.log"))
+    assert other["digest"] != one["digest"]  # the comparison can fail: the seed moves the random walker
+
+
+def test_the_league_score_is_the_official_score(tmp_path):
+    """The official core, recovering the match from the league's event log, keeps the same
+    scores, finds and robots: the league match is a match like any other."""
+    from robo_comp.core.replay import ReplayCore
+
+    res = play_match(spec(tmp_path))
+    records, started = read_recording(tmp_path / "m.log")
+    assert started["teams"] == ["frontier", "explorer"]
+    core = ReplayCore(tmp_path / "m.log", tmp_path / "replay-state")
+    core.play(float("inf"), publish=False)
+    official = {t: core.competition.board.score_of(t) for t in ("frontier", "explorer")}
+    assert official == res["scores"] and res["scores"]["frontier"] > 0
+    assert {r.tag for r in core.registry.robots.values()} == {101, 102, 201, 202}
+    confirmed = [f for f in core.competition.finds if f["state"] == "confirmed"]
+    assert len(confirmed) == sum(len(v) for v in res["victims"].values()) > 0
+
+
+def test_the_reference_explorer_loses_no_points_to_bumps(tmp_path):
+    res = play_match(spec(tmp_path, "frontier", "random_walker", scenario="office", robots=4, seconds=300))
+    assert res["bumps"]["frontier"] == 0
+    assert res["scores"]["frontier"] >= 30  # it finds victims on the student's first map
+
+
+def test_ranks_share_equal_scores():
+    assert ranks_of({"a": 10, "b": 3, "c": 10}) == {"a": 1, "b": 3, "c": 1}
+
+
+# ------------------------------------------------------------------ submissions
+def test_a_submission_is_checked_like_an_upload_and_versioned(league, tmp_path):
+    good = tmp_path / "good.py"
+    good.write_text(reference.source("sitter"))
+    files = season.read_submission(good)
+    sub, new = season.submit(league, "rescuers", files, "ada")
+    assert new and sub.version == version_of(files) and sub.who == "ada" and sub.at > 0
+    again, new2 = season.submit(league, "rescuers", files, "bob")
+    assert not new2 and again.id == sub.id  # the same files are the same version
+    hostile = tmp_path / "hostile.py"
+    hostile.write_text(reference.source("sitter").replace("HANDICAP = 0", "import os\nHANDICAP = 0"))
+    with pytest.raises(UploadError) as e:
+        season.submit(league, "rescuers", season.read_submission(hostile), "mallory")
+    assert "hostile.py" in e.value.message and "os" in e.value.message
+    no_play = tmp_path / "noplay.py"
+    no_play.write_text(reference.source("sitter").replace('"play"', '"wait"').replace("def play(", "def wait("))
+    with pytest.raises(FieldError, match="must advertise a task 'play'"):
+        season.submit(league, "rescuers", season.read_submission(no_play), "ada")
+    with pytest.raises(Exception, match="team name"):
+        season.submit(league, "Bad Name!", files, "ada")
+    assert [s.version for s in league.submissions("rescuers")] == [sub.version]  # nothing bad was stored
+
+
+# ------------------------------------------------------------------ formats
+def test_round_robin_meets_everyone_once_in_rounds_without_repeats():
+    teams = [f"t{i}" for i in range(7)]
+    rounds = schedule.round_robin(teams)
+    pairs = [frozenset(p) for r in rounds for p in r]
+    assert len(pairs) == len(set(pairs)) == 21
+    for r in rounds:
+        playing = [t for p in r for t in p]
+        assert len(playing) == len(set(playing))
+
+
+def test_swiss_avoids_rematches_and_double_elimination_needs_two_losses():
+    standing = ["a", "b", "c", "d"]
+    assert schedule.swiss_round(standing, []) == [["a", "b"], ["c", "d"]]
+    assert schedule.swiss_round(standing, [frozenset("ab")]) == [["a", "c"], ["b", "d"]]
+    losses: dict[str, int] = {}
+    seeds = ["a", "b", "c", "d"]
+    assert schedule.elimination_round(seeds, losses) == [["a", "d"], ["b", "c"]]
+    rounds = 0
+    while (pairs := schedule.elimination_round(seeds, losses)):  # the better seed always wins
+        for x, y in pairs:
+            loser = max(x, y, key=seeds.index)
+            losses[loser] = losses.get(loser, 0) + 1
+        rounds += 1
+    assert schedule.champion(seeds, losses) == "a" and losses.get("a", 0) == 0
+    assert sorted(losses.values()) == [2, 2, 2] and rounds <= 5
+
+
+def test_a_season_plays_every_format_and_ratings_follow_results(league):
+    runner = LocalRunner(1)
+    fig = season.run_format(league, runner, "round-robin")
+    assert fig["matches"] == 6 and not fig["failed"]
+    view = season.league_view(league)
+    assert [r["matches"] for r in view["standings"]] == [3, 3, 3, 3]
+    best = view["standings"][0]
+    assert best["wins"] >= 2 and best["rating"] == max(r["rating"] for r in view["standings"])
+    before = league.ratings()
+    test = season.run_format(league, runner, "scrimmage", rounds=1, ranked=False)
+    assert test["matches"] == 2 and league.ratings() == before  # test matches do not move ratings
+    fig = season.run_format(league, runner, "double-elimination")
+    assert fig["champion"] in fig["seeds"] and fig["seeds"] == season.standing(league, fig["seeds"])
+    swiss = season.run_format(league, runner, "swiss", rounds=2)
+    assert swiss["matches"] == 4
+    assert all(m.status == "done" for m in league.matches())
+    assert all(league.log_path(m.id).is_file() for m in league.matches())  # every match keeps its log
+
+
+def test_ratings_move_in_match_order_whatever_finishes_first(league, tmp_path):
+    ids = league.schedule("scrimmage", 1, [["frontier", "sitter"], ["explorer", "random-walker"]])
+    results = {mid: play_match(league.spec(mid)) for mid in ids}
+    league.finished(ids[1], results[ids[1]])  # the second match ends first
+    assert season.rate_played(league) == 0  # rated only once the first is in
+    league.finished(ids[0], results[ids[0]])
+    assert season.rate_played(league) == 2
+    assert [mid for mid, _, _ in league.history()["frontier"]] == [ids[0]]
+
+
+def test_kendall_tau():
+    assert kendall_tau(list("abcd"), list("abcd")) == 1.0
+    assert kendall_tau(list("abcd"), list("dcba")) == -1.0
+    assert kendall_tau(list("abcd"), list("bacd")) == pytest.approx(2 / 3)
+
+
+# ------------------------------------------------------------------ runners
+def test_two_local_workers_give_the_results_of_one(tmp_path):
+    specs = [dict(spec(tmp_path, a, b, log=f"{a}-{b}.log"), id=i)
+             for i, (a, b) in enumerate([("frontier", "sitter"), ("explorer", "random_walker")])]
+    one: dict = {}
+    LocalRunner(1).run(specs, lambda s, r: one.__setitem__(s["id"], r), pytest.fail)
+    digests = {i: r["digest"] for i, r in one.items()}
+    two: dict = {}
+    LocalRunner(2).run(specs, lambda s, r: two.__setitem__(s["id"], r), pytest.fail)
+    assert {i: r["digest"] for i, r in two.items()} == digests
+    assert {i: r["scores"] for i, r in two.items()} == {i: r["scores"] for i, r in one.items()}
+
+
+@pytest.fixture(scope="module")
+def ray_cluster():
+    """A local Ray cluster of two nodes (two raylets, one CPU each), as ``ray start`` makes."""
+    from ray.cluster_utils import Cluster
+
+    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1, "include_dashboard": False})
+    cluster.add_node(num_cpus=1)
+    cluster.wait_for_nodes()
+    yield cluster
+    import ray
+
+    ray.shutdown()
+    cluster.shutdown()
+
+
+def test_a_season_on_a_two_node_ray_cluster_equals_the_local_one(tmp_path, ray_cluster):
+    from robo_comp.league.runner import RayRunner
+
+    results = {}
+    for where in ("local", "ray"):
+        with LeagueStore(tmp_path / where, create=True) as store:
+            store.set(**SHORT)
+            season.submit_reference(store, 4)
+            runner = RayRunner(ray_cluster.address) if where == "ray" else LocalRunner(1)
+            if where == "ray":
+                assert len([n for n in runner.ray.nodes() if n["Alive"]]) == 2 and runner.slots == 2
+            season.run_format(store, runner, "round-robin")
+            results[where] = ({m.id: (m.result["scores"], m.result["digest"]) for m in store.matches()},
+                              store.ratings())
+    assert results["ray"] == results["local"]
+
+
+def test_a_ray_worker_killed_mid_match_has_its_match_played_again(tmp_path, ray_cluster):
+    from robo_comp.league.runner import RayRunner
+
+    s = spec(tmp_path, "frontier", "explorer", scenario="office", robots=4, seconds=300, log="local.log")
+    local = play_match(s)
+    runner = RayRunner(ray_cluster.address)
+    killed: list[int] = []
+
+    def kill_one() -> None:
+        t_end = time.monotonic() + 60
+        while time.monotonic() < t_end and not killed:
+            out = subprocess.run(["ps", "-eo", "pid,args"], capture_output=True, text=True).stdout
+            for line in out.splitlines():
+                if "ray::play_match" in line:
+                    pid = int(line.split()[0])
+                    time.sleep(0.5)  # mid-match
+                    os.kill(pid, 9)
+                    killed.append(pid)
+                    return
+            time.sleep(0.02)
+
+    killer = threading.Thread(target=kill_one)
+    killer.start()
+    got: dict = {}
+    errors: list = []
+    runner.run([dict(s, log=str(tmp_path / "ray.log"))], lambda sp, r: got.update(r), lambda sp, m: errors.append(m))
+    killer.join()
+    assert killed, "no Ray worker was seen running the match"
+    assert not errors and got["scores"] == local["scores"] and got["digest"] == local["digest"]
+
+
+# ------------------------------------------------------------------ the command line
+def robo(*args: str, cwd: Path) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "robo_comp.cli", *args], cwd=cwd, capture_output=True,
+                          text=True, timeout=300)
+
+
+def test_a_season_from_the_command_line(tmp_path):
+    r = robo("league", "init", "season", "--reference", "4", "--scenarios", "demo_room", "--robots", "2",
+             "--seconds", "60", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert "frontier" in r.stdout
+    team = tmp_path / "mine.py"
+    team.write_text(reference.source("sitter"))
+    r = robo("league", "submit", "season", "mine", str(team), "--who", "ada", cwd=tmp_path)
+    assert r.returncode == 0 and "mine version" in r.stdout, r.stderr
+    r = robo("league", "run", "season", "--format", "round-robin", "--workers", "2", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert "played 10 matches" in r.stdout and "[10/10]" in r.stderr
+    r = robo("league", "table", "season", "--json", cwd=tmp_path)
+    view = json.loads(r.stdout)
+    assert len(view["standings"]) == 5 and len(view["matches"]) == 10
+    assert view["standings"][0]["rating"] >= view["standings"][-1]["rating"]
+    r = robo("league", "submit", "season", "mine", str(tmp_path / "nothing.py"), cwd=tmp_path)
+    assert r.returncode == 2 and "no such file" in r.stderr and "Traceback" not in r.stderr
+    r = robo("league", "run", "nowhere", cwd=tmp_path)
+    assert r.returncode == 2 and "not a league" in r.stderr
