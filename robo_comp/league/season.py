@@ -5,6 +5,7 @@ together; ``robo-comp league`` (:mod:`robo_comp.league.cli`) is their command li
 """
 from __future__ import annotations
 
+import hashlib
 import random
 import sys
 import time
@@ -78,7 +79,7 @@ def submit(store: LeagueStore, team: str, files: dict[str, str], who: str) -> tu
 def submit_reference(store: LeagueStore, count: int = 4, who: str = "reference") -> list[Submission]:
     """Submit a reference field: the first ``count`` reference teams (at most 4), or for more,
     ``count`` entrants of known strength order: ``ref-00`` (strongest) to ``ref-NN``, the
-    frontier team with handicap 0 to NN (each step: one more idle turn at every waypoint)."""
+    frontier team with handicap 0 to NN (each step: its robots start 4 s later)."""
     from robo_comp.league import reference
 
     if count <= len(reference.NAMES):
@@ -187,10 +188,11 @@ def rate_played(store: LeagueStore) -> int:
 
 
 def standing(store: LeagueStore, teams: list[str] | None = None) -> list[str]:
-    """Teams by leaderboard value (μ − 3σ), best first; ties by name."""
+    """Teams by leaderboard value (μ − 3σ), best first; ties (teams that have not played) in
+    an order that does not favour a name: by the hash of the name."""
     r = store.ratings()
     names = teams if teams is not None else list(store.newest())
-    return sorted(names, key=lambda t: (-ratings.ordinal(*r[t][:2]), t))
+    return sorted(names, key=lambda t: (-ratings.ordinal(*r[t][:2]), hashlib.sha256(t.encode()).hexdigest()))
 
 
 def run_format(store: LeagueStore, runner: Any, fmt: str, *, rounds: int | None = None, ranked: bool = True,

@@ -11,8 +11,8 @@ the beginning of a match. They seed a league and give students opponents (docs/l
 * ``random_walker``: random turns and moves, looking now and then.
 * ``sitter``: looks around once where it starts and stops.
 
-``HANDICAP`` (a module global, 0 by default) makes a reference team weaker in known steps:
-after each waypoint (or each ten steps) the robot turns idly on the spot ``HANDICAP`` times.
+``HANDICAP`` (a module global, 0 by default) makes a reference team weaker in known steps: its
+robots start ``HANDICAP * LATE`` seconds (4 s a step) into the match, turning on the spot until then.
 ``handicapped(source, n)`` returns a module's source with its handicap set.
 """
 from __future__ import annotations

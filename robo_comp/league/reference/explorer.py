@@ -16,6 +16,8 @@ MANIFEST = {
 }
 
 HANDICAP = 0
+#: Seconds of late start per handicap step.
+LATE = 4
 SPACING = 6
 reported = []
 #: index -> waypoints done (a restarted play goes on where it stopped)
@@ -44,7 +46,14 @@ def report_seen(robot):
             robot.report_find(v["x"], v["y"], v["kind"], [seen["picture"]])
 
 
+def hold(robot):
+    """The handicap: stand still (turning) until HANDICAP * LATE seconds of the match have passed."""
+    while robot.sense()["time"] < HANDICAP * LATE:
+        robot.turn(90)
+
+
 def play(robot, width, height, index, count):
+    hold(robot)
     points = waypoints(width, height)
     size = (len(points) + count - 1) // count
     mine = points[index * size:(index + 1) * size]
@@ -61,6 +70,4 @@ def play(robot, width, height, index, count):
             report_seen(robot)
             robot.turn(90)
         visited = visited + 1
-        for idle in range(HANDICAP):
-            robot.turn(360)
     return visited

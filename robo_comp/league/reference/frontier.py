@@ -19,6 +19,8 @@ MANIFEST = {
 }
 
 HANDICAP = 0
+#: Seconds of late start per handicap step.
+LATE = 4
 #: Waypoints every this many cells (at least 4), from the arena's size; each new pass shifts the grid.
 PARTS = 7
 #: Cells ahead that must be clear (by the range sensor, where the map has no wall) before a move.
@@ -129,7 +131,14 @@ def grid(width, height, shift):
     return points
 
 
+def hold(robot):
+    """The handicap: stand still (turning) until HANDICAP * LATE seconds of the match have passed."""
+    while robot.sense()["time"] < HANDICAP * LATE:
+        robot.turn(90)
+
+
 def play(robot, width, height, index, count):
+    hold(robot)
     visited = 0
     while True:
         points = grid(width, height, passes[0])
@@ -159,5 +168,3 @@ def play(robot, width, height, index, count):
                 robot.turn(90)
                 report_seen(robot)
             visited = visited + 1
-        for idle in range(HANDICAP):
-            robot.turn(360)

@@ -17,6 +17,8 @@ MANIFEST = {
 }
 
 HANDICAP = 0
+#: Seconds of late start per handicap step.
+LATE = 4
 #: A reading below this (cm) in front means something is in the next cell.
 NEAR = 40
 reported = []
@@ -31,7 +33,14 @@ def report_seen(robot):
             robot.report_find(v["x"], v["y"], v["kind"], [seen["picture"]])
 
 
+def hold(robot):
+    """The handicap: stand still (turning) until HANDICAP * LATE seconds of the match have passed."""
+    while robot.sense()["time"] < HANDICAP * LATE:
+        robot.turn(90)
+
+
 def play(robot, width, height, index, count):
+    hold(robot)
     steps = 0
     while True:
         robot.turn(random.choice([0, 90, 90, -90, -90, 180]) or 360)

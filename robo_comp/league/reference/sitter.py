@@ -11,10 +11,19 @@ MANIFEST = {
 }
 
 HANDICAP = 0
+#: Seconds of late start per handicap step.
+LATE = 4
 reported = []
 
 
+def hold(robot):
+    """The handicap: stand still (turning) until HANDICAP * LATE seconds of the match have passed."""
+    while robot.sense()["time"] < HANDICAP * LATE:
+        robot.turn(90)
+
+
 def play(robot, width, height, index, count):
+    hold(robot)
     found = 0
     for quarter in range(4):
         seen = robot.look()
