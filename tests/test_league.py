@@ -70,6 +70,32 @@ def test_the_league_score_is_the_official_score(tmp_path):
     assert len(confirmed) == sum(len(v) for v in res["victims"].values()) > 0
 
 
+def test_robo_comp_replay_serves_a_league_match(tmp_path):
+    """A league log played by the real ``robo-comp replay`` process: consoles and walls see the
+    robots and the scores as in a live match."""
+    from robo_comp.client import Client
+    from robo_comp.launch import _spawn, stop_all
+    from robo_comp.testing import wait_for
+
+    res = play_match(spec(tmp_path))
+    state = tmp_path / "replay"
+    state.mkdir()
+    proc = _spawn(["replay", str(tmp_path / "m.log"), "--state", str(state), "--speed", "30"], state / "replay.log")
+    try:
+        wait_for(lambda: (state / "core.json").exists() or proc.poll() is not None, 20, "the replay to start")
+        assert proc.poll() is None, (state / "replay.log").read_text()
+        ref = Client(str(state), (state / "referee.token").read_text().strip())
+        assert sorted(r["tag"] for r in ref.robots()) == [101, 102, 201, 202]
+
+        def final():
+            rows = {r["team"]: r["score"] for r in ref.request("score")["teams"]}
+            return rows if rows == res["scores"] else None
+        wait_for(final, 20, f"the replay to reach the final scores {res['scores']}")
+        ref.close()
+    finally:
+        stop_all([proc])
+
+
 def test_the_reference_explorer_loses_no_points_to_bumps(tmp_path):
     res = play_match(spec(tmp_path, "frontier", "random_walker", scenario="office", robots=4, seconds=300))
     assert res["bumps"]["frontier"] == 0
@@ -240,6 +266,24 @@ def test_a_ray_worker_killed_mid_match_has_its_match_played_again(tmp_path, ray_
     killer.join()
     assert killed, "no Ray worker was seen running the match"
     assert not errors and got["scores"] == local["scores"] and got["digest"] == local["digest"]
+
+
+def test_sandbox_limits_hold_inside_a_ray_worker(tmp_path, ray_cluster):
+    """A hostile entry that computes forever is stopped by the sandbox's time limit inside the
+    Ray worker (and not started again); the match ends and the other team's score stands."""
+    from robo_comp.league.runner import RayRunner
+    from robo_comp.protocol.logfile import read_log
+
+    spinner = reference.source("sitter").replace("def play(robot, width, height, index, count):\n",
+                                                 "def play(robot, width, height, index, count):\n"
+                                                 "    while True:\n        pass\n")
+    s = spec(tmp_path, log="hostile.log")
+    s["entrants"][1] = {"team": "spinner", "version": "z", "files": {"play.py": spinner}}
+    got: dict = {}
+    RayRunner(ray_cluster.address).run([s], lambda sp, r: got.update(r), pytest.fail)
+    assert got["scores"]["frontier"] > 0 and got["scores"]["spinner"] == 0
+    done = [r.data for r in read_log(tmp_path / "hostile.log") if r.topic == "task.done" and r.team == "spinner"]
+    assert len(done) == 2 and all(d["reason"] == "limit" and "time" in d["status"] for d in done), done
 
 
 # ------------------------------------------------------------------ the command line

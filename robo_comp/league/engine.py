@@ -8,8 +8,9 @@ can run it anywhere.
 
 The league's contract with a team's code: every robot runs the team's ``play`` task from the
 start of the match, as ``play(robot, width, height, index, count)`` (the arena's size, the
-robot's index in its team and the team's robot count). A ``play`` that ends badly (a bump, an
-error) is started again, at most :data:`RESTARTS` times per robot; one that returns is done.
+robot's index in its team and the team's robot count). A ``play`` stopped by a bump is started
+again, at most :data:`RESTARTS` times per robot, and one that raised at most :data:`RETRIES`
+times; one that broke a sandbox limit (time, memory, output) or returned is done.
 """
 from __future__ import annotations
 
@@ -23,8 +24,10 @@ from robo_comp.errors import FieldError
 
 #: The task every robot of an entrant runs.
 PLAY = "play"
-#: How often a robot's ``play`` is started again after it ended badly.
+#: How often a robot's ``play`` is started again after a bump stopped it.
 RESTARTS = 20
+#: How often a robot's ``play`` is started again after it raised an error.
+RETRIES = 3
 #: The colours the entrants get, in slot order.
 COLOURS = ("#e6194b", "#4363d8", "#3cb44b", "#f58231", "#911eb4", "#42d4f4", "#f032e6", "#bfef45")
 
@@ -92,12 +95,16 @@ def play_match(spec: dict[str, Any]) -> dict[str, Any]:
             tags = bench.tags_of[team]
             for i, tag in enumerate(tags):
                 plan[tag] = [(PLAY, [width, height, i, len(tags)])]
-        restarts: dict[int, int] = {}
+        restarts: dict[tuple[int, str], int] = {}
 
         def again(tag: int, outcome: dict[str, Any]) -> list[tuple[str, list[Any]]]:
-            if outcome["ok"] or outcome.get("start_error") or restarts.get(tag, 0) >= RESTARTS:
+            why = outcome.get("reason")
+            if outcome["ok"] or outcome.get("start_error") or why not in ("stopped", "error"):
+                return []  # done, or a broken limit (the sandbox said which)
+            n = restarts.get((tag, why), 0)
+            if n >= (RESTARTS if why == "stopped" else RETRIES):
                 return []
-            restarts[tag] = restarts.get(tag, 0) + 1
+            restarts[(tag, why)] = n + 1
             return [(PLAY, list(plan[tag][0][1]))]
 
         out = bench.run_match(plan, seconds=scenario.duration, on_done=again,
@@ -121,4 +128,4 @@ def ranks_of(scores: dict[str, float]) -> dict[str, int]:
     return {t: 1 + ordered.index(s) for t, s in scores.items()}
 
 
-__all__ = ["COLOURS", "PLAY", "RESTARTS", "load_match_scenario", "match_scenario", "play_match", "ranks_of"]
+__all__ = ["COLOURS", "PLAY", "RESTARTS", "RETRIES", "load_match_scenario", "match_scenario", "play_match", "ranks_of"]
