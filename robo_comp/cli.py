@@ -126,7 +126,7 @@ def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``robo-comp`` with every subcommand."""
     from robo_comp import ctl
     from robo_comp.league import cli as league_cli
-    from robo_comp.world import plan_cli
+    from robo_comp.world import generate_cli, plan_cli
 
     parser = argparse.ArgumentParser(
         prog="robo-comp", description="Multi-robot search-and-rescue competitions: core, robots, consoles.")
@@ -216,6 +216,7 @@ def build_parser() -> argparse.ArgumentParser:
     d.set_defaults(func=_demo)
 
     plan_cli.add_parser(sub)
+    generate_cli.add_parser(sub)
     league_cli.add_parser(sub)
     from robo_comp.world.overhead import cli as camera_cli
 
