@@ -192,6 +192,22 @@ def test_kendall_tau():
     assert kendall_tau(list("abcd"), list("bacd")) == pytest.approx(2 / 3)
 
 
+def test_the_report_escapes_what_teams_name_and_says_when_nothing_was_played(league, tmp_path):
+    from robo_comp.league.report import render_report, standings_text
+
+    view = season.league_view(league)
+    assert "No matches played yet." in render_report(view)
+    evil = "<script>alert(1)</script>"
+    view["standings"][0]["team"] = evil
+    view["matches"] = [{"id": 1, "format": "scrimmage", "round": 1, "scenario": "demo_room", "seed": 1,
+                        "ranked": True, "status": "done", "teams": [evil, "sitter"],
+                        "scores": {evil: 3.0, "sitter": 0.0}, "log": "matches/1/events.log", "seconds": 1.0}]
+    view["scores"] = {"demo_room": {evil: [3.0], "sitter": [0.0]}}
+    page = render_report(view)
+    assert evil not in page and "&lt;script&gt;alert(1)&lt;/script&gt;" in page
+    assert evil in standings_text(view)  # plain text, not markup
+
+
 # ------------------------------------------------------------------ runners
 def test_two_local_workers_give_the_results_of_one(tmp_path):
     specs = [dict(spec(tmp_path, a, b, log=f"{a}-{b}.log"), id=i)
@@ -308,6 +324,13 @@ def test_a_season_from_the_command_line(tmp_path):
     view = json.loads(r.stdout)
     assert len(view["standings"]) == 5 and len(view["matches"]) == 10
     assert view["standings"][0]["rating"] >= view["standings"][-1]["rating"]
+    r = robo("league", "report", "season", "out/report.html", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    page = (tmp_path / "out" / "report.html").read_text()
+    assert page.count("<svg") == 2 and "href='../season/matches/1/events.log'" in page
+    assert (tmp_path / "out" / "../season/matches/1/events.log").is_file()
+    r = robo("league", "table", "season", cwd=tmp_path)
+    assert r.returncode == 0 and view["standings"][0]["team"] in r.stdout.splitlines()[4]
     r = robo("league", "submit", "season", "mine", str(tmp_path / "nothing.py"), cwd=tmp_path)
     assert r.returncode == 2 and "no such file" in r.stderr and "Traceback" not in r.stderr
     r = robo("league", "run", "nowhere", cwd=tmp_path)
