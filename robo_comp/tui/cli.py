@@ -49,7 +49,7 @@ def run_referee(args: argparse.Namespace) -> int:
     from robo_comp.tui.referee_app import RefereeApp
 
     core, token = _check(args, "referee")
-    RefereeApp(core, token, curve_cert=args.curve_cert, core_key=args.core_key).run()
+    RefereeApp(core, token, curve_cert=args.curve_cert, core_key=args.core_key, league=args.league).run()
     return 0
 
 
@@ -65,6 +65,7 @@ def add_parsers(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> Non
                        description="The whole match: phase control with confirmations, scores, every robot, "
                                    "penalties, disqualification, broadcasts, upload approval, filtered events.")
     add_connection_args(r)
+    r.add_argument("--league", metavar="LEAGUE", help="a league folder: key l shows its leaderboard (docs/league.md)")
     r.set_defaults(func=run_referee)
 
 

@@ -8,14 +8,18 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable
 from functools import partial
+from pathlib import Path
 from typing import Any
 
 from textual.binding import Binding
 from textual.screen import Screen
 
+from robo_comp.errors import RoboCompError
+
 from robo_comp.tui.app import ConsoleApp
 from robo_comp.tui.screens.confirm import ConfirmScreen
 from robo_comp.tui.screens.forms import Field, FormScreen
+from robo_comp.tui.screens.leaderboard import LeaderboardScreen
 from robo_comp.tui.screens.referee import RefereeScreen
 from robo_comp.tui.widgets.score import ScoreTable
 
@@ -37,8 +41,43 @@ class RefereeApp(ConsoleApp):
     ]
     CLIENT_NAME = "referee-console"
 
+    def __init__(self, *args: Any, league: str | Path | None = None, **kwargs: Any) -> None:
+        """As :class:`ConsoleApp`; ``league`` is a league folder whose leaderboard ``l`` shows."""
+        super().__init__(*args, **kwargs)
+        self.league = Path(league) if league is not None else None
+
     def main_screen(self) -> Screen[Any]:
         return RefereeScreen(self.model)
+
+    # ------------------------------------------------------------------ the league
+    def league_view(self) -> dict[str, Any] | None:
+        """The league's standings and matches as plain data (None without ``--league``)."""
+        if self.league is None:
+            return None
+        from robo_comp.league.season import league_view
+        from robo_comp.league.store import LeagueStore
+
+        with LeagueStore(self.league) as store:
+            return league_view(store)
+
+    def action_leaderboard(self) -> None:
+        """Show the league's leaderboard (``--league``)."""
+        try:
+            view = self.league_view()
+        except RoboCompError as e:
+            self.notify(e.message, title="League", severity="error")
+            return
+        if view is None:
+            self.notify("start the console with --league LEAGUE to see a league's leaderboard", title="League")
+            return
+        self.push_screen(LeaderboardScreen(view))
+
+    def on_leaderboard_screen_refresh_requested(self, message: LeaderboardScreen.RefreshRequested) -> None:
+        """Read the league again and show it."""
+        view = self.league_view()
+        if view is not None and isinstance(self.screen, LeaderboardScreen):
+            self.screen.update_view(view)
+            self.notify("leaderboard read again", title="League")
 
     # ------------------------------------------------------------------ phases
     def action_match(self, action: str) -> None:
@@ -179,3 +218,4 @@ class RefereeApp(ConsoleApp):
         yield "Disqualify", "a robot or a team (d)", self.action_disqualify
         yield "Broadcast", "a message to every console (b)", self.action_broadcast
         yield "Approve an upload", "(a)", self.action_approve
+        yield "League leaderboard", "the --league standings (l)", self.action_leaderboard

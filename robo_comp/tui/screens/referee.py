@@ -28,6 +28,7 @@ class RefereeScreen(ConsoleScreen):
         Binding("d", "app.disqualify", "Disqualify"),
         Binding("b", "app.broadcast", "Broadcast"),
         Binding("a", "app.approve", "Approve", show=False),
+        Binding("l", "app.leaderboard", "League", show=False, tooltip="The league's leaderboard (--league)"),
         Binding("slash", "filter", "Filter", show=False),
         Binding("v", "view", "View", show=False),
     ]
