@@ -106,14 +106,16 @@ def test_clients_reach_the_core_only_through_the_protocol():
     """UIs, robot hosts, the public client and the team bench never import robo_comp.core."""
     outside = ("robo_comp.tui", "robo_comp.wall", "robo_comp.web", "robo_comp.robots", "robo_comp.client",
                "robo_comp.ctl", "robo_comp.testing", "robo_comp.world", "robo_comp.sandbox",
-               "robo_comp.protocol", "robo_comp.plugins", "robo_comp.scoring", "robo_comp.teams")
+               "robo_comp.protocol", "robo_comp.plugins", "robo_comp.scoring", "robo_comp.teams",
+               "robo_comp.league")
     bad = {m: sorted(d for d in deps if d.startswith("robo_comp.core")) for m, deps in _imports_of(outside).items()}
     assert {m: d for m, d in bad.items() if d} == {}
 
 
 def test_nothing_below_imports_a_ui():
     below = ("robo_comp.core", "robo_comp.protocol", "robo_comp.robots", "robo_comp.world", "robo_comp.sandbox",
-             "robo_comp.plugins", "robo_comp.scoring", "robo_comp.teams", "robo_comp.client")
+             "robo_comp.plugins", "robo_comp.scoring", "robo_comp.teams", "robo_comp.client", "robo_comp.league",
+             "robo_comp.testing")
     ui = ("robo_comp.tui", "robo_comp.wall", "robo_comp.web")
     bad = {m: sorted(d for d in deps if d.startswith(ui)) for m, deps in _imports_of(below).items()}
     assert {m: d for m, d in bad.items() if d} == {}

@@ -111,7 +111,7 @@ def _init(args: argparse.Namespace) -> int:
     if changes.get("robots", 1) < 1 or changes.get("seconds", 1) <= 0 or changes.get("teams_per_match", 2) < 2:
         raise FieldError("robots must be at least 1, seconds above 0 and teams per match at least 2")
     with _store(args, create=True) as store:
-        store.set(**changes)
+        store.configure(**changes)
         subs = season.submit_reference(store, args.reference) if args.reference else []
         cfg = store.settings()
     print(f"league {cfg['name']!r} in {root}: scenarios {', '.join(cfg['scenarios'])}; {cfg['robots']} robots "

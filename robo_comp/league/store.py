@@ -36,7 +36,7 @@ CREATE TABLE IF NOT EXISTS rating_history (
     PRIMARY KEY (match_id, team));
 """
 
-#: Settings a new league gets (``robo-comp league init`` can change them).
+#: Settings a new league gets (``robo-comp league init`` changes them through :meth:`LeagueStore.configure`).
 DEFAULTS: dict[str, Any] = {"name": "League", "scenarios": ["office", "generated:1:0.5"], "robots": 4,
                             "seconds": 300, "teams_per_match": 2, "seed": 0}
 
@@ -118,7 +118,7 @@ class LeagueStore:
         out.update({k: json.loads(v) for k, v in self.db.execute("SELECT key, value FROM settings")})
         return out
 
-    def set(self, **values: Any) -> None:
+    def configure(self, **values: Any) -> None:
         """Change settings."""
         with self.db:
             for k, v in values.items():
@@ -236,11 +236,6 @@ class LeagueStore:
     def ratings(self) -> dict[str, tuple[float, float, int, int]]:
         """Team → (μ, σ, matches rated, wins)."""
         return {r[0]: (r[1], r[2], r[3], r[4]) for r in self.db.execute("SELECT team, mu, sigma, matches, wins FROM ratings")}
-
-    def unrated(self) -> list[MatchRow]:
-        """Played ranked matches whose result has not moved the ratings yet, by id."""
-        return [self.match(r[0]) for r in self.db.execute(
-            "SELECT id FROM matches WHERE status = 'done' AND ranked = 1 AND rated = 0 ORDER BY id")]
 
     def store_rating(self, mid: int, new: dict[str, tuple[float, float]], winners: set[str]) -> None:
         """Record the ratings after match ``mid`` (one transaction)."""

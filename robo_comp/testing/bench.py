@@ -375,7 +375,7 @@ class Bench:
         from robo_comp.world.public import arena_payload
 
         names = [t.name for t in self.scenario.teams] or list(self.teams)
-        head = [("core.started", None, {"router": "bench", "teams": names,
+        head: list[tuple[str, str | None, dict[str, Any], float]] = [("core.started", None, {"router": "bench", "teams": names,
                                         "arena": arena_payload(self.scenario, names)}, 0.0)]
         for tag in self.tags:
             x, y, h = self._start[tag]
@@ -463,7 +463,7 @@ class Bench:
                 continue
             self._runs[tag] = rid
             self._run_tag[(team, rid)] = tag
-            self._task_of[tag] = (task_id, name, args)
+            self._task_of[tag] = (task_id, name, list(args))
             self._computing.add(tag)
             self._event("task.given", team, tag=tag, task_id=task_id, name=name, args=args, mode="queue",
                         by="bench")
@@ -494,12 +494,13 @@ class Bench:
             self._motions.pop(tag, None)
             task_id, name, _ = self._task_of.pop(tag)
             why = self._ended.pop((team, rec.run_id), None)
-            if isinstance(rec, TaskDone) and why is None:
-                out = {"ok": True, "state": "done", "status": "done", "result": _plain_tree(rec.result)}
+            if isinstance(rec, TaskDone):
+                out = ({"ok": True, "state": "done", "status": "done", "result": _plain_tree(rec.result)}
+                       if why is None else {"ok": False, "state": "cancelled", "status": why, "result": None,
+                                            "reason": "stopped", "line": None})
             else:
                 out = {"ok": False, "state": "cancelled" if why else "failed", "status": why or rec.message,
-                       "result": None, "reason": "stopped" if why else rec.reason,
-                       "line": None if why else rec.line}  # type: ignore[union-attr]  -- rec is a TaskFailed when why is empty
+                       "result": None, "reason": "stopped" if why else rec.reason, "line": None if why else rec.line}
             self._task_done(tag, task_id, name, out)
         elif isinstance(rec, SandboxStopped):
             self._event("sandbox.stopped", team, reason=rec.reason, message=rec.message)
@@ -708,7 +709,7 @@ def sweep_plan(bench: Bench, spacing: int = 6, task: str = "explore") -> dict[in
     walls = bench.arena.walls
     tags = bench.tags_of[bench.team]
     h, w = walls.shape
-    rows = []
+    rows: list[list[int]] = []
     for i, y in enumerate(range(spacing // 2, h, spacing)):
         xs = [x for x in range(spacing // 2, w, spacing) if not walls[y, x]]
         rows.extend([x, y] for x in (xs if i % 2 == 0 else xs[::-1]))
