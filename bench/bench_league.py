@@ -41,7 +41,7 @@ SHORT = {"scenarios": ["demo_room"], "robots": 2, "seconds": 60}
 def throughput(root: pathlib.Path, runner, matches: int, label: str) -> dict:
     """Play ``matches`` full matches (scrimmage rounds of the 4 reference teams) on ``runner``."""
     with LeagueStore(root / label, create=True) as store:
-        store.set(**FULL)
+        store.configure(**FULL)
         season.submit_reference(store, 4)
         t0 = time.perf_counter()
         ids = []
@@ -62,7 +62,7 @@ def quality(root: pathlib.Path, rounds: int, workers: int) -> list[tuple[int, fl
     """τ of the leaderboard against the true order after each scrimmage round of 16 entrants."""
     curve = []
     with LeagueStore(root / "quality", create=True) as store:
-        store.set(**SHORT)
+        store.configure(**SHORT)
         subs = season.submit_reference(store, 16)
         truth = [s.team for s in subs]  # ref-00 (no handicap) is the strongest
         runner = LocalRunner(workers)

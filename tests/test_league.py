@@ -37,7 +37,7 @@ def spec(tmp_path: Path, a: str = "frontier", b: str = "explorer", *, seed: int 
 @pytest.fixture
 def league(tmp_path):
     with LeagueStore(tmp_path / "lg", create=True) as store:
-        store.set(**SHORT)
+        store.configure(**SHORT)
         season.submit_reference(store, 4)
         yield store
 
@@ -242,7 +242,7 @@ def test_a_season_on_a_two_node_ray_cluster_equals_the_local_one(tmp_path, ray_c
     results = {}
     for where in ("local", "ray"):
         with LeagueStore(tmp_path / where, create=True) as store:
-            store.set(**SHORT)
+            store.configure(**SHORT)
             season.submit_reference(store, 4)
             runner = RayRunner(ray_cluster.address) if where == "ray" else LocalRunner(1)
             if where == "ray":

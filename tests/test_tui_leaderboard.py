@@ -15,7 +15,7 @@ FIXED = {"clock": lambda: 100.0, "wall_clock": lambda: 1002.5, "poll": False}
 
 def test_l_shows_the_league_and_r_reads_it_again(tmp_path) -> None:
     with LeagueStore(tmp_path / "lg", create=True) as store:
-        store.set(scenarios=["demo_room"], robots=2, seconds=60)
+        store.configure(scenarios=["demo_room"], robots=2, seconds=60)
         season.submit_reference(store, 4)
         ids = store.schedule("scrimmage", 1, [["frontier", "sitter"]])
         store.finished(ids[0], play_match(store.spec(ids[0])))
