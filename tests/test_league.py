@@ -102,6 +102,18 @@ def test_the_reference_explorer_loses_no_points_to_bumps(tmp_path):
     assert res["scores"]["frontier"] >= 30  # it finds victims on the student's first map
 
 
+def test_code_that_never_moves_cannot_hold_up_a_match(tmp_path):
+    """A loop of calls that take no time would stop the simulated clock; past CALL_BURST calls in a
+    row each one takes a clock step, so the match still ends on time."""
+    busy = reference.source("sitter").replace("def play(robot, width, height, index, count):\n",
+                                              "def play(robot, width, height, index, count):\n"
+                                              "    while True:\n        robot.sense()\n")
+    s = spec(tmp_path, log="busy.log")
+    s["entrants"][1] = {"team": "busy", "version": "b", "files": {"play.py": busy}}
+    res = play_match(s)
+    assert res["sim_seconds"] == 60 and res["scores"]["frontier"] > 0 and res["scores"]["busy"] == 0
+
+
 def test_ranks_share_equal_scores():
     assert ranks_of({"a": 10, "b": 3, "c": 10}) == {"a": 1, "b": 3, "c": 1}
 

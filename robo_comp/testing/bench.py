@@ -47,6 +47,11 @@ TaskStep = tuple[str, "list[Any] | tuple[Any, ...]"]
 MOVEMENT_CALLS = host_answers.MOVEMENT_CALLS
 #: Seconds of simulated time between two logged samples of every robot's true pose.
 POSE_SAMPLE = 0.5
+#: Calls that take no time one robot may make in a row; past them, each such call is answered a
+#: clock step later, until the robot moves again. On a host every call takes real time; without
+#: this, team code that never moves (a loop of ``plan`` or ``sense``) would hold the simulated
+#: clock, and the match, forever.
+CALL_BURST = 500
 
 
 @dataclass
@@ -88,6 +93,13 @@ class _Motion:
     steps: Generator[Step, Any, Any]
     done: bool = False
     error: str | None = None  # the steps refused (a wall ahead, no path): reject at the end
+    answer: tuple[bool, Any] | None = None  # a call held back a clock step (CALL_BURST): its answer
+
+
+def _no_steps() -> Generator[Step, Any, Any]:
+    """The steps of a call that only waits for the next clock step."""
+    return
+    yield
 
 
 class _BenchSite:
@@ -147,7 +159,9 @@ class Bench:
       that robot's next call (or the end of its task) before it answers another robot, so
       module globals shared by the robots change in the same order every run;
     * calls that take no time (``position``, ``sense``, ``plan``, ``map_piece``, pictures,
-      ``look``, ``report_find``) are answered at once at the current simulated time;
+      ``look``, ``report_find``) are answered at once at the current simulated time -- up to
+      :data:`CALL_BURST` in a row; past them, each is answered a clock step later until the
+      robot moves again (code that never moves cannot stop the clock);
     * the simulated clock advances (steps of ``dt`` seconds, all robots moving together) only when
       every running robot waits for a movement (``move``, ``turn``, ``go_to``); a movement is
       answered at the step where it ends.
@@ -241,6 +255,7 @@ class Bench:
         self._on_done: Callable[[int, dict[str, Any]], Iterable[TaskStep] | None] | None = None
         self._outcomes: dict[int, list[dict[str, Any]]] = {}
         self._next_task = 1
+        self._streak: dict[int, int] = {}            # tag -> calls that took no time, in a row
         self._next_sample = 0.0
         self._wall_end = math.inf
 
@@ -425,7 +440,13 @@ class Bench:
         m = self._motions.get(tag)
         if m is not None and m.done and not self.arena.is_moving(str(tag)):
             del self._motions[tag]
-            if m.error is not None:
+            if m.answer is not None:
+                ok, value = m.answer
+                if ok:
+                    self._resolve(tag, m.call_id, m.name, m.args, value)
+                else:
+                    self._reject(tag, m.call_id, m.name, m.args, str(value))
+            elif m.error is not None:
                 self._reject(tag, m.call_id, m.name, m.args, m.error)
             else:
                 self._resolve(tag, m.call_id, m.name, m.args, list(_BenchSite(self, tag).pose()))
@@ -439,7 +460,7 @@ class Bench:
         from robo_comp.sandbox.parent import RpcCall
 
         recs = self.sandboxes[team].poll(0.05)
-        if not recs and time.monotonic() > self._wall_end:
+        if time.monotonic() > self._wall_end:
             raise AssertionError("the bench ran out of real time (run_match timeout): team code "
                                  f"of robots {sorted(self._computing)} did not answer")
         for rec in recs:
@@ -514,29 +535,40 @@ class Bench:
         self.calls.append((tag, c.name, list(c.args)))
         site = _BenchSite(self, tag)
         args = list(c.args)
-        try:
-            if c.name in MOVEMENT_CALLS:
-                self._computing.discard(tag)
-                m = _Motion(c.call_id, c.name, args, host_answers.movement_steps(site, c.name, args))
-                self._motions[tag] = m
+        if c.name in MOVEMENT_CALLS:
+            self._streak[tag] = 0
+            self._computing.discard(tag)
+            m = _Motion(c.call_id, c.name, args, host_answers.movement_steps(site, c.name, args))
+            self._motions[tag] = m
+            try:
                 self._step(tag, m)
-                return
+            except (TypeError, ValueError, IndexError) as e:
+                m.done, m.error = True, host_answers.call_failed(c.name, args, e)
+            return
+        held = self._streak.get(tag, 0) >= CALL_BURST  # until the robot moves again
+        self._streak[tag] = self._streak.get(tag, 0) + 1
 
-            def settle(ok: bool, value: Any) -> None:
-                if ok:
-                    self._resolve(tag, c.call_id, c.name, args, value)
-                else:
-                    self._reject(tag, c.call_id, c.name, args, str((value or {}).get("message", "refused")))
+        def settle(ok: bool, value: Any) -> None:
+            message = "" if ok else (value if isinstance(value, str) else str((value or {}).get("message", "refused")))
+            if held:  # answered at the next clock step, as a busy host answers a little later
+                self._computing.discard(tag)
+                m = _Motion(c.call_id, c.name, args, _no_steps(), answer=(ok, value if ok else message))
+                self._motions[tag] = m
+            elif ok:
+                self._resolve(tag, c.call_id, c.name, args, value)
+            else:
+                self._reject(tag, c.call_id, c.name, args, message)
 
+        try:
             value = host_answers.answer_call(site, c.name, args, settle)
         except (RoboCompError, host_answers.Refused) as e:
-            self._reject(tag, c.call_id, c.name, args, getattr(e, "message", None) or str(e))
+            settle(False, getattr(e, "message", None) or str(e))
             return
         except (TypeError, ValueError, IndexError) as e:
-            self._reject(tag, c.call_id, c.name, args, host_answers.call_failed(c.name, args, e))
+            settle(False, host_answers.call_failed(c.name, args, e))
             return
         if value is not PENDING:
-            self._resolve(tag, c.call_id, c.name, args, value)
+            settle(True, value)
 
     def _resolve(self, tag: int, call_id: int, name: str, args: list[Any], value: Any) -> None:
         value = _plain_tree(value)
@@ -744,5 +776,5 @@ def report_seen(bench: Bench, task: str = "report_victim") -> Callable[[int, dic
     return on_done
 
 
-__all__ = ["Bench", "MatchRun", "MOVEMENT_CALLS", "POSE_SAMPLE", "TaskError", "TaskStep", "report_seen",
+__all__ = ["Bench", "CALL_BURST", "MatchRun", "MOVEMENT_CALLS", "POSE_SAMPLE", "TaskError", "TaskStep", "report_seen",
            "sweep_plan"]

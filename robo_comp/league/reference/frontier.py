@@ -149,6 +149,8 @@ def play(robot, width, height, index, count):
             passes[0] = passes[0] + 1
             for p in points:
                 claimed.remove(p)
+            robot.turn(90)  # a pass may hold no reachable waypoint: look around meanwhile
+            report_seen(robot)
             continue
         claimed.append(goal)
         try:
