@@ -5,7 +5,9 @@ and calls ``on_result(spec, result)`` or ``on_error(spec, message)`` as matches 
 order they end. A match is deterministic, so where it ran does not change its result.
 
 * :class:`LocalRunner` — ``workers`` processes of a :class:`~concurrent.futures.ProcessPoolExecutor`
-  (one worker: played in this process, no pool);
+  (one worker: played in this process, no pool). The workers are started with ``spawn`` (no
+  inherited threads or sockets), so a script that uses more than one needs the usual
+  ``if __name__ == "__main__":`` guard;
 * :class:`RayRunner` — each match a Ray task of 1 CPU on a Ray cluster (``ray.init(address)``:
   ``"auto"`` joins the cluster this machine belongs to, ``"local"`` starts one here). A task
   whose worker dies mid-match (a node lost, a ``kill -9``) is run again by Ray
