@@ -141,6 +141,19 @@ def test_a_submission_is_checked_like_an_upload_and_versioned(league, tmp_path):
     assert [s.version for s in league.submissions("rescuers")] == [sub.version]  # nothing bad was stored
 
 
+def test_a_new_team_folder_is_a_league_entry_and_plays(league, tmp_path):
+    """What ``robo-comp new-team`` copies can be submitted as it is, and its play scores."""
+    from robo_comp.teams.newteam import create_team
+
+    files = season.read_submission(create_team("students", tmp_path))
+    assert "play.py" in files and "explorer.py" in files
+    sub, new = season.submit(league, "students", files, "ada")
+    assert new
+    ids = league.schedule("scrimmage", 1, [["students", "sitter"]])
+    result = play_match(dict(league.spec(ids[0]), log=None))
+    assert result["scores"]["students"] > 0
+
+
 # ------------------------------------------------------------------ formats
 def test_round_robin_meets_everyone_once_in_rounds_without_repeats():
     teams = [f"t{i}" for i in range(7)]
