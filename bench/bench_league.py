@@ -13,9 +13,10 @@
 2. **Overhead.** Per match, the league's own time (building specs, scheduling, storing,
    rating) against the match's time, from the one-worker run.
 3. **Rating quality.** 16 entrants of known strength order (``ref-00`` .. ``ref-15``: the
-   frontier team with handicap 0..15), ranked scrimmage rounds (8 two-team matches each, short
-   matches on demo_room); after each round Kendall's τ between the leaderboard and the true
-   order. Printed: the matches after which τ first reaches 0.9 and after which it stays there.
+   frontier team with handicap 0..15), ranked rounds (8 two-team matches each, short matches on
+   demo_room): random scrimmage pairs, or with ``--quality-format swiss`` neighbours in the
+   standing; after each round Kendall's τ between the leaderboard and the true order. Printed:
+   the matches after which τ first reaches 0.9 and after which it stays there.
 """
 from __future__ import annotations
 
@@ -58,17 +59,27 @@ def throughput(root: pathlib.Path, runner, matches: int, label: str) -> dict:
     return fig
 
 
-def quality(root: pathlib.Path, rounds: int, workers: int) -> list[tuple[int, float]]:
-    """τ of the leaderboard against the true order after each scrimmage round of 16 entrants."""
+def quality(root: pathlib.Path, rounds: int, workers: int, fmt: str = "scrimmage") -> list[tuple[int, float]]:
+    """τ of the leaderboard against the true order after each round of 16 entrants: scrimmage
+    rounds, or (``fmt="swiss"``) one scrimmage round and then Swiss rounds (pairs of neighbours
+    in the standing; rematches allowed once every pair of neighbours has met)."""
     curve = []
-    with LeagueStore(root / "quality", create=True) as store:
+    with LeagueStore(root / f"quality-{fmt}", create=True) as store:
         store.configure(**SHORT)
         subs = season.submit_reference(store, 16)
         truth = [s.team for s in subs]  # ref-00 (no handicap) is the strongest
         runner = LocalRunner(workers)
         played = 0
-        for _ in range(rounds):
-            fig = season.run_format(store, runner, "scrimmage", rounds=1, stream=open("/dev/null", "w"))
+        for i in range(rounds):
+            if fmt == "swiss" and i > 0:
+                pairs = [list(p) for p in zip(*[iter(season.standing(store))] * 2)]
+                if i % 2:  # odd rounds: shifted by one, so that every neighbour meets
+                    order = season.standing(store)
+                    pairs = [list(p) for p in zip(*[iter(order[1:-1])] * 2)]
+                ids = store.schedule("swiss", i, pairs)
+                fig = season.play(store, runner, ids, stream=open("/dev/null", "w"))
+            else:
+                fig = season.run_format(store, runner, "scrimmage", rounds=1, stream=open("/dev/null", "w"))
             played += int(fig["matches"])
             curve.append((played, kendall_tau(season.standing(store), truth)))
     return curve
@@ -78,7 +89,9 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--matches", type=int, default=8, help="full matches per throughput run (default 8)")
     ap.add_argument("--skip-ray", action="store_true", help="no Ray cluster run")
-    ap.add_argument("--quality-rounds", type=int, default=30, help="scrimmage rounds of the rating-quality run")
+    ap.add_argument("--quality-rounds", type=int, default=30, help="rounds of the rating-quality run")
+    ap.add_argument("--quality-format", choices=("scrimmage", "swiss"), default="scrimmage",
+                    help="random pairs every round, or neighbours in the standing after a first random round")
     args = ap.parse_args()
     root = pathlib.Path(tempfile.mkdtemp(prefix="bench-league-"))
     try:
@@ -116,9 +129,9 @@ def main() -> int:
         print(f"== overhead: league {1000 * overhead / one['matches']:.1f} ms a match (storing and rating "
               f"{1000 * one['league_seconds'] / one['matches']:.1f} ms) = "
               f"{overhead / one['match_seconds']:.2%} of the match (target < 2%)")
-        print(f"== rating quality: 16 entrants of known order, {args.quality_rounds} scrimmage rounds of 8 "
-              "matches (60 s, demo_room)")
-        curve = quality(root, args.quality_rounds, 2)
+        print(f"== rating quality: 16 entrants of known order, {args.quality_rounds} {args.quality_format} rounds "
+              "(60 s matches, demo_room)")
+        curve = quality(root, args.quality_rounds, 2, args.quality_format)
         first = next((n for n, tau in curve if tau >= 0.9), None)
         stays = next((n for i, (n, _) in enumerate(curve) if all(t >= 0.9 for _, t in curve[i:])), None)
         print("tau after  " + "  ".join(f"{n}:{tau:.2f}" for n, tau in curve))
