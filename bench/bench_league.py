@@ -1,6 +1,6 @@
 """The league's figures (issue 15): throughput and scaling, rating quality, league overhead.
 
-    .venv/bin/python bench/bench_league.py [--matches 8] [--skip-ray] [--quality-rounds 30]
+    .venv/bin/python bench/bench_league.py [--matches 16] [--skip-ray] [--quality-rounds 30] [--quality-format swiss]
 
 1. **Throughput.** ``--matches`` league matches of 5 simulated minutes, 8 robots (two teams of
    four, frontier against explorer and the other reference teams) on ``office``, played by a
@@ -87,7 +87,7 @@ def quality(root: pathlib.Path, rounds: int, workers: int, fmt: str = "scrimmage
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--matches", type=int, default=8, help="full matches per throughput run (default 8)")
+    ap.add_argument("--matches", type=int, default=16, help="full matches per throughput run (default 16)")
     ap.add_argument("--skip-ray", action="store_true", help="no Ray cluster run")
     ap.add_argument("--quality-rounds", type=int, default=30, help="rounds of the rating-quality run")
     ap.add_argument("--quality-format", choices=("scrimmage", "swiss"), default="scrimmage",
