@@ -53,7 +53,7 @@ def test_a_full_disk_refuses_changes_keeps_stops_and_resumes_by_itself(small_dis
     proc = start_core(state, "--heartbeat", "0.2", "--teams", "red,blue")
     match = CoreHandle(state, None, proc)
     try:
-        match.robots("red", 2)
+        host = match.robots("red", 2)
         red = match.client("red")
         ref = match.referee()
         ref.watch(True)
@@ -88,15 +88,21 @@ def test_a_full_disk_refuses_changes_keeps_stops_and_resumes_by_itself(small_dis
         assert back["data"]["seconds"] > 0
         acked.append(red.give(b, "goTo", [2, 2])["task_id"])
         assert ref.request("stats")["storage"] is None
-        # everything acknowledged is in the log (a core killed now recovers it), the stop too
+        # everything acknowledged is in the log (a core killed now recovers it), the stop too. The
+        # robot host goes first, so what the core recovers is the log's alone: a host that came
+        # back would cancel a task it no longer runs (it halts when it loses the core).
+        host.kill()
         proc.kill()
+        host.wait()
         proc.wait()
         given = {e["data"]["task_id"] for e in match.logged_events("task.given")}
         assert set(acked) <= given, sorted(set(acked) - given)
         assert any(e["data"]["tag"] == b for e in match.logged_events("robot.stopped"))
         match.proc = start_core(state, "--heartbeat", "0.2", "--teams", "red,blue")
         recovered = match.client("referee").tasks(b)
-        assert recovered["current"]["task_id"] == acked[-1] and recovered["queued"] == []  # the stop held
+        # the stop held: nothing it cancelled came back; the task given after it is b's task
+        assert recovered["queued"] == [] and recovered["pending"] is None, recovered
+        assert recovered["current"] is not None and recovered["current"]["task_id"] == acked[-1], recovered
     finally:
         match.close()
 
