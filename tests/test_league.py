@@ -5,6 +5,7 @@ second each) so the whole file stays fast; the figures for full matches are benc
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import subprocess
@@ -211,6 +212,80 @@ def test_ratings_move_in_match_order_whatever_finishes_first(league, tmp_path):
     assert [mid for mid, _, _ in league.history()["frontier"]] == [ids[0]]
 
 
+def test_a_stopped_run_leaves_nothing_behind_and_the_next_run_plays_it(league):
+    """Ctrl-C mid-run: the unfinished matches are failed, not stuck running; the next run plays
+    them, and every match is rated once, in order."""
+    ids = league.schedule("scrimmage", 1, [["frontier", "sitter"], ["explorer", "random-walker"],
+                                           ["frontier", "explorer"]])
+
+    def interrupt(m) -> None:
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        season.play(league, LocalRunner(1), on_match=interrupt)
+    assert [m.status for m in league.matches()] == ["done", "failed", "failed"]
+    assert "run stopped" in (league.match(ids[1]).error or "")
+    league.started(ids[2])  # as a run killed with kill -9 leaves it
+    fig = season.play(league, LocalRunner(1))
+    assert fig["matches"] == 2 and all(m.status == "done" for m in league.matches())
+    assert season.rate_played(league) == 0 and league.unrated() == []
+    assert league.ratings()["frontier"][2] == 2  # rated once per match, not again
+
+
+def test_a_match_that_cannot_be_played_is_named_and_can_be_cancelled(league, tmp_path):
+    from robo_comp.league.report import standings_text
+
+    gone = tmp_path / "gone.toml"
+    gone.write_text((Path(__file__).parents[1] / "robo_comp/world/scenarios/demo_room.toml").read_text())
+    league.configure(scenarios=[str(gone)])
+    first = league.schedule("scrimmage", 1, [["frontier", "sitter"]])[0]
+    league.configure(scenarios=["demo_room"])
+    gone.unlink()
+    fig = season.play(league, LocalRunner(1), league.schedule("scrimmage", 2, [["explorer", "sitter"]]))
+    assert fig["failed"] == 0
+    fig = season.play(league, LocalRunner(1), [first])
+    assert fig["failed"] == 1 and league.match(first).status == "failed"
+    held = season.rating_hold(league)
+    assert held is not None and held["match"] == first and held["waiting"] == 1
+    text = standings_text(season.league_view(league))
+    assert f"Ratings wait for match {first}" in text and "league cancel" in text
+    league.cancel(first, "its scenario file is gone")
+    assert season.rate_played(league) == 1 and season.rating_hold(league) is None
+    assert season.play(league, LocalRunner(1))["matches"] == 0  # a cancelled match is not played
+    with pytest.raises(FieldError, match="has been played"):
+        league.cancel(league.matches()[-1].id, "no")
+
+
+def test_bad_team_lists_schedule_nothing(league):
+    with pytest.raises(FieldError, match="typo have no submission"):
+        season.run_format(league, LocalRunner(1), "round-robin", teams=["typo", "frontier", "sitter"])
+    with pytest.raises(FieldError, match="at least 1"):
+        season.run_format(league, LocalRunner(1), "swiss", rounds=0)
+    with pytest.raises(FieldError, match="a team twice"):
+        league.schedule("scrimmage", 1, [["frontier", "sitter"], ["explorer", "explorer"]])
+    assert league.matches() == []  # one transaction: the good group before the bad one is not kept
+
+
+def test_a_team_goes_back_to_an_earlier_version_by_submitting_it_again(league):
+    old = {"play.py": reference.source("sitter")}
+    new = {"play.py": reference.source("random_walker")}
+    first, _ = season.submit(league, "rescuers", old, "ada")
+    second, _ = season.submit(league, "rescuers", new, "ada")
+    assert league.newest()["rescuers"].id == second.id
+    again, fresh = season.submit(league, "rescuers", old, "ada")
+    assert not fresh and again.id == first.id and league.newest()["rescuers"].id == first.id
+
+
+def test_a_broken_league_file_is_a_clear_error(tmp_path):
+    (tmp_path / "lg").mkdir()
+    (tmp_path / "lg" / "league.db").write_bytes(b"this is not a database" * 100)
+    with pytest.raises(FieldError, match="cannot be read as a league database"):
+        LeagueStore(tmp_path / "lg")
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(FieldError, match="is a file"):
+        LeagueStore(tmp_path / "file", create=True)
+
+
 def test_kendall_tau():
     assert kendall_tau(list("abcd"), list("abcd")) == 1.0
     assert kendall_tau(list("abcd"), list("dcba")) == -1.0
@@ -307,6 +382,9 @@ def test_a_ray_worker_killed_mid_match_has_its_match_played_again(tmp_path, ray_
     killer.join()
     assert killed, "no Ray worker was seen running the match"
     assert not errors and got["scores"] == local["scores"] and got["digest"] == local["digest"]
+    # the log came back from the worker and was written here, where the league keeps it
+    assert got["log"] == str(tmp_path / "ray.log")
+    assert hashlib.sha256((tmp_path / "ray.log").read_bytes()).hexdigest() == local["digest"]
 
 
 def test_sandbox_limits_hold_inside_a_ray_worker(tmp_path, ray_cluster):
@@ -360,3 +438,9 @@ def test_a_season_from_the_command_line(tmp_path):
     assert r.returncode == 2 and "no such file" in r.stderr and "Traceback" not in r.stderr
     r = robo("league", "run", "nowhere", cwd=tmp_path)
     assert r.returncode == 2 and "not a league" in r.stderr
+    r = robo("league", "run", "season", "--teams", "mine", cwd=tmp_path)
+    assert r.returncode == 2 and "without --format" in r.stderr
+    r = robo("league", "init", "three", "--teams-per-match", "3", cwd=tmp_path)
+    assert r.returncode == 2 and "start zones for 2 teams" in r.stderr and "Traceback" not in r.stderr
+    r = robo("league", "cancel", "season", "999", cwd=tmp_path)
+    assert r.returncode == 2 and "no match 999" in r.stderr

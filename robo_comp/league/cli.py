@@ -38,7 +38,7 @@ def add_parser(sub: Any) -> None:
     i.add_argument("league", metavar="LEAGUE", help="the league's folder (created)")
     i.add_argument("--name", help="the league's name (shown in the table and report)")
     i.add_argument("--scenarios", help="comma-separated scenario pool: bundled names, files, or "
-                   "generated:SEED[:DIFFICULTY] (default: office,generated:1:0.5)")
+                   "generated:SEED[:DIFFICULTY[:TEAMS]] (default: office,generated:1:0.5)")
     i.add_argument("--generated", type=int, metavar="N", help="add N generated scenarios (seeds 1..N) to the pool")
     i.add_argument("--difficulty", type=float, default=0.5, help="difficulty of the --generated scenarios (0..1)")
     i.add_argument("--robots", type=int, help="robots per team (default 4)")
@@ -79,6 +79,12 @@ def add_parser(sub: Any) -> None:
     o.add_argument("out", metavar="OUT.html")
     o.set_defaults(func=_report)
 
+    c = lsub.add_parser("cancel", help="take scheduled or failed matches out of the league (never played or rated)")
+    c.add_argument("league", metavar="LEAGUE")
+    c.add_argument("ids", metavar="MATCH", type=int, nargs="+", help="match ids (see 'league table --json')")
+    c.add_argument("--why", default="cancelled by the organiser", help="the reason, kept with the match")
+    c.set_defaults(func=_cancel)
+
     p.set_defaults(func=lambda args: p.print_help() or 2)
 
 
@@ -95,21 +101,33 @@ def _init(args: argparse.Namespace) -> int:
     if (root / "league.db").exists():
         raise FieldError(f"{root} already holds a league; submit to it or run it")
     changes: dict[str, Any] = {}
-    pool = [s.strip() for s in args.scenarios.split(",") if s.strip()] if args.scenarios else None
-    if args.generated:
-        pool = (pool or ["office"]) + [f"generated:{k}:{args.difficulty:g}" for k in range(1, args.generated + 1)]
-    if pool is not None:
-        from robo_comp.league.engine import load_match_scenario
-
-        for spec in pool:
-            load_match_scenario(spec)  # a bad pool fails now, not in the middle of a season
-        changes["scenarios"] = pool
     for key in ("name", "robots", "seconds", "teams_per_match", "seed"):
         v = getattr(args, key)
         if v is not None:
             changes[key] = v
     if changes.get("robots", 1) < 1 or changes.get("seconds", 1) <= 0 or changes.get("teams_per_match", 2) < 2:
         raise FieldError("robots must be at least 1, seconds above 0 and teams per match at least 2")
+    if args.reference < 0 or args.generated is not None and args.generated < 0:
+        raise FieldError("--reference and --generated take a count of 0 or more")
+    size = int(changes.get("teams_per_match", 2))
+    pool = [s.strip() for s in args.scenarios.split(",") if s.strip()] if args.scenarios else None
+    if args.generated:
+        pool = (pool or ["office"]) + [f"generated:{k}:{args.difficulty:g}:{size}" for k in range(1, args.generated + 1)]
+    if pool is None and size != 2:
+        raise FieldError(f"the default scenarios have start zones for 2 teams; give --scenarios (or --generated) "
+                         f"for {size}-team matches, e.g. --scenarios generated:1:0.5:{size}")
+    if pool is not None:
+        from robo_comp.league.engine import load_match_scenario
+
+        checked = []
+        for spec in pool:  # a bad pool fails now, not in the middle of a season
+            scenario = load_match_scenario(spec)
+            if len(scenario.teams) < size:
+                raise FieldError(f"scenario {spec!r} has start zones for {len(scenario.teams)} teams, not the "
+                                 f"{size} of a match in this league")
+            # a scenario file is kept by its full path: matches are played from any folder, on any worker
+            checked.append(str(Path(spec).resolve()) if Path(spec).is_file() else spec)
+        changes["scenarios"] = checked
     with _store(args, create=True) as store:
         store.configure(**changes)
         subs = season.submit_reference(store, args.reference) if args.reference else []
@@ -126,10 +144,18 @@ def _submit(args: argparse.Namespace) -> int:
 
     files = season.read_submission(args.path)
     with _store(args) as store:
-        sub, new = season.submit(store, args.team, files, args.who or getpass.getuser())
+        sub, new = season.submit(store, args.team, files, args.who or _login())
     what = "stored" if new else "already stored (same files)"
     print(f"{sub.team} version {sub.version} {what}: {', '.join(sorted(sub.files))}")
     return 0
+
+
+def _login() -> str:
+    """Who submits when ``--who`` is not given: the login name (or "unknown" where there is none)."""
+    try:
+        return getpass.getuser()
+    except (KeyError, OSError):
+        return "unknown"
 
 
 def runner_for(args: argparse.Namespace) -> Any:
@@ -144,6 +170,9 @@ def runner_for(args: argparse.Namespace) -> Any:
 def _run(args: argparse.Namespace) -> int:
     from robo_comp.league import season
 
+    if not args.format and (args.teams or args.rounds is not None or args.unranked):
+        raise FieldError("--teams, --rounds and --unranked choose what a --format schedules; without "
+                         "--format, 'league run' plays the matches already scheduled")
     with _store(args) as store:
         runner = runner_for(args)
         try:
@@ -162,6 +191,14 @@ def _run(args: argparse.Namespace) -> int:
             print(f"champion: {fig['champion']}")
         print(_text(store))
     return 1 if fig.get("failed") else 0
+
+
+def _cancel(args: argparse.Namespace) -> int:
+    with _store(args) as store:
+        for mid in args.ids:
+            store.cancel(mid, args.why)
+            print(f"match {mid} cancelled: it will not be played or rated")
+    return 0
 
 
 def _text(store: Any) -> str:

@@ -38,7 +38,20 @@ def standings_text(view: dict[str, Any], width: int = 120) -> str:
         table.add_row(*(Text(_cell(row, k)) for k in COLUMNS))  # Text: a team name is never markup
     console = Console(file=io.StringIO(), width=width, record=True, color_system=None)
     console.print(table)
-    return console.export_text().rstrip()
+    text = console.export_text().rstrip()
+    note = held_text(view)
+    return f"{text}\n{note}" if note else text
+
+
+def held_text(view: dict[str, Any]) -> str:
+    """A sentence when a match that is not played holds up the ratings of played ones."""
+    held = view.get("held")
+    if not held:
+        return ""
+    why = f" ({held['error'].strip().splitlines()[-1][:120]})" if held.get("error") else ""
+    return (f"Ratings wait for match {held['match']}, {held['status']}{why}: {held['waiting']} played "
+            f"match(es) behind it are not rated yet. 'robo-comp league run' plays it again; "
+            f"'robo-comp league cancel LEAGUE {held['match']}' takes it out.")
 
 
 def _svg(fig: Any) -> str:
@@ -113,6 +126,8 @@ def render_report(view: dict[str, Any]) -> str:
             f"<td class='{'name' if k in ('team', 'version') else ''}'>{e(_cell(row, k))}</td>" for k in COLUMNS)
             + "</tr>")
     parts.append("</table>")
+    if view.get("held"):
+        parts.append(f"<p class='hint'>{e(held_text(view))}</p>")
     played = [m for m in view["matches"] if m.get("status") == "done"]
     if not played:
         parts.append("<p>No matches played yet.</p></body></html>")
@@ -145,4 +160,4 @@ def write_report(path: str | Path, view: dict[str, Any]) -> Path:
     return p
 
 
-__all__ = ["render_report", "standings_text", "write_report"]
+__all__ = ["held_text", "render_report", "standings_text", "write_report"]

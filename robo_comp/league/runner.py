@@ -11,14 +11,18 @@ order they end. A match is deterministic, so where it ran does not change its re
 * :class:`RayRunner` — each match a Ray task of 1 CPU on a Ray cluster (``ray.init(address)``:
   ``"auto"`` joins the cluster this machine belongs to, ``"local"`` starts one here). A task
   whose worker dies mid-match (a node lost, a ``kill -9``) is run again by Ray
-  (``max_retries``), and gives the same result.
+  (``max_retries``), and gives the same result. The match's event log comes back with its
+  result and is written here, so every log lands in the league folder whichever machine
+  played the match.
 """
 from __future__ import annotations
 
 import multiprocessing
+import tempfile
 import traceback
 from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from pathlib import Path
 from typing import Any
 
 from robo_comp.league.engine import play_match
@@ -69,6 +73,17 @@ class LocalRunner:
         """Nothing to release."""
 
 
+def play_match_returning_log(spec: dict[str, Any]) -> tuple[dict[str, Any], bytes | None]:
+    """Play ``spec`` with its event log written to a folder of this machine's own, and return
+    the result with the log's bytes (a Ray worker may be on a machine without the league folder)."""
+    if not spec.get("log"):
+        return play_match(spec), None
+    with tempfile.TemporaryDirectory(prefix="robo-comp-match-") as d:
+        result = play_match(dict(spec, log=str(Path(d) / "events.log")))
+        data = (Path(d) / "events.log").read_bytes()
+    return dict(result, log=spec["log"]), data
+
+
 class RayRunner:
     """Matches as Ray tasks (1 CPU each) on the cluster at ``address``."""
 
@@ -81,7 +96,8 @@ class RayRunner:
                 ray.init(include_dashboard=False, log_to_driver=False, **init)
             else:
                 ray.init(address=address, log_to_driver=False, **init)
-        self._remote = ray.remote(num_cpus=1, max_retries=RAY_RETRIES, retry_exceptions=False)(play_match)
+        self._remote = ray.remote(num_cpus=1, max_retries=RAY_RETRIES,
+                                  retry_exceptions=False)(play_match_returning_log)
 
     @property
     def slots(self) -> int:
@@ -97,7 +113,11 @@ class RayRunner:
             for ref in ready:
                 spec = refs.pop(ref)
                 try:
-                    result = ray.get(ref)
+                    result, log = ray.get(ref)
+                    if log is not None:
+                        path = Path(spec["log"])
+                        path.parent.mkdir(parents=True, exist_ok=True)
+                        path.write_bytes(log)
                 except Exception as e:
                     on_error(spec, f"{type(e).__name__}: {e}")
                     continue
@@ -108,4 +128,4 @@ class RayRunner:
         self.ray.shutdown()
 
 
-__all__ = ["LocalRunner", "RAY_RETRIES", "RayRunner"]
+__all__ = ["LocalRunner", "RAY_RETRIES", "RayRunner", "play_match_returning_log"]

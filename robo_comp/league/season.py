@@ -128,11 +128,13 @@ class Progress:
 
 def play(store: LeagueStore, runner: Any, ids: list[int] | None = None, *, stream: TextIO | None = None,
          on_match: Callable[[MatchRow], None] | None = None) -> dict[str, float]:
-    """Play matches ``ids`` (default: every scheduled or failed one) on ``runner``, store their
-    results and move the ratings. Returns timing figures: ``matches``, ``wall_seconds``,
-    ``match_seconds`` (the matches' own time, summed) and ``league_seconds`` (storing and
-    rating, summed)."""
-    todo = ids if ids is not None else [m.id for m in store.matches() if m.status in ("scheduled", "failed")]
+    """Play matches ``ids`` (default: every scheduled or failed one, and any left running by a
+    run that was killed) on ``runner``, store their results and move the ratings. A match
+    still running when this run stops (Ctrl-C) is marked failed, to be played again. Returns
+    timing figures: ``matches``, ``wall_seconds``, ``match_seconds`` (the matches' own time,
+    summed) and ``league_seconds`` (storing and rating, summed)."""
+    todo = ids if ids is not None else [m.id for m in store.matches()
+                                        if m.status in ("scheduled", "failed", "running")]
     specs = [store.spec(mid) for mid in todo]
     progress = Progress(len(specs), stream)
     t0 = time.perf_counter()
@@ -160,6 +162,7 @@ def play(store: LeagueStore, runner: Any, ids: list[int] | None = None, *, strea
         runner.run(specs, on_result, on_error)
     finally:
         progress.close()
+        store.interrupted(todo)
     figures["wall_seconds"] = time.perf_counter() - t0
     return figures
 
@@ -170,21 +173,33 @@ def rate_played(store: LeagueStore) -> int:
     worker finished first. Returns how many were rated."""
     n = 0
     current = {t: (mu, sigma) for t, (mu, sigma, _, _) in store.ratings().items()}
-    for m in store.matches():
-        if not m.ranked:
-            continue
+    for mid in store.unrated():
+        m = store.match(mid)
         if m.status != "done" or m.result is None:
             break
-        if store.db.execute("SELECT rated FROM matches WHERE id = ?", (m.id,)).fetchone()[0]:
-            continue
         ranks = {t: int(r) for t, r in m.result["ranks"].items()}
         new = ratings.rate(current, ranks)
         best = min(ranks.values())
         winners = {t for t, r in ranks.items() if r == best} if len(set(ranks.values())) > 1 else set()
-        store.store_rating(m.id, new, winners)
-        current.update(new)
-        n += 1
+        if store.store_rating(m.id, new, winners):
+            current.update(new)
+            n += 1
+        else:  # another run on this league rated it first: go on from what it stored
+            current = {t: (mu, sigma) for t, (mu, sigma, _, _) in store.ratings().items()}
     return n
+
+
+def rating_hold(store: LeagueStore) -> dict[str, Any] | None:
+    """The match that holds up the ratings, if one does: the first unrated ranked match that is
+    not played, when played matches wait behind it (``match``, ``status``, ``error``,
+    ``waiting``); None otherwise."""
+    waiting = store.unrated()
+    for k, mid in enumerate(waiting):
+        m = store.match(mid)
+        if m.status != "done":
+            behind = sum(1 for later in waiting[k + 1:] if store.match(later).status == "done")
+            return {"match": mid, "status": m.status, "error": m.error, "waiting": behind} if behind else None
+    return None
 
 
 def standing(store: LeagueStore, teams: list[str] | None = None) -> list[str]:
@@ -204,10 +219,18 @@ def run_format(store: LeagueStore, runner: Any, fmt: str, *, rounds: int | None 
     if fmt not in schedule.FORMATS:
         raise FieldError(f"unknown format {fmt!r}; the formats are {', '.join(schedule.FORMATS)}")
     cfg = store.settings()
-    names = teams or list(store.newest())
+    known = store.newest()
+    names = list(dict.fromkeys(t.strip() for t in teams if t.strip())) if teams else list(known)
+    unknown = [t for t in names if t not in known]
+    if unknown:
+        raise FieldError(f"team(s) {', '.join(unknown)} have no submission in this league; the teams are "
+                         f"{', '.join(known) or 'none yet'}")
     size = int(cfg["teams_per_match"])
-    if len(names) < 2:
-        raise FieldError(f"a {fmt} needs at least two teams with a submission; the league has {len(names)}")
+    if len(names) < max(2, size):
+        raise FieldError(f"a {fmt} of {size}-team matches needs at least {max(2, size)} teams with a submission; "
+                         f"it has {len(names)}")
+    if rounds is not None and rounds < 1:
+        raise FieldError(f"rounds must be at least 1, not {rounds}")
     rng = random.Random(f"{cfg['seed']}:{fmt}:{len(store.matches())}")
     base = 1 + max((m.round for m in store.matches(fmt=fmt)), default=0)
     totals: dict[str, Any] = {"matches": 0.0, "wall_seconds": 0.0, "match_seconds": 0.0, "league_seconds": 0.0,
@@ -268,7 +291,7 @@ def league_view(store: LeagueStore) -> dict[str, Any]:
             played.setdefault(team, []).append(score)
             per_scenario.setdefault(m.scenario, {}).setdefault(team, []).append(score)
     for rank, team in enumerate(standing(store), start=1):
-        mu, sigma, n, wins = r.get(team, (*ratings.initial(), 0, 0))
+        mu, sigma, n, wins = r[team]
         scores = played.get(team, [])
         rows.append({"rank": rank, "team": team, "version": newest[team].version, "mu": round(mu, 3),
                      "sigma": round(sigma, 3), "rating": round(ratings.ordinal(mu, sigma), 3), "matches": n,
@@ -277,7 +300,7 @@ def league_view(store: LeagueStore) -> dict[str, Any]:
     history = {team: [[order.get(mid, 0), round(ratings.ordinal(mu, sigma), 3)] for mid, mu, sigma in h]
                for team, h in store.history().items()}
     return {"name": cfg["name"], "generated": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
-            "standings": rows, "history": history, "scores": per_scenario,
+            "standings": rows, "history": history, "scores": per_scenario, "held": rating_hold(store),
             "matches": [{"id": m.id, "format": m.format, "round": m.round, "scenario": m.scenario, "seed": m.seed,
                          "ranked": m.ranked, "status": m.status, "teams": m.teams,
                          "scores": (m.result or {}).get("scores", {}),
@@ -285,5 +308,5 @@ def league_view(store: LeagueStore) -> dict[str, Any]:
                          "seconds": (m.result or {}).get("wall_seconds")} for m in matches]}
 
 
-__all__ = ["PLAY_ARGS", "Progress", "check_submission", "league_view", "play", "rate_played", "read_submission",
-           "run_format", "standing", "submit", "submit_reference"]
+__all__ = ["PLAY_ARGS", "Progress", "check_submission", "league_view", "play", "rate_played", "rating_hold",
+           "read_submission", "run_format", "standing", "submit", "submit_reference"]

@@ -2,7 +2,11 @@
 
 ``LEAGUE/league.db`` holds everything but the match logs, which go to
 ``LEAGUE/matches/<id>/events.log``. SQLite is the embedded default: one file, nothing to start,
-safe against a crash mid-write (each change is one transaction).
+safe against a crash mid-write (each change is one ``BEGIN IMMEDIATE`` transaction, so two
+``league`` commands on one folder take turns).
+
+A match's status: ``scheduled`` → ``running`` → ``done`` or ``failed`` (played again by the
+next ``league run``); ``cancelled`` by the organiser (never played or rated).
 """
 from __future__ import annotations
 
@@ -10,7 +14,8 @@ import hashlib
 import json
 import sqlite3
 import time
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -22,7 +27,7 @@ SCHEMA = """
 CREATE TABLE IF NOT EXISTS settings (key TEXT PRIMARY KEY, value TEXT NOT NULL);
 CREATE TABLE IF NOT EXISTS submissions (
     id INTEGER PRIMARY KEY, team TEXT NOT NULL, version TEXT NOT NULL, who TEXT NOT NULL,
-    at REAL NOT NULL, files TEXT NOT NULL, UNIQUE (team, version));
+    at REAL NOT NULL, files TEXT NOT NULL, last REAL, UNIQUE (team, version));
 CREATE TABLE IF NOT EXISTS matches (
     id INTEGER PRIMARY KEY, format TEXT NOT NULL, round INTEGER NOT NULL, scenario TEXT NOT NULL,
     seed INTEGER NOT NULL, ranked INTEGER NOT NULL, status TEXT NOT NULL, entrants TEXT NOT NULL,
@@ -90,16 +95,38 @@ class LeagueStore:
     def __init__(self, root: str | Path, *, create: bool = False) -> None:
         self.root = Path(root)
         db = self.root / "league.db"
+        if self.root.exists() and not self.root.is_dir():
+            raise FieldError(f"{self.root} is a file, not a league folder")
         if not db.exists() and not create:
             raise FieldError(f"{self.root} is not a league (no league.db); start one with "
                              f"'robo-comp league init {self.root}'")
         self.root.mkdir(parents=True, exist_ok=True)
-        self.db = sqlite3.connect(db, isolation_level=None, timeout=30.0)
-        self.db.execute("PRAGMA journal_mode=WAL")
-        self.db.executescript(SCHEMA)
+        try:
+            self.db = sqlite3.connect(db, isolation_level=None, timeout=30.0)
+            self.db.execute("PRAGMA journal_mode=WAL")
+            self.db.executescript(SCHEMA)
+            columns = {r[1] for r in self.db.execute("PRAGMA table_info(submissions)")}
+            if "last" not in columns:  # a league made before submissions kept their last time
+                self.db.execute("ALTER TABLE submissions ADD COLUMN last REAL")
+        except sqlite3.DatabaseError as e:
+            raise FieldError(f"{db} cannot be read as a league database ({e}); restore it from a "
+                             "backup or start a new league") from None
         if create:
-            for k, v in DEFAULTS.items():
-                self.db.execute("INSERT OR IGNORE INTO settings VALUES (?, ?)", (k, json.dumps(v)))
+            with self.transaction():
+                for k, v in DEFAULTS.items():
+                    self.db.execute("INSERT OR IGNORE INTO settings VALUES (?, ?)", (k, json.dumps(v)))
+
+    @contextmanager
+    def transaction(self) -> Iterator[sqlite3.Connection]:
+        """One write transaction (``BEGIN IMMEDIATE``: another writer waits): committed when
+        the block ends, rolled back when it raises."""
+        self.db.execute("BEGIN IMMEDIATE")
+        try:
+            yield self.db
+        except BaseException:
+            self.db.execute("ROLLBACK")
+            raise
+        self.db.execute("COMMIT")
 
     def close(self) -> None:
         """Close the database."""
@@ -120,23 +147,30 @@ class LeagueStore:
 
     def configure(self, **values: Any) -> None:
         """Change settings."""
-        with self.db:
+        with self.transaction():
             for k, v in values.items():
                 self.db.execute("INSERT OR REPLACE INTO settings VALUES (?, ?)", (k, json.dumps(v)))
 
     # ------------------------------------------------------------------ submissions
     def add_submission(self, team: str, files: dict[str, str], who: str) -> tuple[Submission, bool]:
-        """Store a version of ``team``'s code; returns it and whether it is new (the same files
-        again are the same version)."""
+        """Store a version of ``team``'s code; returns it and whether it is new. The same files
+        again are the same version, which becomes the team's newest again (a team can go back
+        to an earlier version by submitting it again)."""
         version = version_of(files)
-        row = self.db.execute("SELECT id FROM submissions WHERE team = ? AND version = ?", (team, version)).fetchone()
-        if row is not None:
-            return self.submission(row[0]), False
-        cur = self.db.execute("INSERT INTO submissions (team, version, who, at, files) VALUES (?, ?, ?, ?, ?)",
-                              (team, version, who, time.time(), json.dumps(files, sort_keys=True)))
-        sid = int(cur.lastrowid or 0)
-        self.db.execute("INSERT OR IGNORE INTO ratings VALUES (?, ?, ?, 0, 0)", (team, *initial()))
-        return self.submission(sid), True
+        now = time.time()
+        with self.transaction():
+            row = self.db.execute("SELECT id FROM submissions WHERE team = ? AND version = ?",
+                                  (team, version)).fetchone()
+            if row is not None:
+                self.db.execute("UPDATE submissions SET last = ? WHERE id = ?", (now, row[0]))
+                sid, new = int(row[0]), False
+            else:
+                cur = self.db.execute(
+                    "INSERT INTO submissions (team, version, who, at, files, last) VALUES (?, ?, ?, ?, ?, ?)",
+                    (team, version, who, now, json.dumps(files, sort_keys=True), now))
+                sid, new = int(cur.lastrowid or 0), True
+            self.db.execute("INSERT OR IGNORE INTO ratings VALUES (?, ?, ?, 0, 0)", (team, *initial()))
+        return self.submission(sid), new
 
     def submission(self, sid: int) -> Submission:
         """Submission ``sid``."""
@@ -152,25 +186,29 @@ class LeagueStore:
         return [self.submission(r[0]) for r in self.db.execute(q, (team,) if team else ())]
 
     def newest(self) -> dict[str, Submission]:
-        """Each team's newest submission, by team name."""
+        """Each team's newest submission (the one submitted last), by team name."""
         out: dict[str, Submission] = {}
-        for s in self.submissions():
+        for (sid,) in self.db.execute("SELECT id FROM submissions ORDER BY COALESCE(last, at), id"):
+            s = self.submission(sid)
             out[s.team] = s
         return dict(sorted(out.items()))
 
     # ------------------------------------------------------------------ matches
     def schedule(self, fmt: str, rnd: int, groups: Iterable[list[str]], *, ranked: bool = True) -> list[int]:
         """Schedule one match per group of team names (each team's newest version), with the
-        scenario taken in turn from the pool and a seed from the league's seed and the match id."""
+        scenario taken in turn from the pool and a seed from the league's seed and the match id.
+        One transaction: a bad group schedules nothing."""
         cfg = self.settings()
         newest = self.newest()
         pool = list(cfg["scenarios"])
         ids = []
-        with self.db:
+        with self.transaction():
             for teams in groups:
                 missing = [t for t in teams if t not in newest]
                 if missing:
                     raise FieldError(f"team(s) {', '.join(missing)} have no submission")
+                if len(set(teams)) != len(teams):
+                    raise FieldError(f"a match cannot have a team twice ({', '.join(teams)})")
                 n = self.db.execute("SELECT COUNT(*) FROM matches").fetchone()[0]
                 entrants = [[t, newest[t].id] for t in teams]
                 cur = self.db.execute(
@@ -223,6 +261,29 @@ class LeagueStore:
         """Match ``mid`` is being played (one more attempt)."""
         self.db.execute("UPDATE matches SET status = 'running', attempts = attempts + 1 WHERE id = ?", (mid,))
 
+    def interrupted(self, mids: Iterable[int]) -> int:
+        """Matches of ``mids`` still ``running`` when their run stopped become ``failed`` (to be
+        played again); returns how many."""
+        n = 0
+        with self.transaction():
+            for mid in mids:
+                n += self.db.execute("UPDATE matches SET status = 'failed', error = ? WHERE id = ? AND "
+                                     "status = 'running'", ("the run stopped before this match ended", mid)).rowcount
+        return n
+
+    def cancel(self, mid: int, why: str) -> None:
+        """The organiser takes match ``mid`` out of the league: never played or rated (a match
+        that cannot be played would otherwise hold up the ratings of every later match)."""
+        m = self.match(mid)
+        if m.status == "done":
+            raise FieldError(f"match {mid} has been played; a played match stays in the league")
+        self.db.execute("UPDATE matches SET status = 'cancelled', error = ? WHERE id = ?", (why[:2000], mid))
+
+    def unrated(self) -> list[int]:
+        """The ranked matches not rated yet (cancelled ones aside), by id."""
+        return [r[0] for r in self.db.execute(
+            "SELECT id FROM matches WHERE ranked = 1 AND rated = 0 AND status != 'cancelled' ORDER BY id")]
+
     def finished(self, mid: int, result: dict[str, Any]) -> None:
         """Store match ``mid``'s result."""
         self.db.execute("UPDATE matches SET status = 'done', result = ?, error = NULL, finished = ? WHERE id = ?",
@@ -237,14 +298,18 @@ class LeagueStore:
         """Team → (μ, σ, matches rated, wins)."""
         return {r[0]: (r[1], r[2], r[3], r[4]) for r in self.db.execute("SELECT team, mu, sigma, matches, wins FROM ratings")}
 
-    def store_rating(self, mid: int, new: dict[str, tuple[float, float]], winners: set[str]) -> None:
-        """Record the ratings after match ``mid`` (one transaction)."""
-        with self.db:
+    def store_rating(self, mid: int, new: dict[str, tuple[float, float]], winners: set[str]) -> bool:
+        """Record the ratings after match ``mid`` (one transaction; nothing when it is rated
+        already, so two runs on one league cannot rate a match twice). Returns whether it stored them."""
+        with self.transaction():
+            if self.db.execute("SELECT rated FROM matches WHERE id = ?", (mid,)).fetchone()[0]:
+                return False
             for team, (mu, sigma) in new.items():
                 self.db.execute("UPDATE ratings SET mu = ?, sigma = ?, matches = matches + 1, wins = wins + ? "
                                 "WHERE team = ?", (mu, sigma, int(team in winners), team))
                 self.db.execute("INSERT OR REPLACE INTO rating_history VALUES (?, ?, ?, ?)", (mid, team, mu, sigma))
             self.db.execute("UPDATE matches SET rated = 1 WHERE id = ?", (mid,))
+        return True
 
     def history(self) -> dict[str, list[tuple[int, float, float]]]:
         """Team → [(match id, μ, σ), ...] in match order."""
