@@ -170,6 +170,11 @@ def test_swiss_avoids_rematches_and_double_elimination_needs_two_losses():
     standing = ["a", "b", "c", "d"]
     assert schedule.swiss_round(standing, []) == [["a", "b"], ["c", "d"]]
     assert schedule.swiss_round(standing, [frozenset("ab")]) == [["a", "c"], ["b", "d"]]
+    met = [frozenset(p) for p in ("ab", "cd", "ef", "ac", "be", "df")]
+    pairs = schedule.swiss_round(list("abcdef"), met)  # greedy would end in e-f again
+    assert not {frozenset(p) for p in pairs} & set(met) and sorted(t for p in pairs for t in p) == list("abcdef")
+    assert schedule.swiss_round(list("abcde"), [], byes=["e"]) == [["a", "b"], ["c", "e"]]  # d sits out
+    assert schedule.swiss_round(list("ab"), [frozenset("ab")]) == [["a", "b"]]  # a rematch when nothing else
     losses: dict[str, int] = {}
     seeds = ["a", "b", "c", "d"]
     assert schedule.elimination_round(seeds, losses) == [["a", "d"], ["b", "c"]]

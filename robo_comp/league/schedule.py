@@ -5,7 +5,8 @@
 * **round robin** — every pair of teams meets once (the circle method: ``n − 1`` rounds of
   ``n / 2`` matches; one bye per round with an odd count); for groups larger than two, every
   group of ``size`` teams;
-* **Swiss** — each round pairs teams of neighbouring standing that have not met yet;
+* **Swiss** — each round pairs teams of neighbouring standing that have not met yet (a
+  rematch only when no pairing avoids one), the bye going round;
 * **double elimination** — two-team matches seeded by rating; a team is out after its second
   loss; the winners' and the losers' brackets are the teams with no loss and with one loss,
   paired best seed against worst seed; the grand final is played again when the finalist
@@ -47,13 +48,40 @@ def round_robin(teams: list[str], size: int = 2) -> list[list[list[str]]]:
     return rounds
 
 
-def swiss_round(standing: list[str], played: Iterable[frozenset[str]]) -> list[list[str]]:
-    """Pairs for one Swiss round: down the standing (best first), each team meets the next one
-    it has not met yet; with an odd count the last unpaired team has a bye."""
+def swiss_round(standing: list[str], played: Iterable[frozenset[str]],
+                byes: Iterable[str] = ()) -> list[list[str]]:
+    """Pairs for one Swiss round: down the standing (best first), each team meets the nearest
+    one it has not met yet, searching further down (backtracking) when a greedy pairing would
+    force a rematch later; a rematch only when no pairing avoids one. With an odd count, the
+    lowest team that has not had a bye (``byes``) sits the round out."""
     met = set(played)
     free = list(standing)
+    if len(free) % 2:
+        had = set(byes)
+        out = next((t for t in reversed(free) if t not in had), free[-1])
+        free.remove(out)
+    budget = [20_000]  # search steps: a league of hundreds stays fast; past it, greedy
+
+    def search(rest: list[str]) -> list[list[str]] | None:
+        if not rest:
+            return []
+        a, others = rest[0], rest[1:]
+        for i, b in enumerate(others):
+            if frozenset((a, b)) in met:
+                continue
+            budget[0] -= 1
+            if budget[0] < 0:
+                return None
+            tail = search(others[:i] + others[i + 1:])
+            if tail is not None:
+                return [[a, b], *tail]
+        return None
+
+    found = search(free)
+    if found is not None:
+        return found
     pairs = []
-    while len(free) > 1:
+    while len(free) > 1:  # no pairing avoids a rematch (or the search ran out): greedy
         a = free.pop(0)
         k = next((i for i, b in enumerate(free) if frozenset((a, b)) not in met), 0)
         pairs.append([a, free.pop(k)])

@@ -247,10 +247,14 @@ def run_format(store: LeagueStore, runner: Any, fmt: str, *, rounds: int | None 
         add(play(store, runner, ids, stream=stream))
         return totals
     if fmt == "swiss":
-        played = {frozenset(m.teams) for m in store.matches(fmt="swiss")}
+        earlier = store.matches(fmt="swiss")
+        played = {frozenset(m.teams) for m in earlier}
+        byes = {t for rnd in {m.round for m in earlier}
+                for t in set(names) - {t for m in earlier if m.round == rnd for t in m.teams}}
         for i in range(rounds or max(1, (len(names) - 1).bit_length())):
-            pairs = schedule.swiss_round(standing(store, names), played)
+            pairs = schedule.swiss_round(standing(store, names), played, byes)
             played |= {frozenset(p) for p in pairs}
+            byes |= set(names) - {t for p in pairs for t in p}
             add(play(store, runner, store.schedule(fmt, base + i, pairs, ranked=ranked), stream=stream))
         return totals
     seeds = standing(store, names)  # double elimination, seeded by rating
