@@ -8,6 +8,7 @@
     robo-comp league run season --format swiss --rounds 4 --ray auto
     robo-comp league table season                        # the leaderboard (--json for data)
     robo-comp league report season season/report.html    # one static page with plots
+    robo-comp league cancel season 12                    # a match that cannot be played: out
 
 See docs/league.md.
 """
