@@ -324,6 +324,10 @@ def test_two_local_workers_give_the_results_of_one(tmp_path):
     LocalRunner(2).run(specs, lambda s, r: two.__setitem__(s["id"], r), pytest.fail)
     assert {i: r["digest"] for i, r in two.items()} == digests
     assert {i: r["scores"] for i, r in two.items()} == {i: r["scores"] for i, r in one.items()}
+    errors: list[str] = []
+    LocalRunner(2).run([dict(specs[0], scenario="nowhere", id=9)] * 2, pytest.fail,
+                       lambda s, m: errors.append(m))
+    assert len(errors) == 2 and all("Traceback" in m and "nowhere" in m.splitlines()[-1] for m in errors), errors
 
 
 @pytest.fixture(scope="module")

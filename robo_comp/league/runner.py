@@ -65,7 +65,9 @@ class LocalRunner:
                     try:
                         result = fut.result()
                     except Exception as e:
-                        on_error(spec, f"{type(e).__name__}: {e}")
+                        # the worker's traceback, as the in-process path gives (the pool keeps it as the cause)
+                        remote = str(e.__cause__).strip().strip('"').strip() if e.__cause__ is not None else ""
+                        on_error(spec, remote or f"{type(e).__name__}: {e}")
                         continue
                     on_result(spec, result)
 
@@ -91,7 +93,8 @@ class RayRunner:
         import ray
 
         self.ray = ray
-        if not ray.is_initialized():
+        self._joined = not ray.is_initialized()  # Ray started by the caller stays up after close()
+        if self._joined:
             if address == "local":
                 ray.init(include_dashboard=False, log_to_driver=False, **init)
             else:
@@ -124,8 +127,9 @@ class RayRunner:
                 on_result(spec, result)
 
     def close(self) -> None:
-        """Leave the cluster (it keeps running)."""
-        self.ray.shutdown()
+        """Leave the cluster (it keeps running), unless the caller had joined it before."""
+        if self._joined:
+            self.ray.shutdown()
 
 
 __all__ = ["LocalRunner", "RAY_RETRIES", "RayRunner", "play_match_returning_log"]
