@@ -175,6 +175,9 @@ def test_swiss_avoids_rematches_and_double_elimination_needs_two_losses():
     assert not {frozenset(p) for p in pairs} & set(met) and sorted(t for p in pairs for t in p) == list("abcdef")
     assert schedule.swiss_round(list("abcde"), [], byes=["e"]) == [["a", "b"], ["c", "e"]]  # d sits out
     assert schedule.swiss_round(list("ab"), [frozenset("ab")]) == [["a", "b"]]  # a rematch when nothing else
+    everyone = [frozenset(p) for p in ("ab", "ac", "ad", "bc", "bd", "cd")]
+    again = schedule.swiss_round(list("abcd"), everyone + [frozenset("ab"), frozenset("cd")])
+    assert again == [["a", "c"], ["b", "d"]]  # all met: the pairs met least, not the same ones again
     losses: dict[str, int] = {}
     seeds = ["a", "b", "c", "d"]
     assert schedule.elimination_round(seeds, losses) == [["a", "d"], ["b", "c"]]

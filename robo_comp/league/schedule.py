@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import itertools
 import random
+from collections import Counter
 from collections.abc import Iterable
 
 #: The formats ``robo-comp league run --format`` knows.
@@ -52,9 +53,12 @@ def swiss_round(standing: list[str], played: Iterable[frozenset[str]],
                 byes: Iterable[str] = ()) -> list[list[str]]:
     """Pairs for one Swiss round: down the standing (best first), each team meets the nearest
     one it has not met yet, searching further down (backtracking) when a greedy pairing would
-    force a rematch later; a rematch only when no pairing avoids one. With an odd count, the
-    lowest team that has not had a bye (``byes``) sits the round out."""
-    met = set(played)
+    force a rematch later. Only when no pairing avoids a rematch, each team meets the nearest
+    one it has met the fewest times (``played`` lists every earlier meeting, repeats too), so
+    the pairs still change from round to round. With an odd count, the lowest team that has not
+    had a bye (``byes``) sits the round out."""
+    times = Counter(played)
+    met = set(times)
     free = list(standing)
     if len(free) % 2:
         had = set(byes)
@@ -81,9 +85,9 @@ def swiss_round(standing: list[str], played: Iterable[frozenset[str]],
     if found is not None:
         return found
     pairs = []
-    while len(free) > 1:  # no pairing avoids a rematch (or the search ran out): greedy
+    while len(free) > 1:  # no pairing avoids a rematch (or the search ran out): fewest meetings
         a = free.pop(0)
-        k = next((i for i, b in enumerate(free) if frozenset((a, b)) not in met), 0)
+        k = min(range(len(free)), key=lambda i: (times[frozenset((a, free[i]))], i))
         pairs.append([a, free.pop(k)])
     return pairs
 

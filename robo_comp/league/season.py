@@ -248,12 +248,12 @@ def run_format(store: LeagueStore, runner: Any, fmt: str, *, rounds: int | None 
         return totals
     if fmt == "swiss":
         earlier = store.matches(fmt="swiss")
-        played = {frozenset(m.teams) for m in earlier}
+        played = [frozenset(m.teams) for m in earlier]  # every meeting, repeats too
         byes = {t for rnd in {m.round for m in earlier}
                 for t in set(names) - {t for m in earlier if m.round == rnd for t in m.teams}}
         for i in range(rounds or max(1, (len(names) - 1).bit_length())):
             pairs = schedule.swiss_round(standing(store, names), played, byes)
-            played |= {frozenset(p) for p in pairs}
+            played += [frozenset(p) for p in pairs]
             byes |= set(names) - {t for p in pairs for t in p}
             add(play(store, runner, store.schedule(fmt, base + i, pairs, ranked=ranked), stream=stream))
         return totals
