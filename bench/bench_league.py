@@ -1,6 +1,6 @@
 """The league's figures (issue 15): throughput and scaling, rating quality, league overhead.
 
-    .venv/bin/python bench/bench_league.py [--matches 16] [--skip-ray] [--quality-rounds 30] [--quality-format swiss]
+    .venv/bin/python bench/bench_league.py [--matches 16] [--skip-ray] [--skip-throughput] [--quality-rounds 30] [--quality-format swiss]
 
 1. **Throughput.** ``--matches`` league matches of 5 simulated minutes, 8 robots (two teams of
    four, frontier against explorer and the other reference teams) on ``office``, played by a
@@ -61,8 +61,9 @@ def throughput(root: pathlib.Path, runner, matches: int, label: str) -> dict:
 
 def quality(root: pathlib.Path, rounds: int, workers: int, fmt: str = "scrimmage") -> list[tuple[int, float]]:
     """τ of the leaderboard against the true order after each round of 16 entrants: scrimmage
-    rounds, or (``fmt="swiss"``) one scrimmage round and then Swiss rounds (pairs of neighbours
-    in the standing; rematches allowed once every pair of neighbours has met)."""
+    rounds, or (``fmt="swiss"``) one scrimmage round and then rounds of the league's own Swiss
+    format (``league run --format swiss --rounds 1``: neighbours in the standing who have not
+    met; rematches once no pairing avoids them)."""
     curve = []
     with LeagueStore(root / f"quality-{fmt}", create=True) as store:
         store.configure(**SHORT)
@@ -71,64 +72,64 @@ def quality(root: pathlib.Path, rounds: int, workers: int, fmt: str = "scrimmage
         runner = LocalRunner(workers)
         played = 0
         for i in range(rounds):
-            if fmt == "swiss" and i > 0:
-                pairs = [list(p) for p in zip(*[iter(season.standing(store))] * 2)]
-                if i % 2:  # odd rounds: shifted by one, so that every neighbour meets
-                    order = season.standing(store)
-                    pairs = [list(p) for p in zip(*[iter(order[1:-1])] * 2)]
-                ids = store.schedule("swiss", i, pairs)
-                fig = season.play(store, runner, ids, stream=open("/dev/null", "w"))
-            else:
-                fig = season.run_format(store, runner, "scrimmage", rounds=1, stream=open("/dev/null", "w"))
+            chosen = "swiss" if fmt == "swiss" and i > 0 else "scrimmage"
+            fig = season.run_format(store, runner, chosen, rounds=1, stream=open("/dev/null", "w"))
             played += int(fig["matches"])
             curve.append((played, kendall_tau(season.standing(store), truth)))
     return curve
+
+
+def throughput_figures(root: pathlib.Path, args: argparse.Namespace) -> None:
+    """Throughput on 1 and 2 local workers (and Ray), the season on paper, and the overhead."""
+    print(f"== throughput: {args.matches} matches of 300 s, 2 teams x 4 robots, office")
+    one = throughput(root, LocalRunner(1), args.matches, "one")
+    rate1 = 3600 * one["matches"] / one["wall_seconds"]
+    print(f"1 worker : {one['wall_seconds']:.1f} s, {rate1:.0f} matches/hour/core "
+          f"({one['match_seconds'] / one['matches']:.2f} s a match)")
+    two = throughput(root, LocalRunner(2), args.matches, "two")
+    rate2 = 3600 * two["matches"] / two["wall_seconds"]
+    print(f"2 workers: {two['wall_seconds']:.1f} s, {rate2:.0f} matches/hour, speed-up {rate2 / rate1:.2f}x, "
+          f"efficiency {rate2 / rate1 / 2:.0%}; same results: {two['digests'] == one['digests']}")
+    if not args.skip_ray:
+        from ray.cluster_utils import Cluster
+
+        cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1, "include_dashboard": False})
+        cluster.add_node(num_cpus=1)
+        cluster.wait_for_nodes()
+        runner = RayRunner(cluster.address)
+        try:
+            ray_fig = throughput(root, runner, args.matches, "ray")
+        finally:
+            runner.close()
+            cluster.shutdown()
+        rate_r = 3600 * ray_fig["matches"] / ray_fig["wall_seconds"]
+        print(f"Ray, 2 nodes x 1 CPU: {ray_fig['wall_seconds']:.1f} s, {rate_r:.0f} matches/hour, speed-up "
+              f"{rate_r / rate1:.2f}x, efficiency {rate_r / rate1 / 2:.0%}; same results: "
+              f"{ray_fig['digests'] == one['digests']}")
+    per_match = one["match_seconds"] / one["matches"]
+    season_matches = 500 * 40 // 2
+    print(f"on paper: a 500-team scrimmage season, 40 matches a team = {season_matches:,} matches x "
+          f"{per_match:.1f} s = {season_matches * per_match / 3600:.0f} core-hours "
+          f"({season_matches * per_match / 3600 / 64:.1f} h on 64 cores)")
+    overhead = one["wall_seconds"] - one["match_seconds"] + one["schedule_seconds"]
+    print(f"== overhead: league {1000 * overhead / one['matches']:.1f} ms a match (storing and rating "
+          f"{1000 * one['league_seconds'] / one['matches']:.1f} ms) = "
+          f"{overhead / one['match_seconds']:.2%} of the match (target < 2%)")
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--matches", type=int, default=16, help="full matches per throughput run (default 16)")
     ap.add_argument("--skip-ray", action="store_true", help="no Ray cluster run")
+    ap.add_argument("--skip-throughput", action="store_true", help="only the rating-quality run")
     ap.add_argument("--quality-rounds", type=int, default=30, help="rounds of the rating-quality run")
     ap.add_argument("--quality-format", choices=("scrimmage", "swiss"), default="scrimmage",
                     help="random pairs every round, or neighbours in the standing after a first random round")
     args = ap.parse_args()
     root = pathlib.Path(tempfile.mkdtemp(prefix="bench-league-"))
     try:
-        print(f"== throughput: {args.matches} matches of 300 s, 2 teams x 4 robots, office")
-        one = throughput(root, LocalRunner(1), args.matches, "one")
-        rate1 = 3600 * one["matches"] / one["wall_seconds"]
-        print(f"1 worker : {one['wall_seconds']:.1f} s, {rate1:.0f} matches/hour/core "
-              f"({one['match_seconds'] / one['matches']:.2f} s a match)")
-        two = throughput(root, LocalRunner(2), args.matches, "two")
-        rate2 = 3600 * two["matches"] / two["wall_seconds"]
-        print(f"2 workers: {two['wall_seconds']:.1f} s, {rate2:.0f} matches/hour, speed-up {rate2 / rate1:.2f}x, "
-              f"efficiency {rate2 / rate1 / 2:.0%}; same results: {two['digests'] == one['digests']}")
-        if not args.skip_ray:
-            from ray.cluster_utils import Cluster
-
-            cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1, "include_dashboard": False})
-            cluster.add_node(num_cpus=1)
-            cluster.wait_for_nodes()
-            runner = RayRunner(cluster.address)
-            try:
-                ray_fig = throughput(root, runner, args.matches, "ray")
-            finally:
-                runner.close()
-                cluster.shutdown()
-            rate_r = 3600 * ray_fig["matches"] / ray_fig["wall_seconds"]
-            print(f"Ray, 2 nodes x 1 CPU: {ray_fig['wall_seconds']:.1f} s, {rate_r:.0f} matches/hour, speed-up "
-                  f"{rate_r / rate1:.2f}x, efficiency {rate_r / rate1 / 2:.0%}; same results: "
-                  f"{ray_fig['digests'] == one['digests']}")
-        per_match = one["match_seconds"] / one["matches"]
-        season_matches = 500 * 40 // 2
-        print(f"on paper: a 500-team scrimmage season, 40 matches a team = {season_matches:,} matches x "
-              f"{per_match:.1f} s = {season_matches * per_match / 3600:.0f} core-hours "
-              f"({season_matches * per_match / 3600 / 64:.1f} h on 64 cores)")
-        overhead = one["wall_seconds"] - one["match_seconds"] + one["schedule_seconds"]
-        print(f"== overhead: league {1000 * overhead / one['matches']:.1f} ms a match (storing and rating "
-              f"{1000 * one['league_seconds'] / one['matches']:.1f} ms) = "
-              f"{overhead / one['match_seconds']:.2%} of the match (target < 2%)")
+        if not args.skip_throughput:
+            throughput_figures(root, args)
         print(f"== rating quality: 16 entrants of known order, {args.quality_rounds} {args.quality_format} rounds "
               "(60 s matches, demo_room)")
         curve = quality(root, args.quality_rounds, 2, args.quality_format)
