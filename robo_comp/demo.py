@@ -48,6 +48,8 @@ def _start_camera(state: Path, teams: list[str], robots: int, out: Any) -> list[
     import socket
     import subprocess
 
+    from robo_comp.protocol.curve import create_keys
+    from robo_comp.teams.tokens import ORGANISER
     from robo_comp.world.overhead.binding import Bindings
     from robo_comp.world.overhead.synth import floor_markers
     from robo_comp.world.scenario import default_scenario
@@ -61,6 +63,8 @@ def _start_camera(state: Path, teams: list[str], robots: int, out: Any) -> list[
     bind = Bindings({10 + i * robots + k: f"{t}-{k + 1}" for i, t in enumerate(teams) for k in range(robots)},
                     floor_markers(w, h))
     (state / "markers.toml").write_text(bind.to_toml())
+    # the camera speaks under the organiser's key, and the hosts (beside the core) pin its public half
+    create_keys(state, teams)
     fixes = f"tcp://127.0.0.1:{port()}"
     truths = [f"tcp://127.0.0.1:{port()}" for _ in teams]
     procs = [start_robots(state, t, robots, "--positioning", f"camera:{fixes}", "--truth-pub", u)
@@ -68,7 +72,8 @@ def _start_camera(state: Path, teams: list[str], robots: int, out: Any) -> list[
     log = open(state / "camera.log", "wb")
     procs.append(subprocess.Popen([sys.executable, "-m", "robo_comp.cli", "camera", "run", "--markers",
                                    str(state / "markers.toml"), "--pub", fixes, "--synthetic", ",".join(truths),
-                                   "--cameras", "2"], stdout=log, stderr=subprocess.STDOUT))
+                                   "--cameras", "2", "--key", str(state / "keys" / f"{ORGANISER}.key_secret")],
+                                  stdout=log, stderr=subprocess.STDOUT))
     print("demo: robot positions come from two synthetic overhead cameras (robo-comp camera run)", file=out)
     return procs
 
@@ -82,7 +87,7 @@ def run_demo(duration: float = 20.0, robots: int = 3, out: Any = None, web: int 
     rng = random.Random(7)
     with tempfile.TemporaryDirectory(prefix="robo-comp-demo-") as tmp:
         state = Path(tmp)
-        core = start_core(state)
+        core = start_core(state, "--robots", str(robots))  # the organiser's hosts run `robots` per team
         procs = [core]
         try:
             teams = json.loads((state / "core.json").read_text())["teams"][:2]

@@ -344,9 +344,9 @@ def test_live_core_answers_every_fuzzed_frame(core: Any) -> None:
     """One core, many sessions' worth of generated frames: one error reply each (no reply for
     an accepted notification), never E_INTERNAL, and the core still serves a real client."""
     url = Client(str(core.state), core.token("referee")).url
-    anon, team = Raw(url), Raw(url)
+    anon, team, host = Raw(url), Raw(url), Raw(url)
     assert team.call("hello", {"token": core.token("red")})["ok"]
-    reg = team.call("register", {"token": core.token("red"), "robot_id": "fz-1", "tasks": []}, 2)
+    reg = host.call("register", {"token": core.host_token("red"), "robot_id": "fz-1", "tasks": []}, 2)
     assert reg["ok"]
     seen: dict[str, int] = {}
 
@@ -371,6 +371,7 @@ def test_live_core_answers_every_fuzzed_frame(core: Any) -> None:
     finally:
         anon.close()
         team.close()
+        host.close()
     ref = core.client("referee")
     assert ref.request("stats")["received"] > 120
     assert any(r["robot_id"] == "fz-1" for r in ref.robots())
@@ -385,8 +386,8 @@ def _host_with_robot(core: Any) -> tuple[Raw, int, str]:
     """A raw robot host of team red with one registered robot: (socket, tag, url)."""
     url = Client(str(core.state), core.token("referee")).url
     host = Raw(url)
-    assert host.call("hello", {"token": core.token("red")})["ok"]
-    reg = host.call("register", {"token": core.token("red"), "robot_id": "h-1", "tasks": []}, 2)
+    assert host.call("hello", {"token": core.host_token("red")})["ok"]
+    reg = host.call("register", {"token": core.host_token("red"), "robot_id": "h-1", "tasks": []}, 2)
     return host, reg["body"]["tag"], url
 
 

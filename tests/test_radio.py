@@ -22,7 +22,7 @@ class Host:
         self.n = 0
         self.sid = None  # the session secret, from the first register's reply
         self.inbox: list[dict] = []
-        self.tags = [self.ask("register", token=core.token(team), robot_id=i)["body"]["tag"] for i in ids]
+        self.tags = [self.ask("register", token=core.host_token(team), robot_id=i)["body"]["tag"] for i in ids]
 
     def ask(self, type_: str, **body) -> dict:
         self.n += 1

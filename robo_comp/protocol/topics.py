@@ -16,6 +16,9 @@ TOPICS = (
     "match.phase", "score", "score.change", "penalty", "disqualified", "broadcast", "find.reported",
     "picture", "robot.bump", "robot.tasks", "robot.log", "upload.pending", "upload.sent", "upload.done",
     "upload.unloaded", "sandbox.reset",
+    # fair play: claims about the world the match did not believe, and robots handed between hosts
+    # (both for the referee, and the team whose robot it is; never public)
+    "integrity", "robot.handover",
 )
 
 

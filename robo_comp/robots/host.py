@@ -20,6 +20,7 @@ from collections import deque
 from collections.abc import Callable, Generator
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -27,9 +28,10 @@ import zmq
 
 from robo_comp import protocol as P
 from robo_comp.client import open_dealer
-from robo_comp.protocol.curve import ClientKeys
+from robo_comp.match.plausibility import PoseGate
+from robo_comp.protocol.curve import ClientKeys, load_public, secure_client
 from robo_comp.protocol.taskspec import check_args
-from robo_comp.errors import RoboCompError
+from robo_comp.errors import FieldError, RoboCompError
 from robo_comp.plugins.manager import get_plugin_manager
 from robo_comp.robots.drivers import ArenaDriver
 from robo_comp.robots.steps import Capture, Plan, Step, TaskFailed, TaskSpec
@@ -78,6 +80,10 @@ class SimRobot:
     inbox: deque[dict[str, Any]] = field(default_factory=lambda: deque(maxlen=100))
     last_report: float = 0.0
     last_sensed: float = 0.0
+    #: The last camera fix taken (x, y, monotonic time) and the driving budget left since: a fix
+    #: that the robot could not have driven to is refused (robo_comp.match.plausibility).
+    fix: tuple[float, float, float] | None = None
+    fix_budget: float = 0.0
 
     # RobotView for tasks -------------------------------------------------
     def cell(self) -> tuple[int, int]:
@@ -152,7 +158,8 @@ class RobotHost:
                  tick_hz: float = 20.0, driver: str = "sim", driver_options: dict[str, Any] | None = None,
                  plugins: Any = None, ctx: zmq.Context | None = None, seed: int = 0,
                  truth: Scenario | None = None, curve: ClientKeys | None = None,
-                 positioning: str | None = None, truth_pub: str | None = None) -> None:
+                 positioning: str | None = None, truth_pub: str | None = None,
+                 camera_key: str | Path | None = None) -> None:
         self.url = core_url
         self.token = token
         self.count = count
@@ -207,9 +214,22 @@ class RobotHost:
         # of the simulated one; and, in simulation, the true poses its synthetic cameras draw.
         self.positioning = positioning
         self.fix_sock: zmq.Socket | None = None
+        #: Fixes refused as implausible (jumps the robot could not drive), and when that was last said.
+        self.fixes_refused = 0
+        self._fix_warned = 0.0
+        self.fix_gate: PoseGate | None = None
         if positioning is not None:
+            if camera_key is None:
+                raise FieldError(
+                    "a robot host takes fixes only from the organiser's camera: give --camera-key with the "
+                    "camera's public certificate (STATE/keys/organiser.key, made by 'robo-comp keys'; the "
+                    "camera runs with 'robo-comp camera run --key STATE/keys/organiser.key_secret')")
             self.fix_sock = self.ctx.socket(zmq.SUB)
             self.fix_sock.setsockopt(zmq.LINGER, 0)
+            # CurveZMQ with the camera's key pinned: a program that binds the camera's address without
+            # the organiser's secret key never completes the handshake, so none of its fixes arrive
+            public, secret = zmq.curve_keypair()
+            secure_client(self.fix_sock, ClientKeys(public, secret, load_public(camera_key)))
             for topic in (b"fixes", b"camera"):
                 self.fix_sock.setsockopt(zmq.SUBSCRIBE, topic)
             self.fix_sock.connect(positioning)
@@ -222,6 +242,11 @@ class RobotHost:
             self.truth_sock.bind(truth_pub)
         self.camera_fixes = 0
         self._code_fd: int | None = None
+        #: Robots another host still holds (E_HELD): asked for again once a heartbeat, quietly.
+        self.held: dict[str, str] = {}
+        self._held_retry = 0.0
+        #: Robots the referee handed over to another host: this host leaves them alone.
+        self.released: set[str] = set()
 
     # ------------------------------------------------------------------ sending
     def _send(self, type_: str, body: dict[str, Any], on_reply: Reply | None = None) -> None:
@@ -273,13 +298,21 @@ class RobotHost:
         if not self.robots:
             self._create_robots(body)
         self._set_state("registering")
-        self._waiting = len(self.robots)  # replies still to come before we are "up"
-        for r in self.robots.values():
-            b = r.driver
-            self._send("register", {"token": self.token, "robot_id": r.robot_id, "tasks": self.adverts(r.tag),
-                                    "x": b.x, "y": b.y, "heading": b.heading,
-                                    "task_id": r.task.id if r.task else None},
-                       lambda ok, body, r=r: self._on_registered(r, ok, body))
+        mine = [r for r in self.robots.values() if r.robot_id not in self.released]
+        self._waiting = len(mine)  # replies still to come before we are "up"
+        if not mine:
+            self._set_state("up")
+        for r in mine:
+            self._register(r)
+
+    def _register(self, r: SimRobot) -> None:
+        """Register robot ``r`` (again) with its pose, tasks, top speed and the task it runs."""
+        b = r.driver
+        assert self.world is not None
+        self._send("register", {"token": self.token, "robot_id": r.robot_id, "tasks": self.adverts(r.tag),
+                                "x": b.x, "y": b.y, "heading": b.heading, "speed": float(self.world.speed),
+                                "task_id": r.task.id if r.task else None},
+                   lambda ok, body, r=r: self._on_registered(r, ok, body))
 
     def adverts(self, tag: int) -> list[dict[str, Any]]:
         """What robot ``tag`` advertises: the plugins' tasks, then its uploaded code's (which win)."""
@@ -354,6 +387,7 @@ class RobotHost:
             self.world.speed = self.speed
         self.loc = Localization(self.world, external=self.positioning is not None)
         self.walls = self.world.walls
+        self.fix_gate = PoseGate(self.walls, self.world.speed * float(self.world.speed_map.max(initial=1.0)))
 
     def _create_robots(self, arena: dict[str, Any]) -> None:
         assert self.world is not None and self.team is not None
@@ -382,9 +416,15 @@ class RobotHost:
             self.world.sense_many([next(iter(self.robots))])
 
     def _on_registered(self, r: SimRobot, ok: bool, body: dict[str, Any]) -> None:
-        if not ok:
+        if not ok and body.get("code") == "E_HELD":
+            if r.robot_id not in self.held:  # said once; asked again quietly once a heartbeat
+                log.warning("robot %s: %s", r.robot_id, body.get("message"))
+            self.held[r.robot_id] = str(body.get("message"))
+        elif not ok:
             log.error("robot %s was refused: %s", r.robot_id, body.get("message"))
         else:
+            if self.held.pop(r.robot_id, None) is not None:
+                log.warning("robot %s: the other host let it go; this host runs it now", r.robot_id)
             if r.tag and r.tag != body["tag"]:
                 self.by_tag.pop(r.tag, None)
             r.tag = body["tag"]
@@ -442,6 +482,16 @@ class RobotHost:
                 self._reconnect("the core restarted")
             return
         if type_ == "event":
+            return
+        if type_ == "release":  # the referee handed a robot to another host: halt it and let it go
+            gone = self.by_tag.pop(body.get("tag", -1), None)
+            if gone is not None:
+                self._halt(gone)
+                gone.task = None
+                gone.tag = 0
+                self.released.add(gone.robot_id)
+                log.warning("robot %s: %s; this host no longer runs it", gone.robot_id,
+                            body.get("message", "released by the core"))
             return
         if type_ == "hold":  # the match is paused or over: robots hold still, tasks wait
             self.holding = bool(body.get("on"))
@@ -727,6 +777,8 @@ class RobotHost:
                 try:
                     rid = f["robot"]
                     r = self.robots.get(rid)
+                    if r is not None and not self._fix_plausible(r, float(f["x"]), float(f["y"]), float(f["sigma"])):
+                        continue
                     if r is not None:
                         before = self.loc.estimate(rid)
                         self.loc.camera_fix(rid, float(f["x"]), float(f["y"]), float(f["heading"]),
@@ -740,6 +792,31 @@ class RobotHost:
             if moved and self.state == "up" and self.sock is not None:
                 rows = list(moved.values())
                 self.sock.send(P.request("reports", 0, self._pose_rows(rows, time.monotonic(), {}), self.session))
+
+    def _fix_plausible(self, r: SimRobot, x: float, y: float, sigma: float) -> bool:
+        """Whether a camera fix of robot ``r`` is one it could have driven to since the last fix taken
+        (or since it started); a refused fix is counted and said once a second."""
+        gate = self.fix_gate
+        if gate is None:
+            return True
+        now = time.monotonic()
+        speed = gate.speed
+        if r.fix is None:
+            x0, y0, _ = r.driver.pose
+            budget = gate.capacity(speed)
+        else:
+            x0, y0, t0 = r.fix
+            budget = gate.refill(r.fix_budget, now - t0, speed)
+        verdict, left = gate.step(x0, y0, budget, x, y, sigma, speed)
+        if not verdict.ok:
+            self.fixes_refused += 1
+            if now - self._fix_warned > 1.0:
+                self._fix_warned = now
+                log.warning("positioning: a fix of %s was refused: %s (%d refused so far)", r.robot_id,
+                            verdict.reason, self.fixes_refused)
+            return False
+        r.fix, r.fix_budget = (x, y, now), left
+        return True
 
     def _publish_truth(self) -> None:
         """The robots' true poses for synthetic cameras (simulation only: ``--truth-pub``)."""
@@ -814,6 +891,11 @@ class RobotHost:
                 next_tick = now + self.tick
                 if self.state == "up" and now - self.last_tx > self.heartbeat:
                     self._send("heartbeat", {})
+                if self.held and self.state == "up" and now >= self._held_retry:
+                    self._held_retry = now + self.heartbeat
+                    for rid in list(self.held):
+                        if rid in self.robots and rid not in self.released:
+                            self._register(self.robots[rid])
                 silent = now - self.last_rx
                 if silent > 3 * self.heartbeat and now - self.state_since > 3 * self.heartbeat:
                     self._lost_core(now)
