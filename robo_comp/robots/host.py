@@ -214,6 +214,7 @@ class RobotHost:
         # of the simulated one; and, in simulation, the true poses its synthetic cameras draw.
         self.positioning = positioning
         self.fix_sock: zmq.Socket | None = None
+        self._fix_opened = self._fix_heard = 0.0
         #: Fixes refused as implausible (jumps the robot could not drive), and when that was last said.
         self.fixes_refused = 0
         self._fix_warned = 0.0
@@ -224,16 +225,8 @@ class RobotHost:
                     "a robot host takes fixes only from the organiser's camera: give --camera-key with the "
                     "camera's public certificate (STATE/keys/organiser.key, made by 'robo-comp keys'; the "
                     "camera runs with 'robo-comp camera run --key STATE/keys/organiser.key_secret')")
-            self.fix_sock = self.ctx.socket(zmq.SUB)
-            self.fix_sock.setsockopt(zmq.LINGER, 0)
-            # CurveZMQ with the camera's key pinned: a program that binds the camera's address without
-            # the organiser's secret key never completes the handshake, so none of its fixes arrive
-            public, secret = zmq.curve_keypair()
-            secure_client(self.fix_sock, ClientKeys(public, secret, load_public(camera_key)))
-            for topic in (b"fixes", b"camera"):
-                self.fix_sock.setsockopt(zmq.SUBSCRIBE, topic)
-            self.fix_sock.connect(positioning)
-            self.poller.register(self.fix_sock, zmq.POLLIN)  # a fix wakes the loop
+            self._camera_public = load_public(camera_key)
+            self._open_fixes()
         self.truth_sock: zmq.Socket | None = None
         if truth_pub is not None:
             self.truth_sock = self.ctx.socket(zmq.PUB)
@@ -247,6 +240,29 @@ class RobotHost:
         self._held_retry = 0.0
         #: Robots the referee handed over to another host: this host leaves them alone.
         self.released: set[str] = set()
+
+    FIX_SILENCE = 2.0
+    """Seconds without a message from the camera after which the host connects to it afresh."""
+
+    def _open_fixes(self) -> None:
+        """Subscribe to the camera's fixes over CurveZMQ with the camera's key pinned: a program
+        that binds the camera's address without the organiser's secret key never completes the
+        handshake, so none of its fixes arrive. libzmq does not retry a connection whose handshake
+        failed, so a silent camera gets a fresh connection every :attr:`FIX_SILENCE` seconds (an
+        impostor that held the address must not cut the real camera off for good)."""
+        assert self.positioning is not None
+        if self.fix_sock is not None:
+            self.poller.unregister(self.fix_sock)
+            self.fix_sock.close(0)
+        self._fix_opened = self._fix_heard = time.monotonic()
+        public, secret = zmq.curve_keypair()
+        self.fix_sock = self.ctx.socket(zmq.SUB)
+        self.fix_sock.setsockopt(zmq.LINGER, 0)
+        secure_client(self.fix_sock, ClientKeys(public, secret, self._camera_public))
+        for topic in (b"fixes", b"camera"):
+            self.fix_sock.setsockopt(zmq.SUBSCRIBE, topic)
+        self.fix_sock.connect(self.positioning)
+        self.poller.register(self.fix_sock, zmq.POLLIN)  # a fix wakes the loop
 
     # ------------------------------------------------------------------ sending
     def _send(self, type_: str, body: dict[str, Any], on_reply: Reply | None = None) -> None:
@@ -757,9 +773,13 @@ class RobotHost:
             try:
                 topic, body = self.fix_sock.recv_multipart(zmq.NOBLOCK)
             except zmq.Again:
+                now = time.monotonic()
+                if now - self._fix_heard > self.FIX_SILENCE and now - self._fix_opened > self.FIX_SILENCE:
+                    self._open_fixes()
                 return
             except ValueError:  # not two frames: not the camera's
                 continue
+            self._fix_heard = time.monotonic()
             try:
                 msg = P.unpack(body)
                 if topic == b"camera":
