@@ -348,3 +348,15 @@ def test_a_host_declared_speed_is_cut_to_the_cores_limit(core: CoreHandle, speed
     else:
         assert r is None and ref.monitor(tag)["y"] == 11.0
     h.close()
+
+
+def test_host_tokens_are_the_organisers_private_files(core: CoreHandle) -> None:
+    """Defence: ``TokenBook``: host tokens are 0600 in a 0700 folder of the state folder."""
+    import stat
+
+    hosts = core.state / "hosts"
+    assert stat.S_IMODE(hosts.stat().st_mode) == 0o700
+    for team in ("red", "blue"):
+        f = core.host_token_file(team)
+        assert stat.S_IMODE(f.stat().st_mode) == 0o600 and len(f.read_text().strip()) >= 16
+        assert f.read_text().strip() != core.token(team)
