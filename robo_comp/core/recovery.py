@@ -4,7 +4,12 @@ The log holds every state change (see ``docs/protocol.md``, "Event log"), so rep
 restores robots and their tags, advertised tasks, current/pending/queued/done tasks, the match
 phase and clock, score changes, disqualifications, pictures (evidence) and finds. Robots come
 back as ``lost`` until their hosts re-register (with the same robot ids, so the same tags).
-A damaged tail is reported and cut off; everything before it recovers.
+Every record carries a checksum: a damaged record costs that record only. Recovery skips it,
+keeps every good record after it, and reports exactly which sequence numbers were lost (with
+their topics where the damaged bytes still say them) in the ``core.recovered`` event. Damaged
+bytes at the very end (an unfinished write) are cut off, with a copy kept; the sequence numbers
+they could have held are never used again. A log of format 1 (without checksums) is read and
+said so.
 """
 from __future__ import annotations
 
@@ -12,11 +17,11 @@ import logging
 import shutil
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
-from robo_comp.protocol.logfile import LogReader
+from robo_comp.protocol.logfile import FORMAT_VERSION, LEGACY_VERSION, Damage, LogReader
 from robo_comp.core.registry import Registry, RobotRecord, RobotStatus
 from robo_comp.core.tasks import TaskMachine, TaskMode, TaskRecord, TaskState
 from robo_comp.protocol.taskspec import check_specs
@@ -47,11 +52,24 @@ class RecoveryReport:
     seconds: float
     damage: str | None = None
     damaged_copy: str | None = None
+    #: Every damaged stretch of the log (empty for a clean log).
+    damages: list[Damage] = field(default_factory=list)
+    #: Records read in format 1 (no checksums); 0 for a format-2 log.
+    legacy: int = 0
+    #: The log's last header is of format 1: what is appended needs a format-2 header first.
+    legacy_tail: bool = False
+
+    @property
+    def lost(self) -> list[int]:
+        """Sequence numbers of the events the damage cost."""
+        return [s for d in self.damages for s in d.lost]
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-data form (the ``core.recovered`` event)."""
         return {"events": self.events, "seq": self.seq, "seconds": round(self.seconds, 4),
-                "damage": self.damage, "damaged_copy": self.damaged_copy}
+                "damage": self.damage, "damaged_copy": self.damaged_copy,
+                "damages": [d.to_dict() for d in self.damages], "lost": self.lost,
+                "legacy_records": self.legacy}
 
 
 class Replayer:
@@ -182,7 +200,9 @@ class Replayer:
 
 
 def recover(core: Recoverable, path: Path) -> RecoveryReport:
-    """Replay ``path`` into ``core``; cut off and keep a copy of a damaged tail."""
+    """Replay ``path`` into ``core``: every good record, skipping damaged ones (see the module
+    docstring). ``seq`` of the report is the last sequence number that may have been used (the
+    next event gets ``seq + 1``); ``good_end`` where damaged bytes at the end begin."""
     t0 = time.perf_counter()
     reader = LogReader(path)
     rep = Replayer(core)
@@ -195,11 +215,24 @@ def recover(core: Recoverable, path: Path) -> RecoveryReport:
         if r.status == RobotStatus.CONNECTED:
             r.status = RobotStatus.LOST  # until its host re-registers
         r.session = None
-    report = RecoveryReport(n, reader.last_seq, reader.good_end, time.perf_counter() - t0)
-    if reader.damage is not None:
-        copy = path.with_name(f"{path.name}.damaged-{int(time.time())}")
-        shutil.copyfile(path, copy)
-        report.damage = f"{reader.damage}; {path.stat().st_size - reader.good_end} bytes after it were cut off"
-        report.damaged_copy = str(copy)
-        log.warning("event log: %s (a copy of the damaged log is in %s)", report.damage, copy)
+    report = RecoveryReport(n, reader.next_seq - 1, reader.good_end, time.perf_counter() - t0,
+                            damages=reader.damages, legacy=reader.legacy,
+                            legacy_tail=reader.version == LEGACY_VERSION)
+    if reader.legacy:
+        log.warning("event log: %d records are of the previous format (1, without checksums); they were "
+                    "read without a check, and new records are written in format %d after them",
+                    reader.legacy, FORMAT_VERSION)
+    if reader.damages:
+        said = [d.describe() for d in reader.damages]
+        cut = path.stat().st_size - reader.good_end
+        if cut > 0:
+            copy = path.with_name(f"{path.name}.damaged-{int(time.time())}")
+            shutil.copyfile(path, copy)
+            report.damaged_copy = str(copy)
+            said.append(f"the {cut} damaged bytes at the end were cut off (a copy of the log is in {copy})")
+        lost = report.lost
+        report.damage = (f"the event log is damaged in {len(reader.damages)} place"
+                         f"{'s' if len(reader.damages) > 1 else ''}; {len(lost)} event"
+                         f"{'s' if len(lost) != 1 else ''} lost, every other record recovered: " + "; ".join(said))
+        log.warning("event log: %s", report.damage)
     return report

@@ -185,7 +185,7 @@ class Core:
         if log_path.exists() and log_path.stat().st_size > 0:
             self.recovered = recover(self, log_path)
             self.events = EventLog(log_path, fsync=fsync, seq=self.recovered.seq,
-                                   good_end=self.recovered.good_end)
+                                   good_end=self.recovered.good_end, legacy=self.recovered.legacy_tail)
         else:
             self.events = EventLog(log_path, fsync=fsync)
 
@@ -817,7 +817,8 @@ class Core:
             by_status[r.status] = by_status.get(r.status, 0) + 1
         return dict(self.stats, robots=by_status, sessions=len(self.sessions), log_seq=self.events.seq,
                     storage=self.storage_fault, log_unwritten=self.events.unwritten,
-                    uptime=time.monotonic() - self.started)
+                    uptime=time.monotonic() - self.started,
+                    recovered=self.recovered.to_dict() if self.recovered is not None else None)
 
     def _on_snapshot(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
         s = self.session(ident)
