@@ -310,3 +310,152 @@ def test_a_console_stopped_past_the_heartbeat_holds_up_nothing(core: CoreHandle,
     given = {json.loads(line)["data"].get("task_id") for line in out.read_text().splitlines()
              if json.loads(line)["topic"] == "task.given"}
     assert {during, after} <= given, given
+
+
+# ---------------------------------------------------------------------------------------------
+# Records that prove themselves (issue 32): a damaged byte costs the record it is in, no more.
+
+
+def _flip(path: Path, offset: int, bits: int = 0x09) -> None:
+    """Change one byte of ``path`` in place."""
+    with open(path, "r+b") as f:
+        f.seek(offset)
+        b = f.read(1)[0]
+        f.seek(offset)
+        f.write(bytes([b ^ bits]))
+
+
+def test_one_damaged_byte_in_the_middle_of_the_log_costs_that_record_only(tmp_path: Path) -> None:
+    """The core is killed, a penalty's score line in the middle of the log has its points changed
+    (-1 would read as -1.25), the core restarts: that one record is reported lost (by seq and
+    topic), every record after it recovers, the file is not cut, and no sequence number is used
+    twice; then the last record is damaged too, and the next restart reuses none of its numbers."""
+    from robo_comp.protocol.logfile import read_log
+
+    state = tmp_path / "state"
+    log = state / "events.log"
+    proc = start_core(state, "--heartbeat", "0.2", "--teams", "red,blue")
+    match = CoreHandle(state, None, proc)
+    try:
+        ref = match.referee()
+        for i in range(30):
+            ref.request("penalty", team=("red", "blue")[i % 2], points=-1, reason=f"foul {i:02d}")
+        proc.kill()
+        proc.wait()
+        raw = log.read_bytes()
+        size = len(raw)
+        lines = [r for r in read_log(log) if r.topic == "score.change"]
+        assert len(lines) == 30
+        victim = next(r for r in lines if r.data["reason"] == "foul 15")
+        at = raw.index(b"foul 15", raw.index(b"foul 15") + 1)  # the second: the score line's
+        points = raw.rindex(b"\xa6points", 0, at) + 7
+        assert raw[points:points + 3] == b"\xcb\xbf\xf0"  # msgpack's float64 -1.0
+        _flip(log, points + 2, 0x04)  # -1.25
+        before = [(r.seq, r.topic) for r in read_log(log, strict=False)]
+        match.proc = proc = start_core(state)
+        ref = match.referee()
+        rec = ref.request("stats")["recovered"]
+        assert rec["lost"] == [victim.seq], rec
+        assert rec["damages"][0]["lost"] == [{"seq": victim.seq, "topic": "score.change"}], rec
+        assert "1 event lost" in rec["damage"] and f"{victim.seq} (probably score.change)" in rec["damage"]
+        assert log.stat().st_size >= size  # nothing was cut
+        shown = ref.score()["lines"]
+        assert sorted(ln["reason"] for ln in shown) == sorted(f"foul {i:02d}" for i in range(30) if i != 15)
+        assert {ln["points"] for ln in shown} == {-1}, "a changed value was read back"
+        ref.request("penalty", team="red", points=-1, reason="after the restart")
+        seqs = [r.seq for r in read_log(log, strict=False)]
+        assert len(seqs) == len(set(seqs)), "a sequence number was used twice"
+        assert [(s, t) for s, t in before] == [(r.seq, r.topic) for r in read_log(log, strict=False)][:len(before)]
+        # now the last record: an unfinished write or a damaged byte at the very end
+        proc.kill()
+        proc.wait()
+        last = list(read_log(log, strict=False))[-1]
+        _flip(log, log.stat().st_size - 3)
+        match.proc = proc = start_core(state)
+        ref = match.referee()
+        rec = ref.request("stats")["recovered"]
+        assert set(rec["lost"]) == {victim.seq, last.seq}, rec
+        assert rec["damages"][-1]["tail"] and rec["damaged_copy"], rec
+        ref.request("penalty", team="blue", points=-1, reason="after the second restart")
+        after = list(read_log(log, strict=False))
+        assert len({r.seq for r in after}) == len(after), "a sequence number was used twice"
+        assert all(r.seq > last.seq for r in after if r.t > last.t and r.topic == "penalty"), \
+            "the damaged last record's number was given to a new event"
+        assert "after the second restart" in {ln["reason"] for ln in ref.score()["lines"]}
+    finally:
+        match.close()
+
+
+def test_every_single_damaged_byte_costs_at_most_its_record_and_is_reported(tmp_path: Path) -> None:
+    """Each byte of a log, changed in turn: at most the one record it belongs to is lost, exactly
+    its sequence number is reported, and no record reads back changed (the checksum)."""
+    from robo_comp.core.eventlog import EventLog
+    from robo_comp.protocol.logfile import LogReader
+
+    path = tmp_path / "events.log"
+    ev = EventLog(path)
+    for i in range(12):
+        ev.append(("penalty", "score.change", "robot.positions")[i % 3], "red",
+                  {"points": -1, "i": i, "x": [1.5, 2.5]}, t=1000.0 + i)
+    ev.close()
+    raw = path.read_bytes()
+    good = {r.seq: r for r in LogReader(path)}
+    assert len(good) == 12
+    bad = tmp_path / "damaged.log"
+    for off in range(len(raw)):
+        damaged = bytearray(raw)
+        damaged[off] ^= 0x10
+        bad.write_bytes(bytes(damaged))
+        reader = LogReader(bad)
+        got = {r.seq: r for r in reader}
+        lost = set(good) - set(got)
+        assert len(lost) <= 1, (off, lost)
+        assert all(good[s] == r for s, r in got.items()), f"byte {off}: a record read back changed"
+        assert {s for d in reader.damages for s in d.lost} == lost, (off, [d.describe() for d in reader.damages])
+        assert reader.damages, f"byte {off}: a changed byte went unnoticed"
+        assert reader.next_seq > max(good), f"byte {off}: sequence number {reader.next_seq} would be reused"
+
+
+def test_a_log_of_the_previous_format_is_read_and_said_so(tmp_path: Path) -> None:
+    """A format-1 log (no checksums) recovers in a core of today, which says so and appends
+    format-2 records after it; the whole file reads back."""
+    import struct
+
+    import msgpack
+
+    from robo_comp.protocol.logfile import LogReader
+
+    state = tmp_path / "state"
+    state.mkdir()
+    old = [{"format": "robo_comp-eventlog", "version": 1, "started": 1000.0}]
+    for i, rid in enumerate(("red-1", "red-2")):
+        old.append({"seq": 1 + i, "t": 1000.0 + i, "topic": "robot.registered", "team": "red",
+                    "data": {"tag": 101 + i, "team": "red", "robot_id": rid, "x": 1.0, "y": 1.0, "heading": 0.0}})
+    old.append({"seq": 3, "t": 1003.0, "topic": "score.change", "team": "red",
+                "data": {"team": "red", "points": -1, "kind": "penalty", "reason": "old foul", "t": 0.0}})
+    with open(state / "events.log", "wb") as f:
+        for obj in old:
+            blob = msgpack.packb(obj, use_bin_type=True)
+            f.write(struct.pack(">I", len(blob)) + blob)
+    proc = start_core(state, "--heartbeat", "0.2", "--teams", "red,blue")
+    match = CoreHandle(state, None, proc)
+    try:
+        ref = match.referee()
+        rec = ref.request("stats")["recovered"]
+        assert rec["legacy_records"] == 3 and rec["damage"] is None, rec
+        assert sorted(r["tag"] for r in ref.robots()) == [101, 102]
+        assert [ln["reason"] for ln in ref.score()["lines"]] == ["old foul"]
+        assert "previous format" in match.log_tail()
+        ref.request("penalty", team="red", points=-1, reason="new foul")
+        proc.kill()
+        proc.wait()
+        reader = LogReader(state / "events.log")
+        recs = list(reader)
+        assert not reader.damages and reader.legacy == 3
+        assert [r.seq for r in recs] == list(range(1, len(recs) + 1))
+        assert "new foul" in {r.data.get("reason") for r in recs if r.topic == "score.change"}
+        match.proc = start_core(state)  # format 1 then 2 in one file: read again, nothing lost
+        rec = match.referee().request("stats")["recovered"]
+        assert rec["legacy_records"] == 3 and rec["damage"] is None and rec["events"] == len(recs) + 0, rec
+    finally:
+        match.close()

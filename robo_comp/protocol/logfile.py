@@ -92,7 +92,9 @@ class Damage:
     ``lost`` are the sequence numbers of the events that were there (the gap between the good
     records around it; for damage at the end of the log, what the bytes still say, if anything);
     ``topics`` maps those the damaged bytes still name to their topic (unverified: the bytes
-    failed their check). ``tail`` is True when no good record follows."""
+    failed their check). ``tail`` is True when no good record follows; then ``lost`` counts a
+    record for each marker in the damaged bytes (at least one), numbered on from the last good
+    record (a record cut short by a crash was never acknowledged)."""
 
     start: int
     end: int
@@ -109,10 +111,10 @@ class Damage:
             named = ", ".join(f"{s} (probably {self.topics[s]})" if s in self.topics else str(s) for s in self.lost[:20])
             more = f" and {len(self.lost) - 20} more" if len(self.lost) > 20 else ""
             what = f"lost event{'s' if len(self.lost) > 1 else ''} {named}{more}"
-        elif self.tail:
-            what = "no event can be read from them (an unfinished write: nothing acknowledged)"
         else:
             what = "no event was lost (the damage lies between records)"
+        if self.tail and self.reason.startswith("truncated"):
+            what += " (a write cut short by a crash: not acknowledged to anyone)"
         return f"{where}: {self.reason}; {what}"
 
     def to_dict(self) -> dict[str, Any]:
@@ -305,12 +307,14 @@ class LogReader:
             if type(seq) is int and prev < seq < after and isinstance(topic, str):
                 d.topics[seq] = topic
         else:
-            # at the end nothing follows to bound it: every seq the bytes could have held is burnt
-            self.next_seq = max(self.next_seq, prev + 1 + (end - start) // MIN_RECORD + 1)
-            if type(seq) is int and prev < seq < self.next_seq:
-                d.lost = [seq]
-                if isinstance(topic, str):
-                    d.topics[seq] = topic
+            # at the end nothing follows to bound it: every record there starts with the marker
+            # (one whose marker is damaged counts as one), numbered on from the last good one
+            count = max(1, bytes(view[start:end]).count(MAGIC))
+            d.lost = list(range(prev + 1, prev + 1 + count))
+            if count == 1 and seq == prev + 1 and isinstance(topic, str):
+                d.topics[seq] = topic
+            # and no number the damaged bytes could have held is ever given again
+            self.next_seq = max(self.next_seq, prev + 1 + max(count, (end - start) // MIN_RECORD + 1))
         self.damages.append(d)
 
 
