@@ -46,9 +46,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                          description="A sandbox whose code hit its limits too often rests (60 s, doubling) "
                                      "and restarts by itself; this restarts it at once.")
     sr.add_argument("tags", help="robot tag, or several separated by commas")
-    m = cmds.add_parser("match", help="referee: start, pause, resume, finish or extend the match")
-    m.add_argument("action", choices=("start", "pause", "resume", "finish", "extend"))
+    m = cmds.add_parser("match", help="referee: start, pause, resume, finish or extend the match; "
+                                      "or set the outage rule",
+                        description="'outage --rule pause|count' chooses what a core outage (a crash, a restart) "
+                                    "does to the running match clock: pause (the default: it stands still while "
+                                    "no core runs) or count (the outage is match time).")
+    m.add_argument("action", choices=("start", "pause", "resume", "finish", "extend", "outage"))
     m.add_argument("--seconds", type=float, help="for extend: seconds to add")
+    m.add_argument("--rule", choices=("pause", "count"), help="for outage: the rule")
     cmds.add_parser("score", help="the scoreboard, phase and clock")
     e = cmds.add_parser("events", help="print events as they happen")
     e.add_argument("--count", type=int, default=0, help="stop after N events (0 = never)")
@@ -184,7 +189,7 @@ def _run(c: Client, args: argparse.Namespace) -> int:
                 print(f"{mod['name']} {mod['version']} ({mod['kind']}, {mod['file']}, sha256 {mod['sha256'][:12]}): "
                       f"{', '.join(mod['tasks'])}")
     elif args.cmd == "match":
-        out = c.match(args.action, args.seconds)
+        out = c.match(args.action, args.seconds, rule=args.rule)
         if not args.json:
             print(_clock(out))
     elif args.cmd == "score":
@@ -202,7 +207,9 @@ def _run(c: Client, args: argparse.Namespace) -> int:
 
 def _clock(s: dict[str, Any]) -> str:
     rem = s.get("remaining")
-    return f"match {s.get('phase', '?')}; " + (f"{rem:.0f} s left" if rem is not None else "no time limit")
+    return (f"match {s.get('phase', '?')}; " + (f"{rem:.0f} s left" if rem is not None else "no time limit")
+            + (f"; a core outage: the clock {'stands still' if s['outage'] == 'pause' else 'counts it'}"
+               if s.get("outage") else ""))
 
 
 def _print_score(s: dict[str, Any]) -> None:

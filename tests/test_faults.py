@@ -10,12 +10,13 @@ import subprocess
 import sys
 import time
 from collections.abc import Iterator
+from typing import Any
 from pathlib import Path
 
 import pytest
 
 from conftest import CoreHandle, next_event_where, wait_robots
-from robo_comp.errors import StorageError, TimeoutError_
+from robo_comp.errors import FieldError, StorageError, TimeoutError_
 from robo_comp.launch import start_core
 
 
@@ -457,5 +458,93 @@ def test_a_log_of_the_previous_format_is_read_and_said_so(tmp_path: Path) -> Non
         match.proc = start_core(state)  # format 1 then 2 in one file: read again, nothing lost
         rec = match.referee().request("stats")["recovered"]
         assert rec["legacy_records"] == 3 and rec["damage"] is None and rec["events"] == len(recs) + 0, rec
+    finally:
+        match.close()
+
+
+# ---------------------------------------------------------------------------------------------
+# Match time that only the match moves (issue 32).
+
+
+def _clock_of(match: CoreHandle) -> dict[str, Any]:
+    return match.referee().request("match", action="outage", rule="pause")
+
+
+def test_the_match_clock_ignores_wall_clock_steps_across_restarts(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The core under libfaketime: a scored match runs, the machine's clock steps +2 h, the core is
+    killed and restarted, the clock steps -1 h, killed and restarted again. The match clock stays
+    within 1 s of the time the match really ran (the outage rule 'pause': downtime not counted)."""
+    lib = _libfaketime()
+    if lib is None:
+        pytest.skip("libfaketime is not installed (Debian package faketime; .ci/run installs it)")
+    wall = tmp_path / "faketime.rc"
+    wall.write_text("+0\n")
+    # an NTP step moves the wall clock only: the monotonic clocks are left alone
+    monkeypatch.setenv("LD_PRELOAD", lib)
+    monkeypatch.setenv("FAKETIME_TIMESTAMP_FILE", str(wall))
+    monkeypatch.setenv("FAKETIME_NO_CACHE", "1")
+    monkeypatch.setenv("FAKETIME_DONT_FAKE_MONOTONIC", "1")
+    from robo_comp.world import scenario as scen
+
+    demo = Path(scen.__file__).parent / "scenarios" / "demo_room.toml"
+    state = tmp_path / "state"
+    proc = start_core(state, "--heartbeat", "0.2", "--scenario", str(demo))
+    match = CoreHandle(state, None, proc)
+    ran = 0.0
+    try:
+        match.referee().match("start")
+        since = time.monotonic()
+        for step in ("+7200", "-3600"):
+            time.sleep(1.0)
+            wall.write_text(step + "\n")
+            time.sleep(0.5)  # the core writes events stamped with the stepped clock
+            proc.kill()
+            proc.wait()
+            ran += time.monotonic() - since
+            time.sleep(1.0)  # the outage: not match time under the default rule
+            match.proc = proc = start_core(state)
+            since = time.monotonic()
+            st = _clock_of(match)
+            assert st["phase"] == "running", st
+            assert st["outage"] == "pause"
+            assert abs(st["elapsed"] - ran) < 1.0, (step, st, ran)
+        rec = match.referee().request("stats")["recovered"]
+        assert "'pause'" in rec["clock"], rec
+    finally:
+        match.close()
+
+
+def test_practice_keeps_its_clock_and_the_referee_chooses_the_outage_rule(tmp_path: Path) -> None:
+    """A practice match (no phases) keeps its clock across kill -9; with the outage rule 'count'
+    the time the core was down is match time, with 'pause' (the default) it is not."""
+    state = tmp_path / "state"
+    proc = start_core(state, "--heartbeat", "0.2", "--teams", "red")
+    match = CoreHandle(state, None, proc)
+    try:
+        ref = match.referee()
+        st = ref.score()
+        assert st["phase"] == "running" and st["outage"] == "pause", st
+        time.sleep(1.5)
+        before = ref.score()["elapsed"]
+        proc.kill()
+        proc.wait()
+        time.sleep(2.0)
+        match.proc = proc = start_core(state)
+        after = match.referee().score()["elapsed"]
+        assert before - 0.3 <= after < before + 1.0, (before, after)  # not 0, and the outage not counted
+        st = match.referee().match("outage", rule="count")
+        assert st["outage"] == "count"
+        time.sleep(0.5)
+        before = match.referee().score()["elapsed"]
+        proc.kill()
+        proc.wait()
+        time.sleep(2.0)
+        match.proc = proc = start_core(state)
+        st = match.referee().score()
+        assert st["outage"] == "count" and st["elapsed"] >= before + 2.0, (before, st)
+        rec = match.referee().request("stats")["recovered"]
+        assert "'count'" in rec["clock"] and "boot-time clock" in rec["clock"], rec
+        with pytest.raises(FieldError, match="'pause'"):
+            match.referee().match("outage", rule="sometimes")
     finally:
         match.close()

@@ -27,6 +27,7 @@ from robo_comp.core.tasks import TaskMachine, TaskMode, TaskRecord, TaskState
 from robo_comp.protocol.taskspec import check_specs
 from robo_comp.errors import RoboCompError
 from robo_comp.scoring.board import ScoreLine
+from robo_comp.scoring.match import outage_seconds
 
 if TYPE_CHECKING:
     from robo_comp.core.competition import Competition
@@ -58,6 +59,8 @@ class RecoveryReport:
     legacy: int = 0
     #: The log's last header is of format 1: what is appended needs a format-2 header first.
     legacy_tail: bool = False
+    #: How the match clock was set (match time as recorded; the outage rule).
+    clock: str = ""
 
     @property
     def lost(self) -> list[int]:
@@ -69,7 +72,7 @@ class RecoveryReport:
         return {"events": self.events, "seq": self.seq, "seconds": round(self.seconds, 4),
                 "damage": self.damage, "damaged_copy": self.damaged_copy,
                 "damages": [d.to_dict() for d in self.damages], "lost": self.lost,
-                "legacy_records": self.legacy}
+                "legacy_records": self.legacy, "clock": self.clock}
 
 
 class Replayer:
@@ -81,12 +84,18 @@ class Replayer:
         # the core's own transitions, without its events (they are in the log already)
         self.machine = TaskMachine(on_finish=core.registry.finished)
         self.phase: tuple[str, float, float | None, float] | None = None
+        #: The last ``match.clock`` record's data since the last phase change (None: none yet, as in
+        #: a log of format 1, which had no such records).
+        self.clock_mark: dict[str, Any] | None = None
+        self.outage_rule = "pause"
+        #: How recovery set the clock (part of the report).
+        self.clock_note = ""
         self.last_t = 0.0
         self.handlers: dict[str, Callable[[str | None, dict[str, Any], float], None]] = {
             "robot.registered": self._registered, "robot.returned": self._returned,
             "robot.positions": self._positions, "robot.left": self._status(RobotStatus.LEFT),
             "robot.lost": self._status(RobotStatus.LOST), "task.given": self._given, "task.started": self._started,
-            "task.done": self._done, "match.phase": self._phase, "score.change": self._score,
+            "task.done": self._done, "match.phase": self._phase, "match.clock": self._clock, "score.change": self._score,
             "disqualified": self._disqualified, "picture": self._picture, "find.reported": self._find,
         }
 
@@ -166,15 +175,36 @@ class Replayer:
     # the match ----------------------------------------------------------
     def _phase(self, team: str | None, d: dict[str, Any], t: float) -> None:
         self.phase = (d["phase"], d["elapsed"], d.get("duration"), t)
+        self.outage_rule = d.get("outage", self.outage_rule)
+        self.clock_mark = None
 
-    def finish(self) -> None:
-        """Set the match clock: a running match counts the time up to the last logged event
-        (the core's downtime is not match time)."""
-        if self.phase is not None:
-            phase, elapsed, duration, t = self.phase
-            if phase == "running":
-                elapsed += max(0.0, self.last_t - t)
-            self.core.competition.clock.restore(phase, elapsed, duration, time.monotonic())
+    def _clock(self, team: str | None, d: dict[str, Any], t: float) -> None:
+        self.phase = (d["phase"], d["elapsed"], d.get("duration"), t)
+        self.outage_rule = d.get("outage", self.outage_rule)
+        self.clock_mark = dict(d, t=t)
+
+    def finish(self, outage: bool = False) -> None:
+        """Set the match clock from the match time last recorded (``match.phase``,
+        ``match.clock``), never from differences of wall-clock stamps. ``outage``: the core was
+        down since the log's end; under the ``count`` rule a running clock adds that time."""
+        clock = self.core.competition.clock
+        clock.outage = self.outage_rule
+        if self.phase is None:
+            return
+        phase, elapsed, duration, t = self.phase
+        self.clock_note = f"the clock is match time as recorded: {elapsed:.1f} s"
+        if phase == "running" and self.clock_mark is None and self.last_t > t:
+            # a log of format 1 records no clock between phase changes: count to its last event
+            elapsed += self.last_t - t
+            self.clock_note = (f"{elapsed:.1f} s: the log records no match clock (format 1), so the time "
+                               "to its last event counts")
+        if outage and phase == "running" and self.outage_rule == "count":
+            down, how = outage_seconds(self.clock_mark or {}, self.last_t)
+            elapsed += down
+            self.clock_note += f"; the outage rule is 'count': the {down:.1f} s the core was down (by {how}) count"
+        elif outage and phase == "running":
+            self.clock_note += "; the outage rule is 'pause': the time the core was down does not count"
+        clock.restore(phase, elapsed, duration, time.monotonic())
 
     def _score(self, team: str | None, d: dict[str, Any], t: float) -> None:
         self.core.competition.board.restore_line(
@@ -210,14 +240,14 @@ def recover(core: Recoverable, path: Path) -> RecoveryReport:
     for rec in reader:
         rep.apply(rec.topic, rec.team, rec.data, rec.t)
         n += 1
-    rep.finish()
+    rep.finish(outage=True)
     for r in core.registry.robots.values():
         if r.status == RobotStatus.CONNECTED:
             r.status = RobotStatus.LOST  # until its host re-registers
         r.session = None
     report = RecoveryReport(n, reader.next_seq - 1, reader.good_end, time.perf_counter() - t0,
                             damages=reader.damages, legacy=reader.legacy,
-                            legacy_tail=reader.version == LEGACY_VERSION)
+                            legacy_tail=reader.version == LEGACY_VERSION, clock=rep.clock_note)
     if reader.legacy:
         log.warning("event log: %d records are of the previous format (1, without checksums); they were "
                     "read without a check, and new records are written in format %d after them",

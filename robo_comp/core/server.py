@@ -58,6 +58,7 @@ from robo_comp.errors import (
 )
 from robo_comp.plugins.manager import get_plugin_manager
 from robo_comp.scoring.config import ScoringConfig
+from robo_comp.scoring.match import CLOCK_PERIOD
 from robo_comp.teams.policy import check_owner, check_referee
 from robo_comp.teams.tokens import REFEREE, Principal, TokenBook
 from robo_comp.world.public import arena_payload
@@ -278,6 +279,7 @@ class Core:
         self._running = not self._stop_asked
         next_tick = time.monotonic() + self.heartbeat
         next_pose = time.monotonic() + self.pose_period
+        next_clock = time.monotonic()  # the match clock's record in the log (see MatchClock)
         try:
             while self._running:
                 if next_tick - time.monotonic() > self.heartbeat:  # the clock went back: beat now
@@ -289,6 +291,8 @@ class Core:
                     timeout = min(timeout, 0.2)
                 if self._posed:
                     timeout = min(timeout, max(0.0, next_pose - time.monotonic()))
+                if self.competition.phase == "running":
+                    timeout = min(timeout, max(0.0, next_clock - time.monotonic()))
                 if self._slices:  # background work left: look at the socket, then do the next slice
                     timeout = 0.0
                 if poller.poll(math.ceil(timeout * 1000)):
@@ -308,6 +312,10 @@ class Core:
                 if now >= next_tick:
                     self._tick(now)
                     next_tick = now + self.heartbeat
+                if now >= next_clock:
+                    if self.storage_fault is None:  # (not while the log cannot be written, like positions)
+                        self.competition.log_clock()
+                    next_clock = now + CLOCK_PERIOD
                 if self._slices:
                     self._slices.popleft()()
                 self._commit()
@@ -316,6 +324,7 @@ class Core:
                 signal.set_wakeup_fd(old_wakeup)
             wake.close()
             wake_w.close()
+            self.competition.log_clock()  # a clean stop records the clock to the last moment
             self._commit()
             self.events.close()
             self.router.close(0)

@@ -50,7 +50,7 @@ REQUESTS: dict[str, dict[str, tuple[str, bool]]] = {
     "arena": {},
     "stats": {},
     # the match (referee: match, penalty, disqualify, broadcast)
-    "match": {"action": (_STR, True), "seconds": (_NUM, False)},
+    "match": {"action": (_STR, True), "seconds": (_NUM, False), "rule": (_STR, False)},
     "score": {},
     "penalty": {"team": (_STR, True), "points": (_NUM, True), "reason": (_STR, True)},
     "disqualify": {"tag": (_OPT_INT, False), "team": (_STR, False), "reason": (_STR, False)},

@@ -13,6 +13,7 @@ EVERYONE = "*"
 TOPICS = (
     "robot.registered", "robot.positions", "robot.lost", "robot.returned", "robot.left",
     "task.given", "task.started", "task.done", "robot.stopped", "radio", "refused", "core.started", "core.recovered", "core.storage",
+    "match.clock",
     "match.phase", "score", "score.change", "penalty", "disqualified", "broadcast", "find.reported",
     "picture", "robot.bump", "robot.tasks", "robot.log", "upload.pending", "upload.sent", "upload.done",
     "upload.unloaded", "sandbox.reset",
