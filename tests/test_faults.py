@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import CoreHandle, next_event_where, wait_robots
+from conftest import CoreHandle, next_event_where, wait_for, wait_robots
 from robo_comp.errors import FieldError, StorageError, TimeoutError_
 from robo_comp.launch import start_core
 
@@ -548,3 +548,83 @@ def test_practice_keeps_its_clock_and_the_referee_chooses_the_outage_rule(tmp_pa
             match.referee().match("outage", rule="sometimes")
     finally:
         match.close()
+
+
+# ---------------------------------------------------------------------------------------------
+# A host's results are not lost to an outage (issue 32).
+
+
+def test_a_task_done_while_the_core_is_down_is_sent_again_and_taken_once(tmp_path: Path) -> None:
+    """The core is frozen right after giving a short task, the robot finishes it (its task.done
+    finds no core), the core is killed and restarted: the host sends the result again with its
+    registration, and the log has the task done once, with its result, not cancelled."""
+    from robo_comp.launch import start_robots
+
+    state = tmp_path / "state"
+    proc = start_core(state, "--heartbeat", "1.0", "--teams", "red")  # the host holds after 3 s of silence
+    match = CoreHandle(state, None, proc)
+    try:
+        match.procs.append(start_robots(state, "red", 1, "--speed", "4"))
+        red = match.client("red")
+        row = wait_robots(red, 1)[0]
+        tag, x, y = row["tag"], int(row["x"]), int(row["y"])
+        goal = [x + 1 if x < 5 else x - 1, y]  # a neighbouring cell: a fraction of a second away
+        tid = red.give(tag, "goTo", goal)["task_id"]
+        os.kill(proc.pid, signal.SIGSTOP)  # the task went out with the reply; its task.done finds no core
+        host_log = state / "robots-red.log"
+        t_end = time.monotonic() + 20
+        while "lost the core" not in host_log.read_text(errors="replace"):  # 3 s: long after the task ended
+            assert time.monotonic() < t_end, host_log.read_text()[-2000:]
+            time.sleep(0.1)
+        proc.kill()
+        proc.wait()
+        assert not [e for e in match.logged_events("task.done") if e["data"]["task_id"] == tid]
+        match.proc = start_core(state)
+        red = match.client("red")
+
+        def finished() -> dict[str, Any] | None:
+            return next((t for t in red.tasks(tag)["done"] if t["task_id"] == tid), None)
+
+        task = wait_for(finished, 30, "the task's result after the restart")
+        assert task["ok"] is True and task["state"] == "done", task
+        done = [e["data"] for e in match.logged_events("task.done") if e["data"]["task_id"] == tid]
+        assert len(done) == 1 and done[0]["ok"] and done[0]["state"] == "done", done
+        assert "restarted" not in done[0]["status"]
+    finally:
+        match.close()
+
+
+def test_task_done_is_idempotent_and_a_task_lost_on_the_way_is_handed_over_again(core: CoreHandle) -> None:
+    """Raw frames: a task.done sent twice is taken once (the second answer says so); a host that
+    re-registers without the task it never got is given it again; a host that restarted gets
+    its task cancelled with a sentence that says so."""
+    from test_hostile_clients import Peer, raw_host, router
+
+    host, tag = raw_host(core, "red", "r1")
+    red = core.client("red")
+    tid = red.give(tag, "goTo", [3, 3])["task_id"]
+    body = {"tag": tag, "task_id": tid, "ok": True, "status": "arrived", "result": {"reached": [3, 3]}}
+    first = host.own("task.done", body)
+    again = host.own("task.done", body)
+    assert first["ok"] and not first["body"].get("duplicate"), first
+    assert again["ok"] and again["body"]["duplicate"] is True, again
+    assert [e["data"]["task_id"] for e in core.logged_events("task.done")].count(tid) == 1
+    # the same result again with a registration (a reconnect whose answer was lost): taken once too
+    second = red.give(tag, "goTo", [4, 4])["task_id"]
+    back = Peer(router(core))
+    assert back.own("hello", {"token": core.token("red"), "client": "robots"})["ok"]
+    reg = back.own("register", {"token": core.token("red"), "robot_id": "r1", "fresh": False, "done": body,
+                                "tasks": [{"name": "goTo", "args": [{"name": "x", "type": "int"},
+                                                                    {"name": "y", "type": "int"}]}]})
+    assert reg["ok"] and reg["body"]["task"]["task_id"] == second, reg  # never got it: handed over again
+    assert [e["data"]["task_id"] for e in core.logged_events("task.done")].count(tid) == 1
+    assert red.tasks(tag)["current"]["task_id"] == second
+    # a host that restarted (fresh) and runs nothing: the task is cancelled, saying why
+    fresh = Peer(router(core))
+    assert fresh.own("hello", {"token": core.token("red"), "client": "robots"})["ok"]
+    reg = fresh.own("register", {"token": core.token("red"), "robot_id": "r1", "tasks": []})
+    assert reg["ok"] and reg["body"]["task"] is None, reg
+    cancelled = next(t for t in red.tasks(tag)["done"] if t["task_id"] == second)
+    assert cancelled["state"] == "cancelled" and "host restarted" in cancelled["status"], cancelled
+    for p in (host, back, fresh):
+        p.close()

@@ -915,10 +915,18 @@ class Core:
         r.status = RobotStatus.DISQUALIFIED if r.tag in self.competition.disqualified_robots else RobotStatus.CONNECTED
         r.last_report = time.time()
         if returning:
-            if r.current is not None and r.current.id != b.get("task_id"):
-                # the host no longer runs what we think it runs (it restarted): start afresh
-                self.tasks.finish(r, r.current, False, "the robot restarted and lost this task",
-                                  state=TaskState.CANCELLED)
+            done = b.get("done")
+            if done is not None and r.current is not None and done.get("task_id") == r.current.id:
+                # the host finished it while the core could not hear (the core was down, the link
+                # cut): its task.done comes with the registration; taken once, like task.done
+                self._take_done(r, done)
+            elif r.current is not None and r.current.id != b.get("task_id"):
+                if b.get("fresh", True):
+                    # the host no longer runs what we think it runs (it restarted): start afresh
+                    self.tasks.finish(r, r.current, False, "the robot's host restarted and lost this task",
+                                      state=TaskState.CANCELLED)
+                # else the host never got this task (the core went down, or the link, before it
+                # arrived): the reply below hands it over again
             self.emit("robot.returned", r.team, {"tag": r.tag, "x": r.x, "y": r.y, "was": was,
                                                  "tasks": list(specs.values())})
         else:
@@ -997,12 +1005,21 @@ class Core:
         r = self.hosted(ident, b["tag"])
         tid = b["task_id"]
         if r.current is None or r.current.id != tid:
+            if any(t.id == tid for t in r.done):  # sent again (its answer was lost): taken once
+                return {"next": r.current.wire() if r.current is not None else None, "duplicate": True}
             raise FieldError(f"task {tid} is not robot {r.tag}'s current task")
+        nxt = self._take_done(r, b)
+        return {"next": nxt.wire() if nxt is not None else None}
+
+    def _take_done(self, r: RobotRecord, b: dict[str, Any]) -> TaskRecord | None:
+        """Finish ``r``'s current task with the host's report ``b`` (ok, status, result); return
+        the task that starts next."""
         result = b.get("result")
         if len(P.pack(result)) > MAX_RESULT:
             raise TooLargeError(f"a task result may be at most {MAX_RESULT} bytes once packed")
-        nxt = self.tasks.complete(r, b["ok"], b["status"][:500], result)
-        return {"next": nxt.wire() if nxt is not None else None}
+        if not isinstance(b.get("ok"), bool) or not isinstance(b.get("status"), str):
+            raise FieldError("a task's report needs 'ok' (true or false) and 'status' (text)")
+        return self.tasks.complete(r, b["ok"], b["status"][:500], result)
 
     def _on_radio(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
         b = msg.body
