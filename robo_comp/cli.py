@@ -263,6 +263,9 @@ def build_parser() -> argparse.ArgumentParser:
     from robo_comp.web import cli as web_cli
 
     web_cli.add_parser(sub)
+    from robo_comp.export import cli as export_cli
+
+    export_cli.add_parser(sub)
     return parser
 
 
