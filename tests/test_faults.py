@@ -628,3 +628,55 @@ def test_task_done_is_idempotent_and_a_task_lost_on_the_way_is_handed_over_again
     assert cancelled["state"] == "cancelled" and "host restarted" in cancelled["status"], cancelled
     for p in (host, back, fresh):
         p.close()
+
+
+# ---------------------------------------------------------------------------------------------
+# A restart on a full disk (issue 32).
+
+
+def test_a_core_restarted_on_a_full_disk_says_so_waits_and_comes_up_by_itself(small_disk: Path, tmp_path: Path) -> None:
+    """The core is killed, its disk filled to the last byte, the core started again: it says what
+    is full and how much room it needs (no traceback) and waits; once space is freed it comes up
+    by itself with the match. With ``--on-full-disk exit`` it exits with the sentence instead."""
+    state = small_disk / "state"
+    proc = start_core(state, "--heartbeat", "0.2", "--teams", "red")
+    match = CoreHandle(state, None, proc)
+    try:
+        match.referee().request("penalty", team="red", points=-1, reason="before the disk filled")
+        proc.kill()
+        proc.wait()
+        (state / "core.json").unlink()
+        filler = fill(small_disk)
+        err = tmp_path / "core.err"  # beside the full disk, not on it
+        with open(err, "wb") as f:
+            proc = subprocess.Popen([sys.executable, "-m", "robo_comp.cli", "core", "--state", str(state)],
+                                    stdout=subprocess.DEVNULL, stderr=f, stdin=subprocess.DEVNULL)
+        match.proc = proc
+        t_end = time.monotonic() + 30
+        while "is full" not in err.read_text():
+            assert proc.poll() is None, err.read_text()
+            assert time.monotonic() < t_end, err.read_text()
+            time.sleep(0.1)
+        said = err.read_text()
+        assert f"mounted on {small_disk}" in said and "needs at least 1.0 MiB" in said, said
+        assert "starts by itself once there is room" in said and "Traceback" not in said, said
+        assert proc.poll() is None and not (state / "core.json").exists()
+        filler.unlink()
+        t_end = time.monotonic() + 30
+        while not (state / "core.json").exists():
+            assert proc.poll() is None, err.read_text()
+            assert time.monotonic() < t_end, err.read_text()
+            time.sleep(0.1)
+        lines = match.referee().score()["lines"]
+        assert [ln["reason"] for ln in lines] == ["before the disk filled"]
+        assert "there is room again" in err.read_text() and "Traceback" not in err.read_text()
+        proc.kill()
+        proc.wait()
+        filler = fill(small_disk)
+        out = subprocess.run([sys.executable, "-m", "robo_comp.cli", "core", "--state", str(state),
+                              "--on-full-disk", "exit"], capture_output=True, text=True, timeout=60)
+        assert out.returncode == 2, out
+        assert "is full" in out.stderr and "start the core again" in out.stderr and "Traceback" not in out.stderr
+        filler.unlink()
+    finally:
+        match.close()

@@ -257,9 +257,14 @@ def recover(core: Recoverable, path: Path) -> RecoveryReport:
         cut = path.stat().st_size - reader.good_end
         if cut > 0:
             copy = path.with_name(f"{path.name}.damaged-{int(time.time())}")
-            shutil.copyfile(path, copy)
-            report.damaged_copy = str(copy)
-            said.append(f"the {cut} damaged bytes at the end were cut off (a copy of the log is in {copy})")
+            try:
+                shutil.copyfile(path, copy)
+                report.damaged_copy = str(copy)
+                kept = f"a copy of the log is in {copy}"
+            except OSError as e:  # a full disk: the damaged bytes are cut all the same (nothing good is in them)
+                copy.unlink(missing_ok=True)
+                kept = f"no copy could be kept: {e.strerror}"
+            said.append(f"the {cut} damaged bytes at the end were cut off ({kept})")
         lost = report.lost
         report.damage = (f"the event log is damaged in {len(reader.damages)} place"
                          f"{'s' if len(reader.damages) > 1 else ''}; {len(lost)} event"

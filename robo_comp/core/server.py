@@ -240,6 +240,17 @@ class Core:
             self.emit("core.recovered", None, self.recovered.to_dict())
         self._commit()
 
+    def close(self) -> None:
+        """Close the sockets and the log of a core that will not run (its start failed)."""
+        for sock in (self.router, self.pub):
+            if sock is not None:
+                sock.close(0)
+        self.router = self.pub = None
+        if self._zap is not None:
+            self._zap.close()
+            self.ctx.term()
+        self.events.close()
+
     def stop(self) -> None:
         """Ask the loop to end after the current turn (or, before it started, not to start)."""
         self._stop_asked = True
