@@ -1,7 +1,7 @@
 """Recovery figures (issue 5): restart after kill -9 with a 30-minute 100-robot match log,
 acknowledged events over kill cycles, and the event log's rate with and without fsync.
 
-    .venv/bin/python bench/bench_recovery.py [--cycles 20] [--minutes 30] [--robots 100]
+    .venv/bin/python bench/bench_recovery.py [--cycles 20] [--minutes 30] [--robots 100] [--recovery-only]
 """
 from __future__ import annotations
 
@@ -65,6 +65,23 @@ def synth_log(state: Path, minutes: float, robots: int) -> int:
                                                "t": float(sec), "victim": f"v{sec}"}, t=t)
     log.close()
     return log.seq
+
+
+def as_format_1(log: Path, out: Path) -> None:
+    """Write the records of ``log`` into ``out`` in format 1 (length-prefixed, no checksums):
+    the baseline, the log as the core wrote it before issue 32."""
+    import struct
+
+    import msgpack
+
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with open(out, "wb") as f:
+        def put(obj: dict[str, object]) -> None:
+            blob = msgpack.packb(obj, use_bin_type=True)
+            f.write(struct.pack(">I", len(blob)) + blob)
+        put({"format": "robo_comp-eventlog", "version": 1, "started": 0.0})
+        for r in read_log(log):
+            put({"seq": r.seq, "t": r.t, "topic": r.topic, "team": r.team, "data": r.data})
 
 
 def recovery_time(state: Path) -> tuple[float, float]:
@@ -166,16 +183,26 @@ def main() -> int:
     ap.add_argument("--robots", type=int, default=100)
     ap.add_argument("--cycles", type=int, default=20)
     ap.add_argument("--seconds", type=float, default=3)
+    ap.add_argument("--recovery-only", action="store_true",
+                    help="only the recovery time (format 2 beside the same match in format 1)")
     a = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
-        state = Path(tmp)
+        state = Path(tmp) / "v2"
         t = time.perf_counter()
         n = synth_log(state, a.minutes, a.robots)
         size = (state / "events.log").stat().st_size
         print(f"log of a {a.minutes:g}-minute {a.robots}-robot match: {n:,} events, {size / 1e6:.1f} MB "
               f"(written in {time.perf_counter() - t:.1f} s)")
+        old = Path(tmp) / "v1"
+        as_format_1(state / "events.log", old / "events.log")
+        ready1, replay1 = recovery_time(old)
         ready, replay = recovery_time(state)
-        print(f"recovery after kill -9: replay {replay:.3f} s; process start to ready {ready:.3f} s (target < 1 s)")
+        print(f"recovery after kill -9, checksummed log (format 2, CRC-32C): replay {replay:.3f} s; process start "
+              f"to ready {ready:.3f} s (target < 1 s)")
+        print(f"  the same match in format 1 (no checksums), same run: replay {replay1:.3f} s; process start to "
+              f"ready {ready1:.3f} s ({(old / 'events.log').stat().st_size / 1e6:.1f} MB)")
+    if a.recovery_only:
+        return 0
     acked, lost = kill_cycles(a.cycles, a.robots)
     print(f"{a.cycles} kill -9 cycles under load with {a.robots} robots: {acked} acknowledged tasks, {lost} lost "
           "(target 0)")

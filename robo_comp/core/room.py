@@ -51,7 +51,7 @@ def _size(n: float) -> str:
 
 def full_disk(state: Path, err: OSError, need: int = START_ROOM) -> str:
     """The sentence for a core that cannot start for want of room."""
-    what = f" writing {err.filename}" if err.filename else ""
+    what = f", writing {err.filename}" if err.filename else ""
     return (f"the disk that holds the state folder {state} (the file system mounted on {mount_point(state)}) "
             f"is full ({err.strerror or err}{what}): {_size(free_bytes(state))} free, and the core needs at "
             f"least {_size(need)} to start and record the match. Free space on that disk")

@@ -3,8 +3,8 @@ web views, the league and the bench read (this module is the one reader).
 
 Format 2 (written since issue 32): every record is framed as
 
-    ``MAGIC`` (4 bytes ``d3 52 43 4c``) · length (4-byte big-endian) · CRC-32C (4-byte big-endian,
-    of the length bytes and the payload) · payload (a msgpack map)
+    ``MAGIC`` (4 bytes ``d3 52 43 4c``) · CRC-32C (4-byte big-endian, of the length bytes and the
+    payload, which follow it) · length (4-byte big-endian) · payload (a msgpack map)
 
 The first record is a header ``{"format": "robo_comp-eventlog", "version": 2, "started": t}``;
 then one record per event ``{"seq": n, "t": unix_time, "topic": str, "team": str | None,
@@ -43,7 +43,7 @@ FORMAT_VERSION = 2
 LEGACY_VERSION = 1
 #: Every format-2 record starts with these bytes (read as a format-1 length they exceed MAX_RECORD).
 MAGIC = b"\xd3RCL"
-#: A format-2 record's head: marker, payload length, CRC-32C of the length bytes and the payload.
+#: A format-2 record's head: marker, CRC-32C of the length bytes and the payload, payload length.
 RECORD_HEAD = struct.Struct(">4sII")
 #: The length prefix of a format-1 record.
 RECORD_LENGTH = struct.Struct(">I")
@@ -56,7 +56,7 @@ MIN_RECORD = 40
 def frame(payload: bytes) -> bytes:
     """One format-2 record around a packed msgpack ``payload``."""
     n = RECORD_LENGTH.pack(len(payload))
-    return MAGIC + n + RECORD_LENGTH.pack(crc32c(payload, crc32c(n))) + payload
+    return MAGIC + RECORD_LENGTH.pack(crc32c(payload, crc32c(n))) + n + payload
 
 
 def pack_record(obj: dict[str, Any]) -> bytes:
@@ -232,13 +232,13 @@ class LogReader:
             if off + RECORD_HEAD.size > size:
                 reason = "truncated record head"
             else:
-                magic, n, crc = head(data, off)
+                magic, crc, n = head(data, off)
                 end = off + RECORD_HEAD.size + n
                 if magic != MAGIC:
                     reason = "no record marker"
                 elif n > MAX_RECORD or end > size:
                     reason = "truncated record" if n <= MAX_RECORD else "impossible record length"
-                elif crc32c(view[off + RECORD_HEAD.size:end], crc32c(view[off + 4:off + 8])) != crc:
+                elif crc32c(view[off + 8:end]) != crc:
                     reason = "checksum mismatch"
             if reason is None:
                 try:
