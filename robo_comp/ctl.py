@@ -55,6 +55,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     m.add_argument("--seconds", type=float, help="for extend: seconds to add")
     m.add_argument("--rule", choices=("pause", "count"), help="for outage: the rule")
     cmds.add_parser("score", help="the scoreboard, phase and clock")
+    cmds.add_parser("recovery", help="referee: what the core recovered from its event log when it started "
+                                     "(events, damage and the events it cost, how the clock was set)")
     e = cmds.add_parser("events", help="print events as they happen")
     e.add_argument("--count", type=int, default=0, help="stop after N events (0 = never)")
     e.add_argument("--timeout", type=float, default=0.0, help="stop after S seconds (0 = never)")
@@ -198,6 +200,18 @@ def _run(c: Client, args: argparse.Namespace) -> int:
         out = c.score()
         if not args.json:
             _print_score(out)
+    elif args.cmd == "recovery":
+        out = c.request("stats").get("recovered") or {}
+        if not args.json:
+            if not out:
+                print("the core started on an empty state folder: nothing was recovered")
+            else:
+                print(f"recovered {out['events']} events in {out['seconds']:.2f} s"
+                      + (f"; {out['legacy_records']} of them of the previous log format (no checksums)"
+                         if out.get("legacy_records") else ""))
+                print(out.get("damage") or "the event log is undamaged")
+                if out.get("clock"):
+                    print(out["clock"])
     elif args.cmd == "events":
         return _events(c, args)
     else:  # pragma: no cover - argparse prevents it

@@ -359,6 +359,9 @@ def test_one_damaged_byte_in_the_middle_of_the_log_costs_that_record_only(tmp_pa
         assert rec["lost"] == [victim.seq], rec
         assert rec["damages"][0]["lost"] == [{"seq": victim.seq, "topic": "score.change"}], rec
         assert "1 event lost" in rec["damage"] and f"{victim.seq} (probably score.change)" in rec["damage"]
+        shown_ctl = subprocess.run([sys.executable, "-m", "robo_comp.cli", "ctl", "--core", str(state), "--token-file",
+                                    str(state / "referee.token"), "recovery"], capture_output=True, text=True, timeout=60)
+        assert f"lost event {victim.seq} (probably score.change)" in shown_ctl.stdout, shown_ctl
         assert log.stat().st_size >= size  # nothing was cut
         shown = ref.score()["lines"]
         assert sorted(ln["reason"] for ln in shown) == sorted(f"foul {i:02d}" for i in range(30) if i != 15)
@@ -532,8 +535,11 @@ def test_practice_keeps_its_clock_and_the_referee_chooses_the_outage_rule(tmp_pa
         match.proc = proc = start_core(state)
         after = match.referee().score()["elapsed"]
         assert before - 0.3 <= after < before + 1.0, (before, after)  # not 0, and the outage not counted
-        st = match.referee().match("outage", rule="count")
-        assert st["outage"] == "count"
+        ctl = subprocess.run([sys.executable, "-m", "robo_comp.cli", "ctl", "--core", str(state), "--token-file",
+                              str(state / "referee.token"), "match", "outage", "--rule", "count"],
+                             capture_output=True, text=True, timeout=60)
+        assert "a core outage: the clock counts it" in ctl.stdout, ctl
+        assert match.referee().score()["outage"] == "count"
         time.sleep(0.5)
         before = match.referee().score()["elapsed"]
         proc.kill()
