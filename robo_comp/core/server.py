@@ -532,8 +532,9 @@ class Core:
         self.stats["events"] += 1
         if log_it:
             self.events.append(topic, team, data)
-        if public and self.pub is not None:
-            self._out.append((self.pub, [topic.encode(), P.pack(P.public_view(data))], not log_it))
+        view = P.public_event(topic, data) if public else None  # the one table (protocol/topics.py)
+        if view is not None and self.pub is not None:
+            self._out.append((self.pub, [topic.encode(), P.pack(view)], not log_it))
         if team == P.EVERYONE:
             targets: list[bytes] = [i for group in self.watchers.values() for i in group]
         else:
