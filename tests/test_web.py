@@ -520,6 +520,8 @@ def test_websocket_protocol_errors(tmp_path: Path) -> None:
             await ws.send(json.dumps({"op": "join", "token": "wrong"}))
             out.append(json.loads(await ws.recv()))
             await ws.send(json.dumps({"op": "join", "t": 12}))
+            story = json.loads(await ws.recv())  # a view's story comes first, once
+            assert story["type"] == "story" and story["view"] == "public", story
             out.append(json.loads(await ws.recv()))
             await ws.send(json.dumps({"op": "speed", "req": 2, "value": 100}))
             while True:
