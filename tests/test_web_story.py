@@ -21,6 +21,7 @@ pytest.importorskip("starlette", reason="the web extra is not installed (pip ins
 
 from conftest import wait_for, wait_robots
 from robo_comp.testing import next_event_where, start_match
+from robo_comp.web.server import view_key
 from test_web import browser, open_page, start_web, stop  # noqa: F401  (the module's chromium fixture)
 
 
@@ -114,7 +115,8 @@ def test_live_story_and_the_end(browser, played, tmp_path: Path) -> None:  # noq
                               ".map(r => r.trail.length))")
         assert trail >= 6, trail
         page.click("#btn-token")
-        page.click("#views button[data-view='red']")
+        page.fill("#token-input", m.token("red"))
+        page.click("#btn-token-ok")
         page.wait_for_function("() => robo.S.view.kind === 'private'", timeout=15000)
         after = page.evaluate("() => Math.max(...[...robo.model.robots.values()].filter(r => r.team === 'red')"
                               ".map(r => r.trail.length))")
@@ -154,7 +156,7 @@ def test_a_find_looks_the_same_in_every_view(browser, played) -> None:  # noqa: 
     m, url, _ = played
     states = {}
     for view in ("public", "red"):
-        page = open_page(browser, url + ("#view=red" if view == "red" else ""))
+        page = open_page(browser, url + (f"#view=red&key={view_key(m.token('red'))}" if view == "red" else ""))
         try:
             page.wait_for_function("() => robo.S.view.kind === %r" % ("private" if view == "red" else "public"),
                                    timeout=15000)

@@ -1,5 +1,6 @@
 // The page: a WebSocket to the gateway, the model, the canvas and the controls.
-// Hash parameters: #t=SECONDS (replay position), speed=S, play=1, view=NAME (a view the server offers).
+// Hash parameters: #t=SECONDS (replay position), speed=S, play=1, view=NAME&key=K (a view the server
+// offers, with the key from the link the gateway printed).
 import { Model } from "./model.js";
 import { Renderer, VICTIM_FOUND, VICTIM_MISSED } from "./view.js";
 
@@ -47,7 +48,7 @@ function ask(op, body = {}) {
 function join() {
   const msg = { op: "join" };
   if (S.token) msg.token = S.token;
-  else if (params.get("view")) msg.view = params.get("view");
+  else if (params.get("view")) { msg.view = params.get("view"); msg.key = params.get("key") || ""; }
   if (S.mode === "replay") {
     msg.t = S.replay.t || +(params.get("t") || 0);
     msg.speed = S.replay.speed;
@@ -177,8 +178,10 @@ function hud(force = false) {
   const rows = (model.score.length ? model.score : (model.arena ? model.arena.teams.map(x => ({ team: x.name, score: 0, victims: 0 })) : []));
   $("score-table").tBodies[0].innerHTML = rows.map((r, i) => {
     const c = model.colour(r.team);
-    return `<tr class="${r.disqualified ? "dq" : ""}"><td>${r.rank ?? i + 1}</td><td><span class="swatch" style="background:${esc(c)}"></span>${esc(r.team)}</td><td class="num">${esc(fmtNum(r.score))}</td><td class="num">${esc(r.victims ?? 0)}</td></tr>`;
+    return `<tr class="${r.disqualified ? "dq" : ""}"><td>${r.rank ?? i + 1}</td><td><span class="swatch" data-colour="${esc(c)}"></span>${esc(r.team)}</td><td class="num">${esc(fmtNum(r.score))}</td><td class="num">${esc(r.victims ?? 0)}</td></tr>`;
   }).join("");
+  // colours set through the DOM: the page's Content-Security-Policy allows no inline style attributes
+  paint($("score-table"));
   // referee broadcasts and penalties are in the ticker: the message bar keeps the rest (storage faults, refusals)
   $("messages").innerHTML = model.messages.filter(x => x.level !== "broadcast" && !/^(penalty|disqualified) /.test(x.text))
     .filter(x => t - x.t < 12 || S.mode === "replay" && Math.abs(t - x.t) < 12)
@@ -207,8 +210,9 @@ function story(force) {
     $("ticker").innerHTML = shown.map(it => {
       const pts = it.points ? `<span class="pts ${it.points < 0 ? "neg" : "pos"}">${it.points > 0 ? "+" : "−"}${esc(fmtNum(Math.abs(it.points)))}</span>` : "<span></span>";
       return `<li class="k-${esc(it.kind)}${S.mode === "replay" ? " seekable" : ""}" data-t="${it.t}" title="${esc(it.kind)}">` +
-        `<span class="tt">${esc(fmt(it.c ?? it.t))}</span><span class="tx"><span class="swatch" style="background:${esc(itemColour(it))}"></span>${esc(it.text)}</span>${pts}</li>`;
+        `<span class="tt">${esc(fmt(it.c ?? it.t))}</span><span class="tx"><span class="swatch" data-colour="${esc(itemColour(it))}"></span>${esc(it.text)}</span>${pts}</li>`;
     }).join("");
+    paint($("ticker"));
   }
   chart(now);
 }
@@ -227,7 +231,7 @@ function markers() {
     const b = document.createElement("button");
     b.type = "button";
     b.className = `mk k-${it.kind}`;
-    b.style.left = `${Math.min(100, 100 * it.t / d)}%`;
+    b.style.left = `${Math.min(100, 100 * it.t / d)}%`;  // (CSSOM, which the page's CSP allows)
     b.style.background = itemColour(it);
     b.title = `${fmt(it.c ?? it.t)} ${it.text}`;
     b.setAttribute("aria-label", b.title);
@@ -296,25 +300,34 @@ function legend() {
   const key = JSON.stringify([L, a && a.teams]);
   if (key === S.legendKey) return;
   S.legendKey = key;
-  const li = (sym, style, text) => `<li><span class="sym ${sym}" style="${style}"></span>${esc(text)}</li>`;
+  // [symbol class, colour, text]; colours go on through the DOM (the page's CSP allows no inline styles)
+  const li = (sym, colour, text) => `<li><span class="sym ${sym}" data-colour="${esc(colour)}"></span>${esc(text)}</li>`;
   const out = [];
-  for (const t of (a && a.teams) || []) out.push(li("dot", `background:${esc(model.colour(t.name))}`, `robot of ${t.name} (line: heading)`));
+  for (const t of (a && a.teams) || []) out.push(li("dot", model.colour(t.name), `robot of ${t.name} (line: heading)`));
   if (L) {
-    out.push(li("ring", `border-color:${esc(L.lost)}`, "lost robot"));
-    out.push(li("dot", "background:#5a5a64", "robot that left"));
-    for (const [state, c] of Object.entries(L.finds)) out.push(li("diamond", `background:${esc(c)}`, `find, ${state}`));
-    out.push(li("square", "background:#7ab8ff", "picture taken"));
-    out.push(li("dot", `background:${esc(L.discovery)}`, "discovery (team view)"));
-    out.push(li("cross", `border-color:${VICTIM_FOUND}`, "victim found (at the end)"));
-    out.push(li("cross", `border-color:${VICTIM_MISSED}`, "victim missed (at the end)"));
-    out.push(li("square", `background:${esc(L.wall)}`, "wall"));
-    out.push(li("square", `background:${esc(L.costly)}`, "costly cell (near a wall)"));
-    for (const t of (a && a.teams) || []) if (t.start) out.push(li("square", `background:${esc(model.colour(t.name))};opacity:.35`, `start zone of ${t.name}`));
-    for (const [kind, c] of Object.entries(L.zones)) out.push(li("square", `background:${esc(c)}`, `zone: ${kind}`));
+    out.push(li("ring", L.lost, "lost robot"));
+    out.push(li("dot", "#5a5a64", "robot that left"));
+    for (const [state, c] of Object.entries(L.finds)) out.push(li("diamond", c, `find, ${state}`));
+    out.push(li("square", "#7ab8ff", "picture taken"));
+    out.push(li("dot", L.discovery, "discovery (team view)"));
+    out.push(li("cross", VICTIM_FOUND, "victim found (at the end)"));
+    out.push(li("cross", VICTIM_MISSED, "victim missed (at the end)"));
+    out.push(li("square", L.wall, "wall"));
+    out.push(li("square", L.costly, "costly cell (near a wall)"));
+    for (const t of (a && a.teams) || []) if (t.start) out.push(li("square faint", model.colour(t.name), `start zone of ${t.name}`));
+    for (const [kind, c] of Object.entries(L.zones)) out.push(li("square", c, `zone: ${kind}`));
   }
   $("legend-list").innerHTML = out.join("");
+  paint($("legend-list"));
 }
 
+// Colours from data-colour attributes (a ring or a cross takes it as its border).
+function paint(root) {
+  for (const el of root.querySelectorAll("[data-colour]")) {
+    if (el.classList.contains("ring") || el.classList.contains("cross")) el.style.borderColor = el.dataset.colour;
+    else el.style.background = el.dataset.colour;
+  }
+}
 const fmtNum = v => typeof v === "number" ? (Number.isInteger(v) ? v : v.toFixed(1)) : (v ?? "");
 const esc = v => String(v ?? "").replace(/[&<>"']/g, c => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;", "'": "&#39;" })[c]);
 
