@@ -189,11 +189,12 @@ def test_replay_opens_on_the_match_and_tells_it(browser, played, tmp_path: Path)
             if page.evaluate("() => robo.S.replay.playing"):
                 page.click("#btn-play")  # pause (at the end it has stopped by itself)
             page.wait_for_function("() => !robo.S.replay.playing", timeout=5000)
-            # a marker seeks: the ticker then ends with that event
+            # a marker seeks: the ticker then ends with that event (or one logged in the same millisecond)
+            at = page.evaluate("() => robo.model.story.items.find(i => i.kind === 'penalty').t")
             page.evaluate("() => [...document.querySelectorAll('#markers button')].find(b => b.title.includes('penalty')).click()")
-            page.wait_for_function("() => document.querySelector('#ticker li') && "
-                                   "document.querySelector('#ticker li').innerText.includes('penalty for blue')",
-                                   timeout=10000)
+            page.wait_for_function(f"() => Math.abs(robo.S.replay.t - {at}) < 0.01", timeout=10000)
+            page.wait_for_function("() => [...document.querySelectorAll('#ticker li')].slice(0, 2)"
+                                   ".some(li => li.innerText.includes('penalty for blue'))", timeout=10000)
             got = page.evaluate(PAGE_TEXT)
             assert got["banner"] is None and "the match finished" not in " | ".join(got["ticker"])
             assert got["tnow"] == got["header"], got  # one clock: the replay bar shows the header's
