@@ -101,7 +101,20 @@ def _serve(args: argparse.Namespace, state: Path) -> int:
           f"tcp://{args.host}:{core.port} (events on port {core.pub_port}); state in {args.state}"
           f"{'; CurveZMQ on (keys in ' + str(Path(args.state) / 'keys') + ')' if core.curve else ''}",
           flush=True)
-    core.run()
+    advert = None
+    if args.advertise:  # off unless the organiser asks: the core is found on the LAN by this name
+        from robo_comp.discovery import advertise
+        from robo_comp.protocol import PROTOCOL_VERSION
+
+        advert = advertise(args.advertise, args.host, core.port, core.pub_port, curve=core.curve,
+                           protocol=PROTOCOL_VERSION)
+        print(f"core: advertised on the LAN as mdns:{args.advertise} (clients: --core mdns:{args.advertise})",
+              flush=True)
+    try:
+        core.run()
+    finally:
+        if advert is not None:
+            advert.close()
     return 0
 
 
@@ -221,6 +234,9 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--curve", action="store_true", default=None,
                    help="CurveZMQ for a networked match: encrypted sockets, only the keys in STATE/keys "
                         "get in (run 'robo-comp keys --state STATE' first)")
+    c.add_argument("--advertise", metavar="NAME",
+                   help="let robots and consoles on the LAN find this core by name (--core mdns:NAME), over "
+                        "mDNS on the interface of --host (off by default; docs/organiser.md)")
     c.add_argument("--override", action="store_true",
                    help="on a restart, apply options that contradict the recovered match (and record them)")
     c.set_defaults(func=_core)
