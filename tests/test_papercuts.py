@@ -111,3 +111,47 @@ def test_core_takes_a_bundled_scenario_name(tmp_path: Path) -> None:
     q = run("core", "--state", str(tmp_path / "t"), "--scenario", "demo_rom")
     assert q.returncode == 2 and "no bundled scenario called 'demo_rom'" in q.stderr and "Traceback" not in q.stderr
     assert not (tmp_path / "t").exists()
+
+
+def test_web_prints_no_pygame_banner(tmp_path: Path) -> None:
+    """``robo-comp web`` prints its URL, not pygame's greeting (the map is drawn with pygame's colours)."""
+    import threading
+
+    from test_web import write_log
+
+    log = tmp_path / "m" / "events.log"
+    write_log(log, seconds=5)
+    p = subprocess.Popen([*RC, "web", "--replay", str(log), "--port", "0"], stdout=subprocess.PIPE,
+                         stderr=subprocess.STDOUT, text=True)
+    lines: list[str] = []
+
+    def read() -> None:
+        for line in p.stdout:  # type: ignore[union-attr]
+            lines.append(line)
+
+    t = threading.Thread(target=read, daemon=True)
+    t.start()
+    try:
+        import time
+
+        t_end = time.monotonic() + 30
+        while not any("http://" in x for x in lines) and time.monotonic() < t_end:
+            time.sleep(0.1)
+        import urllib.request
+
+        url = next(x for x in lines if "http://" in x).split("http://", 1)[1].split()[0]
+        urllib.request.urlopen(f"http://{url}", timeout=10).read()  # the public view (and its map) is built
+    finally:
+        p.terminate()
+        p.wait(10)
+        t.join(5)
+    text = "".join(lines)
+    assert "serving the replay" in text and "hello from the pygame" not in text.lower(), text
+
+
+def test_a_finished_match_has_no_time_left() -> None:
+    from robo_comp.tui.widgets.score import clock_text
+
+    assert clock_text("finished", 194, 106) == "03:14 played"
+    assert clock_text("running", 194, 106) == "01:46 left"
+    assert clock_text("running", 194, None) == "03:14 elapsed"

@@ -9,6 +9,7 @@ handlers). The map is sent once, as a PNG with one pixel per cell coloured like 
 from __future__ import annotations
 
 import base64
+import os
 import struct
 import zlib
 from typing import Any
@@ -17,6 +18,9 @@ import numpy as np
 
 from robo_comp.protocol import public_view
 from robo_comp.wall.model import WallModel
+
+# The map is drawn in the wall's colours, from its pygame module: without pygame's greeting on stdout.
+os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
 
 #: Topics the core never publishes (they reach only the team and the referee).
 NEVER_PUBLIC = frozenset({"radio", "refused", "robot.log", "upload.sent", "upload.pending", "upload.done",
