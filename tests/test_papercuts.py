@@ -155,3 +155,26 @@ def test_a_finished_match_has_no_time_left() -> None:
     assert clock_text("finished", 194, 106) == "03:14 played"
     assert clock_text("running", 194, 106) == "01:46 left"
     assert clock_text("running", 194, None) == "03:14 elapsed"
+
+
+def test_an_import_inside_a_function_is_refused_at_upload(match, tmp_path: Path) -> None:
+    """``import os`` inside a task passed the upload check and failed only when the task ran in
+    the match; the upload check now reads every import (a real upload to a real robot's sandbox)."""
+    m, tag = match
+    mod = tmp_path / "sneaky.py"
+    mod.write_text('MANIFEST = {"name": "sneaky", "version": "1.0", "kind": "extension",\n'
+                   '            "tasks": {"peek": {"description": "x", "args": []}}}\n\n\n'
+                   "def peek(robot):\n"
+                   "    import os\n"
+                   "    return os.listdir('/')\n")
+    p = ctl(m, "upload", str(tag), str(mod), timeout=120)
+    said = p.stdout + p.stderr
+    assert p.returncode == 1 and "sneaky.py:6" in said and "'os' is not allowed" in said, said
+    ok = tmp_path / "fine.py"
+    ok.write_text('MANIFEST = {"name": "fine", "version": "1.0", "kind": "extension",\n'
+                  '            "tasks": {"root": {"description": "x", "args": []}}}\n\n\n'
+                  "def root(robot):\n"
+                  "    import math\n"
+                  "    return math.sqrt(4)\n")
+    p = ctl(m, "upload", str(tag), str(ok), timeout=120)
+    assert p.returncode == 0 and "ok" in p.stdout, p.stdout + p.stderr
