@@ -28,9 +28,14 @@ from robo_comp.protocol.replies import reply_body
 
 
 def resolve_core(core: str) -> str:
-    """Turn ``--core`` into a ROUTER URL: a URL as is, or a state folder / ``core.json`` path."""
+    """Turn ``--core`` into a ROUTER URL: a URL as is, a state folder / ``core.json`` path, or
+    ``mdns:NAME``, a core advertised on the LAN (:mod:`robo_comp.discovery`)."""
     if "://" in core:
         return core
+    if core.startswith("mdns:"):
+        from robo_comp.discovery import resolve
+
+        return resolve(core[len("mdns:"):])
     path = Path(core)
     if path.is_dir():
         path = path / "core.json"
@@ -246,11 +251,14 @@ class Client:
         after too many limit kills); ``results`` says per robot whether it was resting."""
         return self.request("sandbox.reset", tags=list(tags))
 
-    def match(self, action: str, seconds: float | None = None) -> dict[str, Any]:
-        """Referee: ``start``, ``pause``, ``resume``, ``finish`` or ``extend`` (by ``seconds``)."""
+    def match(self, action: str, seconds: float | None = None, rule: str | None = None) -> dict[str, Any]:
+        """Referee: ``start``, ``pause``, ``resume``, ``finish`` or ``extend`` (by ``seconds``);
+        ``outage`` with ``rule`` ``pause`` or ``count``: what a core outage does to the clock."""
         body: dict[str, Any] = {"action": action}
         if seconds is not None:
             body["seconds"] = seconds
+        if rule is not None:
+            body["rule"] = rule
         return self.request("match", **body)
 
     def score(self) -> dict[str, Any]:

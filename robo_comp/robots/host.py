@@ -116,6 +116,11 @@ class SimRobot:
 PLANNER_NICE = 10
 
 
+#: Answers to a task.done that end it: the core judged the report itself. Other refusals (an
+#: unknown session after a core restart, a full disk, ...) keep it for the next registration.
+DONE_REFUSED = frozenset({"E_FIELD", "E_TOO_LARGE", "E_MALFORMED", "E_NOT_YOURS"})
+
+
 def _lower_priority() -> None:
     """Run in the planner thread: lower this thread's priority (where the OS has per-thread nice)."""
     try:
@@ -240,6 +245,8 @@ class RobotHost:
         self._held_retry = 0.0
         #: Robots the referee handed over to another host: this host leaves them alone.
         self.released: set[str] = set()
+        #: robot id -> its task.done not yet answered by the core (sent again on re-registering).
+        self.unacked_done: dict[str, dict[str, Any]] = {}
 
     FIX_SILENCE = 2.0
     """Seconds without a message from the camera after which the host connects to it afresh."""
@@ -327,7 +334,7 @@ class RobotHost:
         assert self.world is not None
         self._send("register", {"token": self.token, "robot_id": r.robot_id, "tasks": self.adverts(r.tag),
                                 "x": b.x, "y": b.y, "heading": b.heading, "speed": float(self.world.speed),
-                                "task_id": r.task.id if r.task else None},
+                                "task_id": r.task.id if r.task else None, **self._resend(r)},
                    lambda ok, body, r=r: self._on_registered(r, ok, body))
 
     def adverts(self, tag: int) -> list[dict[str, Any]]:
@@ -431,6 +438,15 @@ class RobotHost:
             sensors_warm_up()
             self.world.sense_many([next(iter(self.robots))])
 
+    def _resend(self, r: SimRobot) -> dict[str, Any]:
+        """What a registration carries besides the robot: whether this host registers it for the
+        first time, and the task.done the core has not acknowledged (the core takes it once)."""
+        extra: dict[str, Any] = {"fresh": not r.tag}
+        done = self.unacked_done.get(r.robot_id)
+        if done is not None:
+            extra["done"] = {k: done[k] for k in ("task_id", "ok", "status", "result")}
+        return extra
+
     def _on_registered(self, r: SimRobot, ok: bool, body: dict[str, Any]) -> None:
         if not ok and body.get("code") == "E_HELD":
             if r.robot_id not in self.held:  # said once; asked again quietly once a heartbeat
@@ -441,6 +457,7 @@ class RobotHost:
         else:
             if self.held.pop(r.robot_id, None) is not None:
                 log.warning("robot %s: the other host let it go; this host runs it now", r.robot_id)
+            self.unacked_done.pop(r.robot_id, None)  # the core has it (or had it already)
             if r.tag and r.tag != body["tag"]:
                 self.by_tag.pop(r.tag, None)
             r.tag = body["tag"]
@@ -465,6 +482,10 @@ class RobotHost:
     def _reconnect(self, why: str) -> None:
         """Hello and register again on a fresh socket; robots hold still meanwhile."""
         log.warning("%s; halting robots and reconnecting", why)
+        for r in self.robots.values():  # a real robot's driver stands it still now (a simulated one
+            pause = getattr(r.driver, "pause", None)  # stands still while step() does not run)
+            if pause is not None:
+                pause()
         # Movement pauses while we are not "up": step() only runs then; the robots resume
         # their current steps once registered again.
         self.reconnects += 1
@@ -611,10 +632,16 @@ class RobotHost:
         t.gen.close()  # team code still running is cancelled here
         r.driver.halt()
         self._report_one(r, time.monotonic())  # the owner sees the final pose with the result
-        self._send("task.done", {"tag": r.tag, "task_id": t.id, "ok": ok, "status": status,
-                                 "result": result}, lambda ok_, body, r=r: self._on_done_reply(r, ok_, body))
+        done = {"tag": r.tag, "task_id": t.id, "ok": ok, "status": status, "result": result}
+        # kept until the core answers: a core that goes down before it does gets it again with
+        # the robot's registration after the reconnect
+        self.unacked_done[r.robot_id] = done
+        self._send("task.done", done, lambda ok_, body, r=r, tid=t.id: self._on_done_reply(r, tid, ok_, body))
 
-    def _on_done_reply(self, r: SimRobot, ok: bool, body: dict[str, Any]) -> None:
+    def _on_done_reply(self, r: SimRobot, task_id: int, ok: bool, body: dict[str, Any]) -> None:
+        held = self.unacked_done.get(r.robot_id)
+        if held is not None and held["task_id"] == task_id and (ok or body.get("code") in DONE_REFUSED):
+            del self.unacked_done[r.robot_id]  # taken, or refused for what it says (not for who sent it)
         nxt = body.get("next") if ok else None
         if nxt is not None and r.task is None:
             self._start(r, nxt)
@@ -722,6 +749,10 @@ class RobotHost:
         if self.world is not None:
             rows = self.world.sense_many([r.robot_id for r in robots])
             readings = {r.tag: row for r, row in zip(robots, rows)}
+            for r in robots:  # a real robot's own sensors (a ROS 2 robot's scan) replace the arena's
+                own = getattr(r.driver, "readings", None)
+                if own is not None:
+                    readings[r.tag].update(own())
         # each plugin on its own: one that raises loses its readings only, not the others'
         for impl in self.pm.hook.robo_comp_sense.get_hookimpls():
             for r in robots:
@@ -924,6 +955,10 @@ class RobotHost:
                 self._send("leave", {"tag": r.tag})
             time.sleep(0.05)
         self.code.close()
+        for r in self.robots.values():  # a real robot's driver stops it and lets go of its link
+            close = getattr(r.driver, "close", None)
+            if close is not None:
+                close()
         self.planner.shutdown(wait=False, cancel_futures=True)
         for s in (self.fix_sock, self.truth_sock):
             if s is not None:
