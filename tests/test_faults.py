@@ -216,7 +216,7 @@ def test_latency_and_a_dead_link_between_a_host_and_the_core(core: CoreHandle) -
     port = int(json.loads((core.state / "core.json").read_text())["router"].rsplit(":", 1)[1])
     proxy = DelayProxy(port, delay=0.05, jitter=0.1, seed=3).start()
     host = subprocess.Popen([sys.executable, "-m", "robo_comp.cli", "robots", "--core", proxy.url, "--token-file",
-                             str(core.token_file("red")), "--count", "2", "--speed", "4"],
+                             str(core.host_token_file("red")), "--count", "2", "--speed", "4"],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, stdin=subprocess.DEVNULL)
     core.procs.append(host)
     try:
@@ -261,7 +261,7 @@ def test_a_host_whose_clock_runs_fast_and_jumps(core: CoreHandle, tmp_path: Path
     clock.write_text("+0 x2\n")
     env = dict(os.environ, LD_PRELOAD=lib, FAKETIME_TIMESTAMP_FILE=str(clock), FAKETIME_NO_CACHE="1")
     host = subprocess.Popen([sys.executable, "-m", "robo_comp.cli", "robots", "--core", str(core.state),
-                             "--token-file", str(core.token_file("red")), "--count", "2"],
+                             "--token-file", str(core.host_token_file("red")), "--count", "2"],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, stdin=subprocess.DEVNULL, env=env)
     core.procs.append(host)
     red = core.client("red")
