@@ -159,28 +159,34 @@ def test_teleports_wall_poses_and_creeping_jumps_are_refused_and_shown_to_the_re
         assert code(reply) == "E_IMPLAUSIBLE" and why in reply["error"]["message"], reply
         m = ref.monitor(tag)
         assert (m["x"], m["y"]) == (2.0, 2.0), (type_, m)
-    # creeping: 60 jumps of half a cell as fast as they can be sent; the robot drives 2 cells/s
+    # creeping: 60 jumps of half a cell (30 cells along free cells) as fast as they can be sent; the
+    # robot drives 2 cells/s
     t0 = time.monotonic()
-    taken = 0
-    x = 2.0
-    for _ in range(60):
-        x_new = x + 0.5 if x < 8.0 else x - 0.5
-        h.send("reports", {"tags": [tag], "x": [x_new], "y": [2.0], "heading": [0.0]}, secret=h.session)
-        x = x_new
+    path = [(2.0 + 0.5 * k, 2.0) for k in range(1, 41)] + [(22.0, 2.0 + 0.5 * k) for k in range(1, 21)]
+    for x, y in path:
+        h.send("reports", {"tags": [tag], "x": [x], "y": [y], "heading": [0.0]}, secret=h.session)
     time.sleep(0.3)
     elapsed = time.monotonic() - t0
     replies = h.listen(0.5)
     refused = [m for m in replies if m.get("type") == "reply" and not m.get("ok")]
     assert refused, "the creeping teleport was taken whole"
-    moved = abs(ref.monitor(tag)["x"] - 2.0)
+    m = ref.monitor(tag)
+    moved = abs(m["x"] - 2.0) + abs(m["y"] - 2.0)
     assert moved <= 2.0 * (elapsed + 3.0) + 1.5 + 1e-6  # speed x time + the budget's capacity
     wait_for(lambda: _events(core, "integrity"), 3.0, "the referee's integrity event")
     rows = _events(core, "integrity")
     assert all(r["tag"] == tag and r["kind"] == "pose" for r in rows) and sum(r["count"] for r in rows) >= 4
-    # a plausible move is taken
+    # a plausible move is taken (once the budget the attack spent has filled again, as a host reports on)
     here = ref.monitor(tag)
-    h.send("report", {"tag": tag, "x": here["x"], "y": 3.0, "heading": 90.0}, secret=h.session)
-    wait_for(lambda: ref.monitor(tag)["y"] == 3.0, 3.0, "a move the robot can make")
+
+    said = []
+
+    def moved_on() -> bool:
+        said.append(h.ask("report", {"tag": tag, "x": here["x"], "y": here["y"] + 1.0, "heading": 90.0},
+                          secret=h.session, timeout=0.2))
+        return bool(ref.monitor(tag)["y"] == here["y"] + 1.0)
+
+    wait_for(moved_on, 10.0, f"a move the robot can make {here} {said[-1:]}")
     h.close()
 
 

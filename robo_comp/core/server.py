@@ -60,7 +60,7 @@ from robo_comp.errors import (
     TooLargeError,
     UnavailableError,
 )
-from robo_comp.match.plausibility import MAX_SIGMA, PoseGate
+from robo_comp.match.plausibility import MAX_SIGMA, WINDOW, PoseGate
 from robo_comp.plugins.manager import get_plugin_manager
 from robo_comp.scoring.config import ScoringConfig
 from robo_comp.scoring.match import CLOCK_PERIOD
@@ -700,7 +700,7 @@ class Core:
         if not all(type(claim.get(k)) in (int, float) for k in ("x", "y")):
             return tracked
         x, y = float(claim["x"]), float(claim["y"])
-        since = time.monotonic() - r.gate_t if r.gate_t else self.gate.lag
+        since = time.time() - r.last_report if r.last_report else self.gate.lag
         verdict = self.gate.bears_out((r.x, r.y), r.sigma, since, r.speed, (x, y))
         if not verdict.ok:
             self.emit("integrity", None, {"kind": what, "tag": r.tag, "team": r.team, "count": 1, "x": r.x,
@@ -1095,14 +1095,14 @@ class Core:
         if "x" not in b or "y" not in b:
             return
         x, y = float(b["x"]), float(b["y"])
-        if returning and r.gate_t:
-            budget = self.gate.refill(r.gate_budget, now - r.gate_t, r.speed)
-            verdict, budget = self.gate.step(r.x, r.y, max(budget, r.speed * (now - r.gate_t)), x, y, 0.0, r.speed)
+        if returning and r.gate_t:  # it may have driven all the time it was away (not only LAG's worth)
+            budget = max(self.gate.refill(r.gate_budget, now - r.gate_t, r.speed), r.speed * (now - r.gate_t))
+            verdict, budget = self.gate.step((r.gate_x, r.gate_y, r.gate_sigma), budget, x, y, 0.0, r.speed)
         else:
             verdict, budget = self.gate.where(x, y), self.gate.capacity(r.speed)
         if verdict.ok:
             r.x, r.y = x, y
-            r.gate_budget, r.gate_t = budget, now
+            r.gate_x, r.gate_y, r.gate_sigma, r.gate_budget, r.gate_t = x, y, 0.0, budget, now
         else:
             self._refuse_pose(r, verdict.reason)
 
@@ -1134,15 +1134,22 @@ class Core:
         refused pose is counted for the referee's ``integrity`` event. A robot this core has not
         placed yet (registered without a position, or recovered from the log after a restart) may
         be anywhere a robot can be; from then on it drives."""
+        if r.gate_t and now - r.gate_t >= WINDOW and (r.x, r.y) != (r.gate_x, r.gate_y):
+            # the anchor's window has passed: the pose taken last is the anchor now (else a robot taken
+            # far from its anchor would be measured from there for good)
+            budget = self.gate.refill(r.gate_budget, now - r.gate_t, r.speed)
+            _, left = self.gate.step((r.gate_x, r.gate_y, r.gate_sigma), budget, r.x, r.y, r.sigma, r.speed)
+            r.gate_x, r.gate_y, r.gate_sigma, r.gate_budget, r.gate_t = r.x, r.y, r.sigma, left, now
         if r.gate_t:
             budget = self.gate.refill(r.gate_budget, now - r.gate_t, r.speed)
-            verdict, budget = self.gate.step(r.x, r.y, budget, x, y, sigma, r.speed)
+            verdict, budget = self.gate.step((r.gate_x, r.gate_y, r.gate_sigma), budget, x, y, sigma, r.speed)
         else:
             verdict, budget = self.gate.where(x, y, sigma), self.gate.capacity(r.speed)
         if not verdict.ok:
             self._refuse_pose(r, verdict.reason)
             return False
-        r.gate_budget, r.gate_t = budget, now
+        if not r.gate_t or now - r.gate_t >= WINDOW:  # the anchor's window has passed: this pose is the next
+            r.gate_x, r.gate_y, r.gate_sigma, r.gate_budget, r.gate_t = x, y, sigma, budget, now
         return True
 
     def _on_reports(self, ident: bytes, msg: P.Message) -> None:
@@ -1171,6 +1178,7 @@ class Core:
         xmax, ymax = width - 0.5, gate.height - 0.5
         lag, slack = gate.lag, gate.slack
         max_sigma = MAX_SIGMA
+        window = WINDOW
         hypot, floor = math.hypot, math.floor
         for tag, x, y, h, mv, sn, sg in zip(b["tags"], b["x"], b["y"], b["heading"], moving, sensors, sigmas):
             r = robots.get(tag)
@@ -1180,15 +1188,20 @@ class Core:
             if r.status is not connected:
                 self._mark_returned(r)
             sp = r.speed
-            budget = r.gate_budget + (mono - r.gate_t) * sp
+            since = mono - r.gate_t
+            budget = r.gate_budget + since * sp
             cap = sp * lag + slack
             if budget > cap:
                 budget = cap
-            d = hypot(x - r.x, y - r.y)
-            if (r.gate_t and d <= budget + 3.0 * (sg if sg < max_sigma else max_sigma) and -0.5 <= x < xmax and -0.5 <= y < ymax
+            g0 = r.gate_sigma
+            noise = 3.0 * ((sg if sg < max_sigma else max_sigma) + (g0 if g0 < max_sigma else max_sigma))
+            d = hypot(x - r.gate_x, y - r.gate_y)
+            if (r.gate_t and d <= budget + noise and -0.5 <= x < xmax and -0.5 <= y < ymax
                     and not walls[floor(y + 0.5) * width + floor(x + 0.5)]):
-                r.gate_budget = budget - d if budget > d else 0.0
-                r.gate_t = mono
+                if since >= window:  # the next anchor: the budget pays for the move, less the noise
+                    d = d - noise if d > noise else 0.0
+                    r.gate_budget = budget - d if budget > d else 0.0
+                    r.gate_x, r.gate_y, r.gate_sigma, r.gate_t = x, y, sg, mono
             elif not self._plausible(r, x, y, sg, mono):
                 refused.append(tag)
                 continue
@@ -1306,9 +1319,12 @@ class Core:
                 f"robot {p.tag} could not stop: {err.get('message', 'no reason given')}")), True)
             return None
         body = body or {}
-        for k in ("x", "y", "heading"):
-            if type(body.get(k)) in (int, float):
-                setattr(r, k, float(body[k]))
+        if type(body.get("heading")) in (int, float) and math.isfinite(body["heading"]):
+            r.heading = float(body["heading"])
+        x: Any = body.get("x")
+        y: Any = body.get("y")
+        if type(x) in (int, float) and type(y) in (int, float) and self._plausible(r, x, y, r.sigma, time.monotonic()):
+            r.x, r.y = float(x), float(y)  # where it halted, if it could be there (else where it is tracked)
         r.moving = False
         cancelled = self.tasks.cancel_all(r, "stopped", "cancelled by stop")
         ms = (time.monotonic() - p.t0) * 1000

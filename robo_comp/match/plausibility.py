@@ -7,8 +7,13 @@ from the last accepted pose than the robot can drive in the time between.
 
 "Can drive" is a budget, as in a token bucket: it fills at the robot's top speed while time passes,
 up to :data:`LAG` seconds' worth plus :data:`SLACK` cells (reports that arrive late, in a burst,
-and position corrections of dead reckoning), and every accepted pose spends the distance it moved.
-So over any stretch of time a robot's accepted poses move at most ``speed * t + capacity`` cells,
+and position corrections of dead reckoning). Poses are measured from an *anchor*, an accepted
+pose that stands for :data:`WINDOW` seconds: a pose is plausible when it lies within the budget,
+plus the noise of both positions (3 sigma each), of the anchor. When the window has passed, the
+next accepted pose becomes the anchor and the budget is charged with the distance between the two
+anchors less that noise. Noise is forgiven once a window, not once a report, so a host that
+reports ten times a second pays nothing for jitter and gains at most 6 sigma a window by lying:
+over any stretch of time a robot's anchors move at most ``speed * t + capacity`` cells plus that,
 however the claims are timed: a teleport is refused whether it comes in one report or in many
 small ones.
 
@@ -28,7 +33,9 @@ LAG = 3.0
 SLACK = 1.5
 #: Sigma above this many cells counts as this many: a host cannot widen every check by claiming
 #: a huge uncertainty.
-MAX_SIGMA = 2.0
+MAX_SIGMA = 0.5
+#: Seconds an anchor stands before the next accepted pose replaces it (and the budget is charged).
+WINDOW = 1.0
 #: Cells a host's claimed position (of a picture, a bump) may differ from the tracked one beyond
 #: 3 sigma and what the robot can have driven since it was tracked.
 CLAIM_SLACK = 0.5
@@ -76,21 +83,23 @@ class PoseGate:
                 return Verdict(False, f"({x:.2f}, {y:.2f}) is inside the wall at cell ({cx}, {cy})")
         return Verdict(True)
 
-    def step(self, x0: float, y0: float, budget: float, x: float, y: float, sigma: float,
+    def step(self, anchor: tuple[float, float, float], budget: float, x: float, y: float, sigma: float,
              speed: float) -> tuple[Verdict, float]:
-        """Whether a robot last accepted at ``(x0, y0)`` with ``budget`` cells of driving left (already
-        refilled for the time since) can be at ``(x, y)`` now; returns the verdict and the budget
-        left after it (unchanged when refused)."""
-        sigma = min(sigma, MAX_SIGMA)
+        """Whether a robot anchored at ``anchor`` (x, y, sigma) with ``budget`` cells of driving (already
+        refilled for the time since the anchor) can be at ``(x, y)`` with uncertainty ``sigma`` now;
+        returns the verdict and the budget left if this pose becomes the next anchor (unchanged when
+        refused)."""
+        x0, y0, sigma0 = anchor
+        sigma, sigma0 = min(sigma, MAX_SIGMA), min(sigma0, MAX_SIGMA)
         here = self.where(x, y, sigma)
         if not here.ok:
             return here, budget
         d = math.hypot(x - x0, y - y0)
-        allowed = budget + 3.0 * sigma
-        if d > allowed:
+        noise = 3.0 * (sigma + sigma0)
+        if d > budget + noise:
             return Verdict(False, f"a jump of {d:.1f} cells from ({x0:.2f}, {y0:.2f}) to ({x:.2f}, {y:.2f}); "
-                                  f"at {speed:g} cells/s it could have driven {allowed:.1f}"), budget
-        return Verdict(True), max(0.0, budget - d)
+                                  f"at {speed:g} cells/s it could have driven {budget + noise:.1f}"), budget
+        return Verdict(True), max(0.0, budget - max(0.0, d - noise))
 
     def bears_out(self, tracked: tuple[float, float], sigma: float, since: float, speed: float,
                   claim: tuple[float, float]) -> Verdict:
@@ -125,4 +134,4 @@ class PoseGate:
         return best
 
 
-__all__ = ["CLAIM_SLACK", "LAG", "MAX_SIGMA", "PoseGate", "SLACK", "Verdict", "WALL_SLACK"]
+__all__ = ["CLAIM_SLACK", "LAG", "MAX_SIGMA", "WINDOW", "PoseGate", "SLACK", "Verdict", "WALL_SLACK"]
