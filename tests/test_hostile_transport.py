@@ -1,0 +1,241 @@
+"""The transport under attack: a real core process, attacked with raw TCP (hand-made ZMTP) and raw
+pyzmq, below every friendly client.
+
+- A peer without a credential sends the parts of one multipart message and never the last: the
+  core buffers nothing of it (its memory stays within 50 MiB of where it was).
+- Such a peer gets no reply to anything; its refused handshakes are logged in bulk.
+- Frames that msgpack would be slow to decode are refused before decoding gets far.
+- A client that says hello again (same principal, same ``instance``) ends its old session.
+
+``docs/security.md`` names the defence each test checks; ``bench/bench_transport.py`` measures
+the figures (memory under the attack, longest loop turn under slow frames).
+"""
+from __future__ import annotations
+
+import json
+import socket
+import struct
+import time
+from typing import Any
+
+import pytest
+import zmq
+
+from conftest import CoreHandle, wait_for
+from robo_comp import protocol as P
+from robo_comp.protocol.curve import secure_plain_client
+from robo_comp.testing.zmtp import core_rss, router_address, zmtp_greeting, zmtp_command, zmtp_frame
+
+MiB = 1 << 20
+
+
+class Peer:
+    """A raw DEALER: ``token`` is the credential it presents to the transport (None: none)."""
+
+    def __init__(self, core: CoreHandle, token: str | None, routing_id: bytes | None = None) -> None:
+        self.sock = zmq.Context.instance().socket(zmq.DEALER)
+        self.sock.setsockopt(zmq.LINGER, 0)
+        self.sock.setsockopt(zmq.ROUTING_ID, routing_id or P.new_routing_id())
+        secure_plain_client(self.sock, token)
+        self.sock.connect(json.loads((core.state / "core.json").read_text())["router"])
+        self.session: str | None = None
+        self.n = 0
+        self.events: list[dict[str, Any]] = []
+
+    def ask(self, type_: str, body: dict[str, Any] | None = None, *, timeout: float = 3.0,
+            own: bool = True) -> dict[str, Any] | None:
+        """Send a request (with this peer's session secret when ``own``); its reply or None."""
+        self.n += 1
+        self.sock.send(P.request(type_, self.n, body or {}, self.session if own else None))
+        reply = self.reply(self.n, timeout)
+        if reply is not None and reply.get("ok") and "session" in (reply.get("body") or {}):
+            self.session = reply["body"]["session"]
+        return reply
+
+    def reply(self, rid: int, timeout: float = 3.0) -> dict[str, Any] | None:
+        """The reply to ``rid`` (events read meanwhile go to :attr:`events`), or None."""
+        t_end = time.monotonic() + timeout
+        while (left := t_end - time.monotonic()) > 0 and self.sock.poll(left * 1000):
+            m = P.unpack(self.sock.recv())
+            if m.get("type") == "reply" and m.get("id") in (rid, 0):
+                return m
+            if m.get("type") == "event":
+                self.events.append(m)
+        return None
+
+    def close(self) -> None:
+        self.sock.close(0)
+
+
+def code(reply: dict[str, Any] | None) -> str:
+    """The error code of a refusal (fails on an ok or a missing reply)."""
+    assert reply is not None, "no reply: every refusal carries a code"
+    assert reply["ok"] is False and len(reply["error"]["message"]) > 20, reply
+    return reply["error"]["code"]
+
+
+def _raw_connect(core: CoreHandle) -> socket.socket:
+    s = socket.create_connection(router_address(core.state), timeout=5.0)
+    s.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 1 << 20)
+    return s
+
+
+def _push_unfinished(s: socket.socket, total: int, part: int = 8 * MiB) -> int:
+    """Send parts of one multipart message (MORE set on every one) up to ``total`` bytes, or until
+    the core closes the connection; return the bytes the core accepted."""
+    chunk = zmtp_frame(b"\0" * part, more=True)
+    sent = 0
+    try:
+        while sent < total:
+            s.sendall(chunk)
+            sent += len(chunk)
+    except OSError:  # the core closed the connection: what it took is what we sent so far
+        pass
+    return sent
+
+
+# ------------------------------------------------------------------ nothing buffered without a credential
+@pytest.mark.parametrize("mechanism", ["NULL", "PLAIN"])
+def test_unfinished_multipart_from_a_peer_without_a_credential_holds_no_memory(
+        core: CoreHandle, mechanism: str) -> None:
+    """Defence: PLAIN handshake with the token as password, checked by the core's ZAP handler
+    (and ZMQ_MAXMSGSIZE on the ROUTER). A raw peer greets with NULL (no credential) or PLAIN with
+    a made-up token, then sends 8 MiB parts of one message with MORE set, 256 MiB in all: the
+    core's memory stays within 50 MiB of its baseline, and it goes on serving."""
+    blue = core.client("blue")
+    assert blue.robots() == []
+    baseline = core_rss(core.state)
+    s = _raw_connect(core)
+    s.sendall(zmtp_greeting(mechanism))
+    if mechanism == "NULL":
+        s.sendall(zmtp_command(b"READY", {b"Socket-Type": b"DEALER"}))
+    else:
+        s.sendall(zmtp_command(b"HELLO", body=b"\x09robo_comp" + b"\x10" + b"not-a-real-token"))
+    _push_unfinished(s, 256 * MiB)
+    time.sleep(0.5)  # let the core's I/O thread take in whatever reached it
+    grown = core_rss(core.state) - baseline
+    s.close()
+    assert grown < 50 * MiB, f"the core grew by {grown / MiB:.0f} MiB for a peer without a credential"
+    assert blue.robots() == []  # still serving
+
+
+def test_a_huge_handshake_command_is_cut_off(core: CoreHandle) -> None:
+    """Defence: ZMQ_MAXMSGSIZE holds during the handshake too: a PLAIN HELLO command of 64 MiB is
+    cut off after at most SOCKET_MAX_FRAME bytes."""
+    baseline = core_rss(core.state)
+    s = _raw_connect(core)
+    s.sendall(zmtp_greeting("PLAIN"))
+    header = struct.pack(">BQ", 0x06, 64 * MiB)  # a long command frame announced as 64 MiB
+    sent = 0
+    try:
+        s.sendall(header)
+        while sent < 64 * MiB:
+            s.sendall(b"\0" * MiB)
+            sent += MiB
+    except OSError:
+        pass
+    s.close()
+    assert sent < 64 * MiB, "the core read a 64 MiB handshake command to its end"
+    assert core_rss(core.state) - baseline < 50 * MiB
+    assert core.client("red").robots() == []
+
+
+def test_a_peer_without_a_valid_token_gets_nothing_and_is_logged_in_bulk(core: CoreHandle) -> None:
+    """Defence: the ZAP handler refuses a handshake without a valid token; nothing of such a peer
+    reaches the core's loop (not even a refusal), and its refused handshakes are logged once a beat
+    per address with their count."""
+    blue = core.client("blue")
+    nobody = Peer(core, None)  # a pyzmq DEALER with no credential at all
+    guessers = [Peer(core, f"guess-{i}-of-a-token") for i in range(30)]
+    assert nobody.ask("hello", {"token": core.token("blue")}, timeout=1.0) is None
+    for p in guessers:
+        p.sock.send(P.request("hello", 1, {"token": core.token("blue")}))
+    assert all(not p.sock.poll(200) for p in guessers)
+    assert blue.robots() == []
+
+    def logged() -> list[dict[str, Any]] | None:
+        rows = [e for e in core.logged_events("refused") if e["data"].get("type") == "connect"]
+        return rows if sum(e["data"]["count"] for e in rows) >= 30 else None
+
+    rows = wait_for(logged, 10.0, "the refused handshakes in the log")
+    assert len(rows) < 30  # in bulk, not one record per handshake
+    assert {e["data"]["code"] for e in rows} == {"E_AUTH"} and {e["team"] for e in rows} == {None}
+    # the hello from the peer with no credential never reached the core: no hello refusal either
+    assert not [e for e in core.logged_events("refused") if e["data"].get("type") == "hello"]
+    for p in [nobody, *guessers]:
+        p.close()
+
+
+def test_a_hello_must_use_the_token_the_connection_presented(core: CoreHandle) -> None:
+    """Defence: the session's principal is the transport's: a connection that presented red's token
+    cannot open a session with blue's (nor register blue's robots), and every frame of a session
+    must come from a connection that presented the same principal."""
+    red = Peer(core, core.token("red"))
+    reply = red.ask("hello", {"token": core.token("blue")})
+    assert code(reply) == "E_AUTH" and "token" in reply["error"]["message"]
+    assert code(red.ask("register", {"token": core.token("blue"), "robot_id": "b-1"})) == "E_AUTH"
+    assert red.ask("hello", {"token": core.token("red")})["ok"]  # its own token: fine
+    assert red.ask("robots")["ok"]
+    red.close()
+
+
+# ------------------------------------------------------------------ decoding bounded
+def test_frames_slow_to_decode_are_refused_and_the_core_serves_on(core: CoreHandle) -> None:
+    """Defence: msgpack limits sized to the protocol (lengths, nesting, and a budget of maps and
+    arrays per frame). 20 frames under 1 MiB that would each make 300,000 maps (or a 500,000-entry
+    list) are refused with E_TOO_LARGE, sessionless or in a session, and a console is served
+    between them. The longest loop turn is measured by bench/bench_transport.py."""
+    blue = core.client("blue")
+    red = Peer(core, core.token("red"))  # a credential, no session yet
+    slow = [P.request("radio", k, {"tag": 1, "data": [{}] * 300_000}) for k in range(10)]
+    slow += [P.request("radio", 10 + k, {"tag": 1, "data": [None] * 500_000}) for k in range(10)]
+    assert all(len(f) < P.MAX_FRAME for f in slow)
+    for f in slow:
+        red.sock.send(f)
+    for k in range(20):
+        assert code(red.reply(k)) == "E_TOO_LARGE"
+        if k % 5 == 0:
+            assert blue.robots() == []
+    assert red.ask("hello", {"token": core.token("red")})["ok"]
+    for k, f in enumerate(slow[:3]):  # the same inside a session
+        red.sock.send(P.request("radio", 100 + k, {"tag": 1, "data": [{}] * 300_000}, red.session))
+        assert code(red.reply(100 + k)) == "E_TOO_LARGE"
+    assert red.ask("robots")["ok"]  # the session survived
+
+
+# ------------------------------------------------------------------ sessions
+def test_a_second_hello_of_the_same_client_ends_its_old_session(core: CoreHandle) -> None:
+    """Defence: hello's ``instance``. A console that reconnects says hello with the same principal
+    and instance: its old session ends at once (no more events, its secret refused), while a
+    teammate's console (another instance) is untouched."""
+    instance = P.new_instance_id()
+    old = Peer(core, core.token("blue"))
+    assert old.ask("hello", {"token": core.token("blue"), "instance": instance})["ok"]
+    assert old.ask("watch", {"on": True})["ok"]
+    mate = Peer(core, core.token("blue"))
+    assert mate.ask("hello", {"token": core.token("blue"), "instance": P.new_instance_id()})["ok"]
+    new = Peer(core, core.token("blue"))
+    assert new.ask("hello", {"token": core.token("blue"), "instance": instance})["ok"]
+    reply = old.ask("robots")
+    assert code(reply) == "E_AUTH"
+    assert mate.ask("robots")["ok"] and new.ask("robots")["ok"]
+    ref = core.referee()
+    ref.request("broadcast", message="is anyone there")
+    time.sleep(0.5)
+    assert not [e for e in old.events if e["body"]["topic"] == "broadcast"]  # no push after the end
+    # a short, guessable instance is refused with a sentence
+    assert code(Peer(core, core.token("blue")).ask("hello", {"token": core.token("blue"),
+                                                             "instance": "1"})) == "E_FIELD"
+    for p in (old, mate, new):
+        p.close()
+
+
+def test_the_clients_reconnect_ends_its_old_session(core: CoreHandle) -> None:
+    """The friendly client sends its instance: after ``connect()`` (a reconnect) the old
+    session's secret no longer works on the old connection's id."""
+    c = core.client("red")
+    first = c.session
+    c.connect()
+    assert c.session != first
+    assert c.robots() == []
+    assert core.referee().request("stats")["sessions_by"].get("red") == 1
