@@ -21,6 +21,17 @@ def _positive(text: str) -> float:
     return value
 
 
+def _positive_int(text: str) -> int:
+    """An argparse type: a whole number above zero."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"{text!r} must be above zero")
+    return value
+
+
 def _core(args: argparse.Namespace) -> int:
     from robo_comp.core import matchfile
     from robo_comp.core.server import Core
@@ -48,7 +59,8 @@ def _core(args: argparse.Namespace) -> int:
     core = Core(state, scenario, settings.get("teams"), host=args.host, port=settings.get("port", 5555),
                 heartbeat=settings.get("heartbeat", 1.0), fsync=args.fsync, plugins=pm,
                 practice=practice, approve_uploads=bool(settings.get("approve_uploads")),
-                curve=bool(settings.get("curve")), pose_hz=settings.get("pose_hz", 10.0))
+                curve=bool(settings.get("curve")), pose_hz=settings.get("pose_hz", 10.0),
+                max_connections=args.max_connections, max_per_address=args.max_per_address)
     core.bind()
     matchfile.write(state, {"teams": core.tokens.teams, "scenario": scenario_file,
                             "scenario_sha256": settings.get("scenario_sha256"), "practice": practice,
@@ -162,6 +174,11 @@ def build_parser() -> argparse.ArgumentParser:
                         "get in (run 'robo-comp keys --state STATE' first)")
     c.add_argument("--override", action="store_true",
                    help="on a restart, apply options that contradict the recovered match (and record them)")
+    c.add_argument("--max-connections", type=_positive_int, metavar="N",
+                   help="connections the core holds at most (default: what its open-file limit allows, "
+                        "raised to the hard limit; the last 64 are kept for the referee and hosts)")
+    c.add_argument("--max-per-address", type=_positive_int, metavar="N",
+                   help="connections from one peer address at most; more are cut at once (default 256)")
     c.set_defaults(func=_core)
 
     r = sub.add_parser("robots", help="host simulated robots of one team",

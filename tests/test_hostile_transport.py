@@ -13,18 +13,23 @@ the figures (memory under the attack, longest loop turn under slow frames).
 from __future__ import annotations
 
 import json
+import resource
 import socket
 import struct
+import subprocess
+import sys
 import time
+from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 import pytest
 import zmq
 
-from conftest import CoreHandle, wait_for
+from conftest import CoreHandle, wait_for, wait_robots
 from robo_comp import protocol as P
 from robo_comp.protocol.curve import secure_plain_client
-from robo_comp.testing.zmtp import core_rss, router_address, zmtp_greeting, zmtp_command, zmtp_frame
+from robo_comp.testing.zmtp import core_rss, router_address, zmtp_command, zmtp_frame, zmtp_greeting, zmtp_open
 
 MiB = 1 << 20
 
@@ -239,3 +244,98 @@ def test_the_clients_reconnect_ends_its_old_session(core: CoreHandle) -> None:
     assert c.session != first
     assert c.robots() == []
     assert core.referee().request("stats")["sessions_by"].get("red") == 1
+
+
+# ------------------------------------------------------------------ connection flood
+FD_LIMIT = 1024
+FLOOD = 1124
+
+
+@pytest.fixture
+def small_core(tmp_path: Path) -> Iterator[CoreHandle]:
+    """A core whose process may open only 1,024 files, soft and hard (a common default): it
+    cannot raise the limit, so only its connection limits keep it reachable."""
+    state = tmp_path / "state"
+    state.mkdir()
+
+    def limit() -> None:
+        resource.setrlimit(resource.RLIMIT_NOFILE, (FD_LIMIT, FD_LIMIT))
+
+    with open(state / "core.log", "ab") as log:
+        proc = subprocess.Popen([sys.executable, "-m", "robo_comp.cli", "core", "--state", str(state), "--port", "0",
+                                 "--heartbeat", "0.2", "--teams", "red,blue"], stdout=log, stderr=subprocess.STDOUT,
+                                stdin=subprocess.DEVNULL, preexec_fn=limit)
+    h = CoreHandle(state, None, proc)
+    try:
+        wait_for(lambda: (state / "core.json").exists() or proc.poll() is not None, 20.0, "the core's start")
+        assert proc.poll() is None, (state / "core.log").read_text()[-2000:]
+        yield h
+    finally:
+        h.close()
+
+
+def _flood(address: str, target: tuple[str, int], opening: bytes) -> list[socket.socket]:
+    """:data:`FLOOD` TCP connections from ``address`` that each send ``opening`` (a handshake),
+    then nothing."""
+    socks = []
+    for _ in range(FLOOD):
+        s = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        s.bind((address, 0))
+        s.setblocking(False)
+        s.connect_ex(target)
+        socks.append(s)
+    t_end = time.monotonic() + 5.0
+    waiting = list(socks)
+    while waiting and time.monotonic() < t_end:  # each sends its handshake once connected
+        left = []
+        for s in waiting:
+            try:
+                s.send(opening)
+            except BlockingIOError:
+                left.append(s)
+            except OSError:  # refused or cut by the core: done
+                pass
+        waiting = left
+        time.sleep(0.05)
+    return socks
+
+
+def test_a_connection_flood_is_cut_and_the_match_goes_on(small_core: CoreHandle) -> None:
+    """Defence: connection limits per peer address and in total (a socket monitor in the core's
+    loop cuts the excess at once), the PLAIN handshake (no credential, no connection),
+    HANDSHAKE_IVL, and the open-file limit raised where allowed. Against a core limited to 1,024
+    descriptors: 1,124 connections from one address that complete a handshake without a credential
+    (the audit's attack), then 1,124 from another that present red's valid token and sit idle. A new
+    console still connects, a robot host goes on, and the cuts are logged in bulk."""
+    core = small_core
+    soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    if hard < 2 * FLOOD + 200:
+        pytest.skip(f"this test process may open only {hard} files")
+    resource.setrlimit(resource.RLIMIT_NOFILE, (max(soft, 2 * FLOOD + 200), hard))
+    core.robots("red", 1)
+    ref = core.referee()
+    tag = wait_robots(ref, 1)[0]["tag"]
+    target = router_address(core.state)
+    flood: list[socket.socket] = []
+    try:
+        flood += _flood("127.0.0.2", target, zmtp_open("NULL"))
+        flood += _flood("127.0.0.3", target, zmtp_open("PLAIN", core.token("red").encode()))
+        blue = core.client("blue")  # a new client gets in during the flood
+        assert blue.robots() == [] and blue.role == "team"
+        assert ref.give(tag, "goTo", [3, 3])["task_id"] >= 1  # the match goes on
+        assert ref.monitor(tag)["status"] == "connected"
+
+        def logged() -> list[dict[str, Any]] | None:
+            rows = [e for e in core.logged_events("refused") if e["data"].get("type") == "connect"]
+            # a bulk of them (how many depends on how fast libzmq closes those it refuses itself)
+            return rows if sum(e["data"]["count"] for e in rows) >= 100 else None
+
+        rows = wait_for(logged, 10.0, "the cut connections in the log")
+        assert len(rows) < 50 and {e["data"]["code"] for e in rows} <= {"E_RATE", "E_AUTH"}
+        assert {e["data"]["address"] for e in rows} <= {"127.0.0.2", "127.0.0.3"}
+        stats = ref.request("stats")
+        assert stats["connection_limit"] <= FD_LIMIT - 128 and stats["connections_cut"] >= 100
+        assert stats["connections"] <= stats["connection_limit"]
+    finally:
+        for s in flood:
+            s.close()

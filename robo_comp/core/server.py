@@ -39,6 +39,7 @@ from robo_comp.protocol.curve import ServerKeys, ZapHandler, load_server_keys, s
 from robo_comp.core.mapdesk import MapDesk
 from robo_comp.core.uploads import UploadDesk
 from robo_comp.core.eventlog import EventLog, StorageFault
+from robo_comp.core.guard import HANDSHAKE_SECONDS, PER_ADDRESS, ConnectionGuard, GuardLimits, raise_fd_limit
 from robo_comp.core.recovery import RecoveryReport, recover
 from robo_comp.core.sessions import Session
 from robo_comp.core.registry import RobotRecord, RobotStatus, Registry
@@ -105,7 +106,8 @@ class Core:
                  host: str = "127.0.0.1",
                  port: int = 5555, pub_port: int = 0, heartbeat: float = 1.0, fsync: bool = False,
                  practice: bool = False, scoring: ScoringConfig | None = None, plugins: Any = None,
-                 approve_uploads: bool = False, curve: bool = False, pose_hz: float = POSE_HZ) -> None:
+                 approve_uploads: bool = False, curve: bool = False, pose_hz: float = POSE_HZ,
+                 max_connections: int | None = None, max_per_address: int | None = None) -> None:
         self.state_dir = Path(state_dir)
         self.state_dir.mkdir(parents=True, exist_ok=True)
         self.scenario = scenario
@@ -131,6 +133,11 @@ class Core:
         self.next_core_req = 1
         # The core owns its context: the ZAP endpoint (the transport's credential check) is one per context.
         self.ctx = zmq.Context()
+        # Connections are file descriptors: take all the process may have, and bound them (see bind)
+        nofile = raise_fd_limit()
+        self.ctx.set(zmq.MAX_SOCKETS, max(1024, min(nofile, 65_535)))
+        self.limits = GuardLimits.for_fd_limit(nofile, max_connections, max_per_address or PER_ADDRESS)
+        self._guard: ConnectionGuard | None = None
         self.router: zmq.Socket | None = None
         self.pub: zmq.Socket | None = None
         self._running = False
@@ -215,12 +222,16 @@ class Core:
         # Dead connections (a cut cable) are dropped by ZMTP heartbeats, so that their ids free up.
         self.router.setsockopt(zmq.HEARTBEAT_IVL, int(max(1.0, self.heartbeat) * 2000))
         self.router.setsockopt(zmq.HEARTBEAT_TIMEOUT, int(max(1.0, self.heartbeat) * 10_000))
+        # a connection that has not proved a credential within this time is closed by libzmq
+        self.router.setsockopt(zmq.HANDSHAKE_IVL, int(HANDSHAKE_SECONDS * 1000))
         self.router.setsockopt(zmq.SNDHWM, 100_000)
         self.router.setsockopt(zmq.RCVHWM, 100_000)
         if self.port == 0:
             self.port = self.router.bind_to_random_port(f"tcp://{self.host}")
         else:
             self.router.bind(f"tcp://{self.host}:{self.port}")
+        self._guard = ConnectionGuard.watch(self.router, self.port, self.limits)
+        self._zap.admit = self._admit
         self.pub = self.ctx.socket(zmq.PUB)
         self.pub.setsockopt(zmq.LINGER, 0)
         # A slow subscriber (a wall on a weak link) gets at most this many events queued for it,
@@ -281,6 +292,8 @@ class Core:
         poller.register(self.router, zmq.POLLIN)
         if self._zap is not None:
             poller.register(self._zap.sock, zmq.POLLIN)
+        if self._guard is not None:
+            poller.register(self._guard.monitor, zmq.POLLIN)
         poller.register(wake, zmq.POLLIN)
         self._running = not self._stop_asked
         next_tick = time.monotonic() + self.heartbeat
@@ -299,6 +312,8 @@ class Core:
                 if self._slices:  # background work left: look at the socket, then do the next slice
                     timeout = 0.0
                 if poller.poll(math.ceil(timeout * 1000)):
+                    if self._guard is not None:  # connections counted before their handshakes are judged
+                        self._guard.serve()
                     if self._zap is not None:
                         self._zap.serve()
                     self._drain()
@@ -325,6 +340,8 @@ class Core:
             wake_w.close()
             self._commit()
             self.events.close()
+            if self._guard is not None:
+                self._guard.close()
             self.router.close(0)
             assert self.pub is not None
             self.pub.close(0)
@@ -450,17 +467,46 @@ class Core:
             self.emit("refused", None, {"by": "unknown", "type": msg_type, "code": code, "message": message,
                                         "count": count}, public=False)
 
+    def _admit(self, principal: Any) -> str | None:
+        """Asked by the ZAP handler about every principal that proved itself: None lets it in, a
+        sentence refuses the handshake (the core is full but for the referee and hosts, or the
+        principal holds its share of the sessions)."""
+        assert self._guard is not None
+        why = self._guard.admit(principal)
+        if why is None and not isinstance(principal, str):
+            why = self._sessions_full(principal)
+        return why
+
+    def _sessions_full(self, who: Principal) -> str | None:
+        """A sentence when ``who`` holds its share of sessions (a quarter of the core's connections;
+        the referee and hosts have no share), else None."""
+        if who.role in ("referee", "host"):
+            return None
+        share = max(16, self.limits.total // 4)
+        held = sum(1 for s in self.sessions.values() if s.who == who)
+        if held >= share:
+            return (f"{who.name} holds {held} sessions, its share of this core's {self.limits.total} connections; "
+                    "close some (or say bye) before opening more")
+        return None
+
     def _log_refused_handshakes(self) -> None:
         """One ``refused`` event (type ``connect``) and one log line per peer address whose
-        handshakes the transport refused since the last beat (no valid token or key), with their
-        ``count``: a flood of bad handshakes is logged in bulk."""
-        assert self._zap is not None
-        for (mechanism, address), row in sorted(self._zap.take_refused().items()):
-            message = (f"{row.count} connection(s) from {address or 'an unknown address'} presented no valid "
-                       f"credential ({mechanism}: {row.reason}); libzmq closed them before reading a message")
+        handshakes the transport refused since the last beat (no valid token or key, ``E_AUTH``)
+        or whose connections the guard cut (over a limit, ``E_RATE``), with their ``count``: a
+        flood is logged in bulk."""
+        rows: list[tuple[str, str, int, str]] = []
+        if self._zap is not None:
+            for (mechanism, address), row in sorted(self._zap.take_refused().items()):
+                rows.append(("E_AUTH", address, row.count, f"{row.count} connection(s) from {address or 'an unknown address'} "
+                             f"were refused ({mechanism}: {row.reason}); libzmq closed them before reading a message"))
+        if self._guard is not None:
+            for address, cut in sorted(self._guard.take_cut().items()):
+                rows.append(("E_RATE", address, cut.count, f"{cut.count} connection(s) from {address} were cut at "
+                             f"once ({cut.reason}); the match goes on"))
+        for code, address, count, message in rows:
             log.warning("%s", message)
-            self.emit("refused", None, {"by": "unknown", "type": "connect", "code": "E_AUTH", "message": message,
-                                        "count": row.count, "address": address}, public=False)
+            self.emit("refused", None, {"by": "unknown", "type": "connect", "code": code, "message": message,
+                                        "count": count, "address": address}, public=False)
 
     # ------------------------------------------------------------------ output
     def send(self, ident: bytes, frame: bytes, urgent: bool = False) -> None:
@@ -722,7 +768,7 @@ class Core:
         self._log_positions()
         if self._refused_anon:
             self._log_refused()
-        if self._zap is not None and self._zap.refusals_waiting:
+        if (self._zap is not None and self._zap.refusals_waiting) or (self._guard and self._guard.cuts_waiting):
             self._log_refused_handshakes()
         self.maps.push()
         self.competition.tick(now)
@@ -772,6 +818,9 @@ class Core:
         if instance is not None and not P.INSTANCE_MIN <= len(instance) <= P.INSTANCE_MAX:
             raise FieldError(f"hello's 'instance' must be a random id of {P.INSTANCE_MIN} to {P.INSTANCE_MAX} "
                              "characters (robo_comp.protocol.new_instance_id), kept across reconnects")
+        full = self._sessions_full(who) if ident not in self.sessions else None
+        if full is not None:
+            raise RateLimitError(full)
         old = self._forget(ident)  # only a proved hello gets here with a session (see _prove)
         sess = Session(ident, who, str(msg.body.get("client", "client"))[:64], time.monotonic(),
                        key=self._key_owner, instance=instance)
@@ -856,7 +905,10 @@ class Core:
         sessions_by: dict[str, int] = {}
         for s in self.sessions.values():
             sessions_by[s.who.name] = sessions_by.get(s.who.name, 0) + 1
+        guard = self._guard
         return dict(self.stats, robots=by_status, sessions=len(self.sessions), sessions_by=sessions_by,
+                    connections=guard.open if guard else 0, connections_cut=guard.cut_total if guard else 0,
+                    connection_limit=self.limits.total,
                     log_seq=self.events.seq,
                     storage=self.storage_fault, log_unwritten=self.events.unwritten,
                     uptime=time.monotonic() - self.started)
@@ -926,6 +978,9 @@ class Core:
         specs = check_specs(b.get("tasks", []))
         sess = self.sessions.get(ident)
         if sess is None:
+            full = self._sessions_full(who)
+            if full is not None:
+                raise RateLimitError(full)
             sess = Session(ident, who, "robots", time.monotonic(), key=self._key_owner)
             self.sessions[ident] = sess
         elif sess.who != who:

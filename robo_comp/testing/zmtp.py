@@ -31,6 +31,21 @@ def zmtp_command(name: bytes, properties: dict[bytes, bytes] | None = None, body
     return zmtp_frame(data, command=True)
 
 
+def zmtp_plain_hello(user: bytes, password: bytes) -> bytes:
+    """A PLAIN ``HELLO`` command (then an ``INITIATE`` completes the client's side)."""
+    return zmtp_command(b"HELLO", body=bytes([len(user)]) + user + bytes([len(password)]) + password)
+
+
+def zmtp_open(mechanism: str = "NULL", password: bytes | None = None) -> bytes:
+    """Everything a DEALER sends to complete a handshake, in one piece: the greeting, then READY
+    (NULL) or HELLO with ``password`` and INITIATE (PLAIN)."""
+    meta = {b"Socket-Type": b"DEALER"}
+    if mechanism == "PLAIN":
+        return (zmtp_greeting("PLAIN") + zmtp_plain_hello(b"robo_comp", password or b"")
+                + zmtp_command(b"INITIATE", meta))
+    return zmtp_greeting("NULL") + zmtp_command(b"READY", meta)
+
+
 def router_address(state: Path) -> tuple[str, int]:
     """(host, port) of the ROUTER of the core whose state folder is ``state``."""
     url = urlparse(json.loads((Path(state) / "core.json").read_text())["router"])
@@ -47,4 +62,5 @@ def core_rss(state: Path) -> int:
     raise RuntimeError(f"no VmRSS for process {pid}")
 
 
-__all__ = ["core_rss", "router_address", "zmtp_command", "zmtp_frame", "zmtp_greeting"]
+__all__ = ["core_rss", "router_address", "zmtp_command", "zmtp_frame", "zmtp_greeting", "zmtp_open",
+           "zmtp_plain_hello"]
