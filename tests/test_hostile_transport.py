@@ -12,6 +12,7 @@ the figures (memory under the attack, longest loop turn under slow frames).
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import resource
 import socket
@@ -51,7 +52,10 @@ class Peer:
             own: bool = True) -> dict[str, Any] | None:
         """Send a request (with this peer's session secret when ``own``); its reply or None."""
         self.n += 1
-        self.sock.send(P.request(type_, self.n, body or {}, self.session if own else None))
+        try:  # never blocks: a socket the core refused may have no connection to queue on
+            self.sock.send(P.request(type_, self.n, body or {}, self.session if own else None), zmq.NOBLOCK)
+        except zmq.Again:
+            return None
         reply = self.reply(self.n, timeout)
         if reply is not None and reply.get("ok") and "session" in (reply.get("body") or {}):
             self.session = reply["body"]["session"]
@@ -87,8 +91,9 @@ def _raw_connect(core: CoreHandle) -> socket.socket:
 
 def _push_unfinished(s: socket.socket, total: int, part: int = 8 * MiB) -> int:
     """Send parts of one multipart message (MORE set on every one) up to ``total`` bytes, or until
-    the core closes the connection; return the bytes the core accepted."""
-    chunk = zmtp_frame(b"\0" * part, more=True)
+    the core closes the connection; return the bytes the core accepted. Each part starts with 1
+    (a subscription, to a PUB socket: libzmq itself drops a peer whose short parts start with 0)."""
+    chunk = zmtp_frame(b"\x01" + b"\0" * (part - 1), more=True) * max(1, MiB // part)
     sent = 0
     try:
         while sent < total:
@@ -124,6 +129,36 @@ def test_unfinished_multipart_from_a_peer_without_a_credential_holds_no_memory(
     assert blue.robots() == []  # still serving
 
 
+def test_an_unfinished_message_to_the_public_feed_holds_no_memory(core: CoreHandle) -> None:
+    """Defence: the PUB socket's subscribers need no credential (walls, the web), so the core cuts
+    a subscriber that sends more than a few subscriptions' worth (64 KiB, read from the kernel's
+    TCP_INFO) and ZMQ_MAXMSGSIZE there is 1 KiB. A raw peer that greets the public feed as a SUB and
+    sends 256 MiB as 1 KB parts of one message: the core stays within 50 MiB, and a real subscriber
+    still gets events."""
+    info = json.loads((core.state / "core.json").read_text())
+    host, port = info["pub"].removeprefix("tcp://").rsplit(":", 1)
+    sub = zmq.Context.instance().socket(zmq.SUB)
+    sub.setsockopt(zmq.LINGER, 0)
+    sub.setsockopt(zmq.SUBSCRIBE, b"")
+    sub.connect(info["pub"])
+    baseline = core_rss(core.state)
+    s = socket.create_connection((host, int(port)), timeout=5.0)
+    s.sendall(zmtp_greeting("NULL") + zmtp_command(b"READY", {b"Socket-Type": b"SUB"}))
+    sent = _push_unfinished(s, 256 * MiB, part=1000)
+    time.sleep(0.5)
+    grown = core_rss(core.state) - baseline
+    s.close()
+    assert sent < 256 * MiB, "the core read 256 MiB of one unfinished message from a subscriber"
+    assert grown < 50 * MiB, f"the core grew by {grown / MiB:.0f} MiB for a subscriber without a credential"
+    ref = core.referee()
+    wait_for(lambda: (ref.request("broadcast", message="still here"), sub.poll(200))[1], 10.0,
+             "an event on the public feed")
+    cut = wait_for(lambda: [e for e in core.logged_events("refused") if e["data"].get("type") == "connect"],
+                   5.0, "the cut in the log")
+    assert "subscriber" in cut[0]["data"]["message"]
+    sub.close(0)
+
+
 def test_a_huge_handshake_command_is_cut_off(core: CoreHandle) -> None:
     """Defence: ZMQ_MAXMSGSIZE holds during the handshake too: a PLAIN HELLO command of 64 MiB is
     cut off after at most SOCKET_MAX_FRAME bytes."""
@@ -154,7 +189,8 @@ def test_a_peer_without_a_valid_token_gets_nothing_and_is_logged_in_bulk(core: C
     guessers = [Peer(core, f"guess-{i}-of-a-token") for i in range(30)]
     assert nobody.ask("hello", {"token": core.token("blue")}, timeout=1.0) is None
     for p in guessers:
-        p.sock.send(P.request("hello", 1, {"token": core.token("blue")}))
+        with contextlib.suppress(zmq.Again):  # refused: maybe no connection to queue on
+            p.sock.send(P.request("hello", 1, {"token": core.token("blue")}), zmq.NOBLOCK)
     assert all(not p.sock.poll(200) for p in guessers)
     assert blue.robots() == []
 

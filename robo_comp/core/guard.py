@@ -8,8 +8,9 @@ connections through a socket monitor, served from the core's own poller, and cut
 :attr:`GuardLimits.per_address` connections or the core holds :attr:`GuardLimits.total`. The
 ZAP handler asks :meth:`ConnectionGuard.admit` about every principal that proved itself: once
 only :attr:`GuardLimits.kept` connections are left, only the referee and the organiser's hosts
-get in. Cuts and refusals are counted per address and logged once a beat (see the core's
-``_tick``). A connection that never completes its handshake is closed by libzmq after
+get in. The PUB socket (the public feed, no credential) is watched the same way, and a
+subscriber that sends more than :data:`PUB_INBOUND` bytes is cut (:meth:`ConnectionGuard.sweep`).
+Cuts and refusals are counted per address and logged once a beat (see the core's ``_tick``). A connection that never completes its handshake is closed by libzmq after
 :data:`HANDSHAKE_SECONDS` (ZMQ_HANDSHAKE_IVL).
 """
 from __future__ import annotations
@@ -19,6 +20,7 @@ import logging
 import os
 import resource
 import socket
+import struct
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -37,6 +39,13 @@ PER_ADDRESS = 256
 KEPT = 64
 #: Roles that may use the kept connections.
 KEPT_ROLES = frozenset({"referee", "host"})
+#: Bytes a subscriber of the PUB socket may send (its subscriptions: a few bytes each) before it is cut.
+PUB_INBOUND = 64 << 10
+#: Seconds between two looks at what each PUB connection received.
+SWEEP_SECONDS = 0.05
+# struct tcp_info (linux/tcp.h): tcpi_bytes_received is the u64 at this offset (Linux 4.1 and later).
+_TCP_INFO_LEN = 232
+_BYTES_RECEIVED = 128
 
 
 def raise_fd_limit() -> int:
@@ -88,6 +97,10 @@ class ConnectionGuard:
     limits: GuardLimits
     port: int
     monitor: zmq.Socket
+    #: Bytes a connection may send to this socket at most (None: no limit): the PUB socket's
+    #: subscribers send a few bytes of subscriptions, so a peer sending more is cut (see :meth:`sweep`).
+    inbound: int | None = None
+    next_sweep: float = 0.0
     #: Open connections: descriptor -> peer address.
     conns: dict[int, str] = field(default_factory=dict)
     per_address: dict[str, int] = field(default_factory=dict)
@@ -95,10 +108,41 @@ class ConnectionGuard:
     _tally: dict[str, Tally] = field(default_factory=dict)
 
     @classmethod
-    def watch(cls, router: zmq.Socket, port: int, limits: GuardLimits) -> ConnectionGuard:
-        """Start watching ``router`` (bound to ``port``)."""
-        mon = router.get_monitor_socket(zmq.EVENT_ACCEPTED | zmq.EVENT_DISCONNECTED)
-        return cls(limits, port, mon)
+    def watch(cls, sock: zmq.Socket, port: int, limits: GuardLimits, inbound: int | None = None) -> ConnectionGuard:
+        """Start watching ``sock`` (bound to ``port``)."""
+        mon = sock.get_monitor_socket(zmq.EVENT_ACCEPTED | zmq.EVENT_DISCONNECTED)
+        return cls(limits, port, mon, inbound)
+
+    def sweep(self, now: float) -> None:
+        """Cut every connection that sent more than :attr:`inbound` bytes (the kernel counts what each
+        TCP connection received: ``TCP_INFO``), at most once per :data:`SWEEP_SECONDS`. libzmq keeps
+        the parts of an unfinished multipart message until it ends; this bounds what a peer of the
+        PUB socket, which needs no credential, can make the core hold."""
+        if self.inbound is None or now < self.next_sweep or not self.conns:
+            return
+        self.next_sweep = now + SWEEP_SECONDS
+        for fd, address in list(self.conns.items()):
+            try:
+                sock = socket.socket(fileno=os.dup(fd))
+            except OSError:
+                continue
+            try:
+                if sock.getsockname()[1] != self.port:
+                    continue
+                info = sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_INFO, _TCP_INFO_LEN)
+                if len(info) >= _BYTES_RECEIVED + 8 and struct.unpack_from("=Q", info, _BYTES_RECEIVED)[0] > self.inbound:
+                    self._cut(sock, address, f"a subscriber sent more than {self.inbound} bytes")
+                    del self.conns[fd]  # counted as gone now: a cut connection is not cut twice
+                    self._forget_address(address)
+            except OSError:
+                pass
+            finally:
+                sock.close()
+
+    @property
+    def sweeping(self) -> bool:
+        """Whether the core's loop must wake up for :meth:`sweep` (connections to look at)."""
+        return self.inbound is not None and bool(self.conns)
 
     @property
     def open(self) -> int:
@@ -153,11 +197,14 @@ class ConnectionGuard:
     def _closed(self, fd: int) -> None:
         address = self.conns.pop(fd, None)
         if address is not None:
-            left = self.per_address[address] - 1
-            if left:
-                self.per_address[address] = left
-            else:
-                del self.per_address[address]
+            self._forget_address(address)
+
+    def _forget_address(self, address: str) -> None:
+        left = self.per_address.get(address, 0) - 1
+        if left > 0:
+            self.per_address[address] = left
+        else:
+            self.per_address.pop(address, None)
 
     def admit(self, principal: Any) -> str | None:
         """For the ZAP handler: None lets a principal that proved itself in, a sentence refuses it
@@ -195,5 +242,5 @@ def principal_role(principal: Any) -> str:
     return str(getattr(principal, "role", "team"))
 
 
-__all__ = ["ConnectionGuard", "GuardLimits", "HANDSHAKE_SECONDS", "KEPT", "PER_ADDRESS", "Tally",
+__all__ = ["ConnectionGuard", "GuardLimits", "HANDSHAKE_SECONDS", "KEPT", "PER_ADDRESS", "PUB_INBOUND", "Tally",
            "principal_role", "raise_fd_limit"]

@@ -39,7 +39,15 @@ from robo_comp.protocol.curve import ServerKeys, ZapHandler, load_server_keys, s
 from robo_comp.core.mapdesk import MapDesk
 from robo_comp.core.uploads import UploadDesk
 from robo_comp.core.eventlog import EventLog, StorageFault
-from robo_comp.core.guard import HANDSHAKE_SECONDS, PER_ADDRESS, ConnectionGuard, GuardLimits, raise_fd_limit
+from robo_comp.core.guard import (
+    HANDSHAKE_SECONDS,
+    PER_ADDRESS,
+    PUB_INBOUND,
+    SWEEP_SECONDS,
+    ConnectionGuard,
+    GuardLimits,
+    raise_fd_limit,
+)
 from robo_comp.core.recovery import RecoveryReport, recover
 from robo_comp.core.sessions import Session
 from robo_comp.core.registry import RobotRecord, RobotStatus, Registry
@@ -138,6 +146,7 @@ class Core:
         self.ctx.set(zmq.MAX_SOCKETS, max(1024, min(nofile, 65_535)))
         self.limits = GuardLimits.for_fd_limit(nofile, max_connections, max_per_address or PER_ADDRESS)
         self._guard: ConnectionGuard | None = None
+        self._pub_guard: ConnectionGuard | None = None
         self.router: zmq.Socket | None = None
         self.pub: zmq.Socket | None = None
         self._running = False
@@ -238,10 +247,12 @@ class Core:
         # then PUB drops for that subscriber only: bounded memory, and the core never waits.
         self.pub.setsockopt(zmq.SNDHWM, PUB_QUEUE)
         secure_server(self.pub, self.curve)
+        self.pub.setsockopt(zmq.MAXMSGSIZE, 1024)  # subscriptions: a topic, a few bytes
         if self.pub_port == 0:
             self.pub_port = self.pub.bind_to_random_port(f"tcp://{self.host}")
         else:
             self.pub.bind(f"tcp://{self.host}:{self.pub_port}")
+        self._pub_guard = ConnectionGuard.watch(self.pub, self.pub_port, self.limits, PUB_INBOUND)
         shown = "127.0.0.1" if self.host in ("0.0.0.0", "*") else self.host
         info = {"router": f"tcp://{shown}:{self.port}", "pub": f"tcp://{shown}:{self.pub_port}",
                 "pid": os.getpid(), "protocol": P.PROTOCOL_VERSION, "teams": self.tokens.teams,
@@ -292,8 +303,9 @@ class Core:
         poller.register(self.router, zmq.POLLIN)
         if self._zap is not None:
             poller.register(self._zap.sock, zmq.POLLIN)
-        if self._guard is not None:
-            poller.register(self._guard.monitor, zmq.POLLIN)
+        for guard in (self._guard, self._pub_guard):
+            if guard is not None:
+                poller.register(guard.monitor, zmq.POLLIN)
         poller.register(wake, zmq.POLLIN)
         self._running = not self._stop_asked
         next_tick = time.monotonic() + self.heartbeat
@@ -311,15 +323,22 @@ class Core:
                     timeout = min(timeout, max(0.0, next_pose - time.monotonic()))
                 if self._slices:  # background work left: look at the socket, then do the next slice
                     timeout = 0.0
+                pub_guard = self._pub_guard
+                if pub_guard is not None and pub_guard.sweeping:  # what PUB's subscribers sent, looked at often
+                    timeout = min(timeout, SWEEP_SECONDS)
                 if poller.poll(math.ceil(timeout * 1000)):
                     if self._guard is not None:  # connections counted before their handshakes are judged
                         self._guard.serve()
+                    if pub_guard is not None:
+                        pub_guard.serve()
                     if self._zap is not None:
                         self._zap.serve()
                     self._drain()
                     with contextlib.suppress(BlockingIOError):
                         wake.recv(4096)
                 now = time.monotonic()
+                if pub_guard is not None:
+                    pub_guard.sweep(now)
                 if self.pending_stops:
                     self._expire_stops(now)
                 if self.uploads.busy:
@@ -340,8 +359,9 @@ class Core:
             wake_w.close()
             self._commit()
             self.events.close()
-            if self._guard is not None:
-                self._guard.close()
+            for guard in (self._guard, self._pub_guard):
+                if guard is not None:
+                    guard.close()
             self.router.close(0)
             assert self.pub is not None
             self.pub.close(0)
@@ -499,8 +519,10 @@ class Core:
             for (mechanism, address), row in sorted(self._zap.take_refused().items()):
                 rows.append(("E_AUTH", address, row.count, f"{row.count} connection(s) from {address or 'an unknown address'} "
                              f"were refused ({mechanism}: {row.reason}); libzmq closed them before reading a message"))
-        if self._guard is not None:
-            for address, cut in sorted(self._guard.take_cut().items()):
+        for guard in (self._guard, self._pub_guard):
+            if guard is None:
+                continue
+            for address, cut in sorted(guard.take_cut().items()):
                 rows.append(("E_RATE", address, cut.count, f"{cut.count} connection(s) from {address} were cut at "
                              f"once ({cut.reason}); the match goes on"))
         for code, address, count, message in rows:
@@ -768,7 +790,8 @@ class Core:
         self._log_positions()
         if self._refused_anon:
             self._log_refused()
-        if (self._zap is not None and self._zap.refusals_waiting) or (self._guard and self._guard.cuts_waiting):
+        if ((self._zap is not None and self._zap.refusals_waiting) or (self._guard and self._guard.cuts_waiting)
+                or (self._pub_guard and self._pub_guard.cuts_waiting)):
             self._log_refused_handshakes()
         self.maps.push()
         self.competition.tick(now)
