@@ -32,12 +32,52 @@ def _positive_int(text: str) -> int:
     return value
 
 
+def _running_core(state: Path) -> int | None:
+    """The pid of a live core serving ``state`` (from its core.json), else None."""
+    import json
+    import os
+
+    try:
+        pid = int(json.loads((state / "core.json").read_text())["pid"])
+        cmd = Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    if pid == os.getpid() or "robo" not in cmd or " core" not in cmd:
+        return None  # core.json of a core that is gone (its pid now another program's, or none)
+    return pid
+
+
 def _core(args: argparse.Namespace) -> int:
+    import shutil
+
+    import zmq
+
+    state = Path(args.state)
+    pid = _running_core(state)
+    if pid is not None:
+        raise FieldError(f"a core (pid {pid}) is already serving {state}; stop it first, or give another --state "
+                         "folder for a second match")
+    if args.scenario and not Path(args.scenario).is_file():  # a bundled scenario's name, as the league takes
+        from robo_comp.testing.match import resolve_scenario
+
+        args.scenario = str(resolve_scenario(args.scenario))
+    made = not state.exists()
+    try:
+        return _serve(args, state)
+    except (zmq.ZMQError, OSError) as e:
+        if made:  # leave no half-made folder behind
+            shutil.rmtree(state, ignore_errors=True)
+        if isinstance(e, zmq.ZMQError) and e.errno == zmq.EADDRINUSE:
+            raise FieldError(f"cannot listen: {e}; another core or program has that port: give --port N, or "
+                             "--port 0 for any free port") from None
+        raise FieldError(f"cannot start the core with state in {state}: {e}") from None
+
+
+def _serve(args: argparse.Namespace, state: Path) -> int:
     from robo_comp.core import matchfile
     from robo_comp.core.server import Core
     from robo_comp.world.scenario import default_scenario, load_scenario
 
-    state = Path(args.state)
     given = {"teams": [t.strip() for t in args.teams.split(",") if t.strip()] if args.teams else None,
              "scenario": str(Path(args.scenario).resolve()) if args.scenario else None,
              "scenario_sha256": matchfile.scenario_hash(args.scenario),
@@ -187,7 +227,8 @@ def build_parser() -> argparse.ArgumentParser:
                                    "port and options; an option that contradicts them is refused "
                                    "(--override applies it).")
     c.add_argument("--state", required=True, help="state folder (tokens, core.json, event log)")
-    c.add_argument("--scenario", help="scenario file (TOML); default: the built-in arena")
+    c.add_argument("--scenario", help="scenario file (TOML) or a bundled scenario's name (demo_room, office, "
+                                      "big_rooms); default: the built-in arena")
     c.add_argument("--teams", help="comma-separated team names (default: the scenario's teams)")
     c.add_argument("--host", default="127.0.0.1", help="address to bind (0.0.0.0 for a LAN)")
     c.add_argument("--port", type=int, help="ROUTER port (0 = any free port; default 5555, or the recovered match's)")
@@ -310,6 +351,11 @@ def main(argv: list[str] | None = None) -> int:
                         format="%(asctime)s %(name)s %(levelname)s %(message)s")
     try:
         return int(args.func(args) or 0)
+    except BrokenPipeError:  # `robo-comp ctl robots | head`: the reader has what it wanted
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at exit
+        return 0
     except RoboCompError as e:
         print(f"robo-comp {args.command}: {e.message}", file=sys.stderr)
         return 2

@@ -121,7 +121,11 @@ class Competition:
         before = self.clock.phase
         self.clock.apply(action, now, seconds)
         st = self.clock.state(now)
-        self.out.emit("match.phase", EVERYONE, dict(st, action=action, by=by, was=before))
+        reveal: dict[str, Any] = {}
+        if self.clock.phase == "finished" and before != "finished":  # the hidden victims, for spectators
+            reveal["victims"] = [dict(v, found_by=sorted(t for t, ids in self.board.found.items() if v["id"] in ids))
+                                 for v in self.judge.victims]
+        self.out.emit("match.phase", EVERYONE, dict(st, action=action, by=by, was=before, **reveal))
         if self.clock.phase != before:
             hold = self.clock.phase in ("paused", "finished")
             for ident in self.access.host_sessions():
@@ -215,7 +219,8 @@ class Competition:
         who = self.access.session(ident).who
         check_referee(who, "broadcast messages")
         text = msg.body["message"][:500]
-        self.out.emit("broadcast", EVERYONE, {"message": text, "by": who.name})
+        # "text" too: "message" is one of the keys the public feed leaves out (a verdict's reason)
+        self.out.emit("broadcast", EVERYONE, {"message": text, "text": text, "by": who.name})
         return {}
 
     # ------------------------------------------------------------------ pictures and finds
