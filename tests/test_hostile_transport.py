@@ -105,20 +105,29 @@ def test_an_unfinished_message_to_the_public_feed_holds_no_memory(core: CoreHand
     sub.setsockopt(zmq.SUBSCRIBE, b"")
     sub.connect(info["pub"])
     baseline = core_rss(core.state)
-    s = socket.create_connection((host, int(port)), timeout=5.0)
-    s.sendall(zmtp_greeting("NULL") + zmtp_command(b"READY", {b"Socket-Type": b"SUB"}))
-    sent = _push_unfinished(s, 256 * MiB, part=1000)
-    time.sleep(0.5)
-    grown = core_rss(core.state) - baseline
-    s.close()
-    assert sent < 256 * MiB, "the core read 256 MiB of one unfinished message from a subscriber"
-    assert grown < 50 * MiB, f"the core grew by {grown / MiB:.0f} MiB for a subscriber without a credential"
+
+    def cuts() -> list[dict[str, Any]]:
+        return [e for e in core.logged_events("refused") if e["data"].get("type") == "connect"]
+
+    # libzmq itself now and then resets such a peer after its first MiB: attack again until the
+    # core's own cut is seen (in the log), the memory bound holding every time
+    for _attempt in range(5):
+        s = socket.create_connection((host, int(port)), timeout=5.0)
+        s.sendall(zmtp_greeting("NULL") + zmtp_command(b"READY", {b"Socket-Type": b"SUB"}))
+        sent = _push_unfinished(s, 256 * MiB, part=1000)
+        time.sleep(0.5)
+        grown = core_rss(core.state) - baseline
+        s.close()
+        assert sent < 256 * MiB, "the core read 256 MiB of one unfinished message from a subscriber"
+        assert grown < 50 * MiB, f"the core grew by {grown / MiB:.0f} MiB for a subscriber without a credential"
+        with contextlib.suppress(AssertionError):
+            wait_for(cuts, 3.0, "the cut in the log")
+            break
+    found = cuts()
+    assert found and "subscriber" in found[0]["data"]["message"], core.log_tail()
     ref = core.referee()
     wait_for(lambda: (ref.request("broadcast", message="still here"), sub.poll(200))[1], 10.0,
              "an event on the public feed")
-    cut = wait_for(lambda: [e for e in core.logged_events("refused") if e["data"].get("type") == "connect"],
-                   15.0, "the cut in the log")
-    assert "subscriber" in cut[0]["data"]["message"]
     sub.close(0)
 
 
