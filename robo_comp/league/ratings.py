@@ -34,6 +34,16 @@ def rate(current: dict[str, tuple[float, float]], ranks: dict[str, int]) -> dict
     return {t: (float(p[0].mu), float(p[0].sigma)) for t, p in zip(teams, new)}
 
 
+#: A rating is provisional (marked ``?`` on the table, the report and the console) until its
+#: σ falls below this: 2σ then spans about one rank step of the leaderboard's μ − 3σ.
+SURE_SIGMA = 2.5
+
+
+def provisional(sigma: float) -> bool:
+    """True while a rating's σ says too little is known to trust its rank."""
+    return sigma >= SURE_SIGMA
+
+
 def ordinal(mu: float, sigma: float) -> float:
     """The leaderboard's value: μ − 3σ."""
     return mu - 3.0 * sigma
@@ -56,4 +66,4 @@ def kendall_tau(a: list[str], b: list[str]) -> float:
     return (concordant - discordant) / (n * (n - 1) / 2)
 
 
-__all__ = ["initial", "kendall_tau", "model", "ordinal", "rate"]
+__all__ = ["SURE_SIGMA", "initial", "kendall_tau", "model", "ordinal", "provisional", "rate"]

@@ -299,7 +299,8 @@ def league_view(store: LeagueStore) -> dict[str, Any]:
         scores = played.get(team, [])
         rows.append({"rank": rank, "team": team, "version": newest[team].version, "mu": round(mu, 3),
                      "sigma": round(sigma, 3), "rating": round(ratings.ordinal(mu, sigma), 3), "matches": n,
-                     "wins": wins, "mean_score": round(sum(scores) / len(scores), 2) if scores else None})
+                     "wins": wins, "mean_score": round(sum(scores) / len(scores), 2) if scores else None,
+                     "provisional": ratings.provisional(sigma)})
     order = {m.id: i + 1 for i, m in enumerate(m for m in matches if m.ranked and m.result is not None)}
     history = {team: [[order.get(mid, 0), round(ratings.ordinal(mu, sigma), 3)] for mid, mu, sigma in h]
                for team, h in store.history().items()}
@@ -308,9 +309,32 @@ def league_view(store: LeagueStore) -> dict[str, Any]:
             "matches": [{"id": m.id, "format": m.format, "round": m.round, "scenario": m.scenario, "seed": m.seed,
                          "ranked": m.ranked, "status": m.status, "teams": m.teams,
                          "scores": (m.result or {}).get("scores", {}),
+                         "forfeit": (m.result or {}).get("forfeit"), "notes": match_notes(m.result),
                          "log": str(store.log_path(m.id).relative_to(store.root)),
                          "seconds": (m.result or {}).get("wall_seconds")} for m in matches]}
 
 
-__all__ = ["PLAY_ARGS", "Progress", "check_submission", "league_view", "play", "rate_played", "rating_hold",
+def match_notes(result: dict[str, Any] | None) -> list[str]:
+    """What a match's report says about the limits its entrants ran into: the forfeit, the
+    sandbox limits that stopped a robot, calls the call budget held back, and a match limit
+    an entrant used more than half of (see docs/league.md, "Limits")."""
+    if not result:
+        return []
+    notes = []
+    forfeit = result.get("forfeit")
+    if forfeit:
+        notes.append(f"{forfeit['message']} (at {forfeit.get('t', 0):g} s)")
+    names = {"events": "events", "log_bytes": "log bytes"}
+    for team, hit in sorted((result.get("limits") or {}).items()):
+        for message in hit.get("sandbox", []):
+            notes.append(f"{team}: a robot stopped: {message}")
+        if hit.get("held_calls"):
+            notes.append(f"{team}: {hit['held_calls']} robot call(s) waited for the call budget")
+        for name, share in sorted((hit.get("use") or {}).items()):
+            if share >= 0.5:
+                notes.append(f"{team}: used {share:.0%} of its {names.get(name, name)} limit")
+    return notes
+
+
+__all__ = ["PLAY_ARGS", "Progress", "check_submission", "league_view", "match_notes", "play", "rate_played", "rating_hold",
            "read_submission", "run_format", "standing", "submit", "submit_reference"]
