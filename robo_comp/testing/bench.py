@@ -477,6 +477,7 @@ class Bench:
             used = self.used[team]
             used["events"] += 1
             used["log_bytes"] += len(_json_line(ev)) + 1
+            self._check_memory()
             if b.events is not None and used["events"] > b.events:
                 self._lose(team, "events", f"its robots caused more than {b.events} events in the match "
                                            "(calls, pictures, printed lines)")
@@ -499,7 +500,7 @@ class Bench:
         self._next_memory_check -= 1
         if self._next_memory_check > 0:
             return
-        self._next_memory_check = 200
+        self._next_memory_check = 256
         grown = _rss_mib() - self._rss0
         if grown > limit:
             team = max(self.teams, key=lambda t: (self.used[t]["log_bytes"], -self.teams.index(t)))
