@@ -81,7 +81,7 @@ def league_budget(robots: int, seconds: float, spec: dict[str, Any] | None = Non
     from robo_comp.testing.bench import Budget
 
     scale = max(1, robots) * max(1.0, seconds)
-    fields = {"events": int(EVENTS_PER_ROBOT_SECOND * scale), "log_bytes": int(LOG_BYTES_PER_ROBOT_SECOND * scale),
+    fields: dict[str, Any] = {"events": int(EVENTS_PER_ROBOT_SECOND * scale), "log_bytes": int(LOG_BYTES_PER_ROBOT_SECOND * scale),
               "wall_seconds": WALL_SECONDS, "memory_mib": MEMORY_MIB}
     fields.update((spec or {}).get("limits") or {})
     return Budget(**fields)
@@ -145,7 +145,7 @@ def play_match(spec: dict[str, Any]) -> dict[str, Any]:
         victims = {t: sorted(bench.board.found.get(t, set())) for t in teams}
         bumps = {t: sum(1 for e in out.events if e["topic"] == "robot.bump" and e["team"] == t) for t in teams}
         scores = {t: float(s) for t, s in out.scores.items()}
-        forfeit = None if bench.forfeit is None else {"team": bench.forfeit.team, "limit": bench.forfeit.limit,
+        forfeit: dict[str, Any] | None = None if bench.forfeit is None else {"team": bench.forfeit.team, "limit": bench.forfeit.limit,
                                                       "message": bench.forfeit.message, "t": bench.forfeit.t}
         limits = {t: limits_hit(out.events, t, bench.used.get(t, {}), budget) for t in teams}
     return {"id": spec.get("id"), "scores": scores, "ranks": ranks_of(scores, forfeit["team"] if forfeit else None),

@@ -162,7 +162,7 @@ def play(store: LeagueStore, runner: Any, ids: list[int] | None = None, *, strea
         runner.run(specs, on_result, on_error)
     finally:
         progress.close()
-        store.interrupted(todo)
+        store.interrupted(todo)  # a stopped run's matches are played again by the next run
     figures["wall_seconds"] = time.perf_counter() - t0
     return figures
 

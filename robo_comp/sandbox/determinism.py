@@ -86,9 +86,9 @@ class TeamType(type):
 def settle_class(cls: type) -> type:
     """Give a new team class a hash and a repr by serial number where it would use its
     address (it defines neither and inherits them from ``object``)."""
-    if cls.__hash__ is object.__hash__:  # type: ignore[comparison-overlap]
+    if cls.__hash__ is object.__hash__:
         type.__setattr__(cls, "__hash__", _serial_hash)
-    if cls.__repr__ is object.__repr__:  # type: ignore[comparison-overlap]
+    if cls.__repr__ is object.__repr__:
         type.__setattr__(cls, "__repr__", _serial_repr)
     return cls
 
