@@ -24,6 +24,7 @@ from robo_comp import protocol as P
 from robo_comp.errors import AuthError, FieldError
 from robo_comp.protocol.logfile import read_recording
 from robo_comp.wall.model import WallModel
+from robo_comp.wall.replay import ScoreFold
 from robo_comp.web.state import TaskNames, jsonable, map_png, public_event, state_json
 
 #: Seconds of recording between two keyframes.
@@ -107,6 +108,7 @@ class Recording:
         model = WallModel(clock=lambda: now[0])
         model.replay = True
         tasks = TaskNames()
+        fold = ScoreFold()  # the scores, read as the wall's replay reads them
         team_of: dict[int, str | None] = {}
         maps: dict[int, str] = {}
         next_key = 0.0
@@ -125,10 +127,15 @@ class Recording:
             now[0] = t
             model.apply(rec.topic, data)
             tasks.apply(rec.topic, data)
-            if rec.topic == "core.started":
-                continue  # the page gets the arena from a keyframe
-            v.times.append(t)
-            v.frags.append(_dump([rec.topic, data, round(t, 3)]))
+            table = fold.feed(rec.topic, rec.data)
+            if table is not None:
+                model.apply("score", table)
+            if rec.topic != "core.started":  # the page gets the arena from a keyframe
+                v.times.append(t)
+                v.frags.append(_dump([rec.topic, data, round(t, 3)]))
+            if table is not None:  # scores are public (the core publishes its table to everyone)
+                v.times.append(t)
+                v.frags.append(_dump(["score", table, round(t, 3)]))
         while model.arena is not None and (not v.key_times or next_key <= self.duration):
             self._keyframe(v, model, tasks, maps, next_key, now)
             next_key += KEYFRAME_EVERY
