@@ -158,3 +158,68 @@ def test_the_report_shows_the_forfeit_and_the_provisional_mark(tmp_path):
     assert " ?" in text and "provisional" in text
     assert all(row["provisional"] for row in view["standings"])  # one match: nobody is sure yet
     assert json.dumps(view)  # still plain data
+
+
+# ------------------------------------------------------------------ fair formats
+def spreads(plan: list[tuple[list[str], int]], teams: list[str], scenarios: int) -> tuple[int, int]:
+    """The largest difference, over the teams, between a team's most and least played scenario,
+    and between its matches on the first and on the second side."""
+    c = {t: [0] * scenarios for t in teams}
+    d = {t: [0, 0] for t in teams}
+    for group, k in plan:
+        for i, t in enumerate(group):
+            c[t][k] += 1
+            d[t][i] += 1
+    return max(max(v) - min(v) for v in c.values()), max(max(v) - min(v) for v in d.values())
+
+
+@pytest.mark.parametrize("scenarios", [1, 2, 3, 4])
+def test_a_round_robin_gives_every_team_every_scenario_and_side_evenly(scenarios):
+    """4 to 32 teams: each team's matches per scenario differ by at most one, and its first and
+    second sides by at most one. Where that is impossible (each team plays a multiple of the
+    scenario count, and a scenario's matches would have to form a regular graph of odd degree
+    on an odd number of teams), by two. Before issue 26 one team of 6 played all 5 of its
+    matches on one scenario."""
+    from robo_comp.league.schedule import balance, round_robin
+
+    for n in range(4, 33):
+        teams = [f"t{i:02d}" for i in range(n)]
+        plan = balance([g for rnd in round_robin(teams) for g in rnd], scenarios)
+        assert sorted(t for g, _ in plan for t in g) == sorted(teams * (n - 1))  # the same matches
+        per = n - 1
+        forced = per % scenarios == 0 and (n * (per // scenarios)) % 2 == 1
+        scen, side = spreads(plan, teams, scenarios)
+        assert scen <= (2 if forced else 1) and side <= 1, (n, scenarios, scen, side)
+
+
+def test_swiss_rounds_rotate_the_scenarios_and_balance_sides(league_of_16):
+    """A Swiss round plays one scenario, in turn, so whoever a team meets it plays the pool
+    evenly; sides are balanced round by round as the pairings allow."""
+    store = league_of_16
+    season.run_format(store, _NoPlay(), "swiss", rounds=4)
+    teams = sorted(store.newest())
+    pool = store.settings()["scenarios"]
+    plan = [(m.teams, pool.index(m.scenario)) for m in store.matches()]
+    scen, side = spreads(plan, teams, len(pool))
+    assert scen == 0 and side <= 2
+    assert {m.round: m.scenario for m in store.matches()} == {1: pool[0], 2: pool[1], 3: pool[0], 4: pool[1]}
+
+
+class _NoPlay:
+    """A runner that plays nothing: each match ends as a draw (the schedule is what is tested)."""
+
+    def run(self, specs, on_result, on_error):
+        for s in specs:
+            teams = [e["team"] for e in s["entrants"]]
+            on_result(s, {"id": s["id"], "scores": {t: 0.0 for t in teams}, "ranks": {t: 1 for t in teams},
+                          "wall_seconds": 0.0})
+
+
+@pytest.fixture
+def league_of_16(tmp_path):
+    from robo_comp.league.store import LeagueStore
+
+    with LeagueStore(tmp_path / "lg", create=True) as store:
+        store.configure(scenarios=["demo_room", "office"], robots=2, seconds=30)
+        season.submit_reference(store, 16)
+        yield store

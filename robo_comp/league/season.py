@@ -243,7 +243,7 @@ def run_format(store: LeagueStore, runner: Any, fmt: str, *, rounds: int | None 
     if fmt in ("scrimmage", "round-robin"):
         plan = (schedule.scrimmage(names, rounds or 1, size, rng) if fmt == "scrimmage"
                 else schedule.round_robin(names, size))
-        ids = [mid for i, groups in enumerate(plan) for mid in store.schedule(fmt, base + i, groups, ranked=ranked)]
+        ids = store.schedule_rounds(fmt, [(base + i, groups) for i, groups in enumerate(plan)], ranked=ranked)
         add(play(store, runner, ids, stream=stream))
         return totals
     if fmt == "swiss":
@@ -255,7 +255,7 @@ def run_format(store: LeagueStore, runner: Any, fmt: str, *, rounds: int | None 
             pairs = schedule.swiss_round(standing(store, names), played, byes)
             played += [frozenset(p) for p in pairs]
             byes |= set(names) - {t for p in pairs for t in p}
-            add(play(store, runner, store.schedule(fmt, base + i, pairs, ranked=ranked), stream=stream))
+            add(play(store, runner, store.schedule(fmt, base + i, pairs, ranked=ranked, per_round=True), stream=stream))
         return totals
     seeds = standing(store, names)  # double elimination, seeded by rating
     losses: dict[str, int] = {}

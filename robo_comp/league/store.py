@@ -232,31 +232,80 @@ class LeagueStore:
         return dict(sorted(out.items()))
 
     # ------------------------------------------------------------------ matches
-    def schedule(self, fmt: str, rnd: int, groups: Iterable[list[str]], *, ranked: bool = True) -> list[int]:
-        """Schedule one match per group of team names (each team's newest version), with the
-        scenario taken in turn from the pool and a seed from the league's seed and the match id.
+    def schedule(self, fmt: str, rnd: int, groups: Iterable[list[str]], *, ranked: bool = True,
+                 per_round: bool = False) -> list[int]:
+        """Schedule one match per group of team names (each team's newest version) in round
+        ``rnd``; see :meth:`schedule_rounds`."""
+        return self.schedule_rounds(fmt, [(rnd, list(groups))], ranked=ranked, per_round=per_round)
+
+    def schedule_rounds(self, fmt: str, rounds: Iterable[tuple[int, list[list[str]]]], *,
+                        ranked: bool = True, per_round: bool = False) -> list[int]:
+        """Schedule rounds of matches, ``[(round, [group of team names, ...]), ...]``: each
+        match gets a scenario of the pool and an order of its teams (their start sides) so that
+        every team plays every scenario and side as evenly as the numbers allow, counting the
+        league's earlier matches (:func:`robo_comp.league.schedule.balance`), and a seed from
+        the league's seed and the match id. ``per_round``: every match of round ``r`` on the
+        pool's scenario ``(r − 1) mod len(pool)`` (Swiss rounds, scheduled one at a time).
         One transaction: a bad group schedules nothing."""
+        from robo_comp.league.schedule import balance
+
         cfg = self.settings()
         newest = self.newest()
         pool = list(cfg["scenarios"])
+        rounds = [(int(r), [list(g) for g in groups]) for r, groups in rounds]
+        prior: dict[str, list[int]] = {}
+        sides: dict[str, list[int]] = {}
+        use = [0] * len(pool)
+        for m in self.matches():
+            if m.status == "cancelled" or m.scenario not in pool:
+                continue
+            k = pool.index(m.scenario)
+            use[k] += 1
+            for i, team in enumerate(m.teams):
+                prior.setdefault(team, [0] * len(pool))[k] += 1
+                row = sides.setdefault(team, [0] * max(2, len(m.teams)))
+                row.extend([0] * (i + 1 - len(row)))
+                row[i] += 1
+        flat = [g for _, groups in rounds for g in groups]
+        for teams in flat:
+            missing = [t for t in teams if t not in newest]
+            if missing:
+                raise FieldError(f"team(s) {', '.join(missing)} have no submission")
+            if len(set(teams)) != len(teams):
+                raise FieldError(f"a match cannot have a team twice ({', '.join(teams)})")
+        if per_round:
+            placed_list: list[tuple[list[str], int]] = []
+            for rnd, groups in rounds:
+                got = balance(groups, len(pool), prior=prior, prior_sides=sides, prior_use=use,
+                              scenario=(rnd - 1) % len(pool))
+                for g, k in got:
+                    use[k] += 1
+                    for i, team in enumerate(g):
+                        prior.setdefault(team, [0] * len(pool))[k] += 1
+                        row = sides.setdefault(team, [0] * max(2, len(g)))
+                        row[i] += 1
+                placed_list += got
+            placed = iter(placed_list)
+        else:
+            placed = iter(balance(flat, len(pool), prior=prior, prior_sides=sides, prior_use=use))
         ids = []
         with self.transaction():
-            for teams in groups:
-                missing = [t for t in teams if t not in newest]
-                if missing:
-                    raise FieldError(f"team(s) {', '.join(missing)} have no submission")
-                if len(set(teams)) != len(teams):
-                    raise FieldError(f"a match cannot have a team twice ({', '.join(teams)})")
-                n = self.db.execute("SELECT COUNT(*) FROM matches").fetchone()[0]
-                entrants = [[t, newest[t].id] for t in teams]
-                cur = self.db.execute(
-                    "INSERT INTO matches (format, round, scenario, seed, ranked, status, entrants, scheduled) "
-                    "VALUES (?, ?, ?, ?, ?, 'scheduled', ?, ?)",
-                    (fmt, rnd, pool[n % len(pool)], 0, int(ranked), json.dumps(entrants), time.time()))
-                mid = int(cur.lastrowid or 0)
-                self.db.execute("UPDATE matches SET seed = ? WHERE id = ?", (match_seed(int(cfg["seed"]), mid), mid))
-                ids.append(mid)
+            for rnd, groups in rounds:
+                for _ in groups:
+                    ids.append(self._insert(fmt, rnd, *next(placed), pool, newest, cfg, ranked))
         return ids
+
+    def _insert(self, fmt: str, rnd: int, teams: list[str], scenario: int, pool: list[str],
+                newest: dict[str, Submission], cfg: dict[str, Any], ranked: bool) -> int:
+        """One scheduled match (inside a transaction); returns its id."""
+        entrants = [[t, newest[t].id] for t in teams]
+        cur = self.db.execute(
+            "INSERT INTO matches (format, round, scenario, seed, ranked, status, entrants, scheduled) "
+            "VALUES (?, ?, ?, ?, ?, 'scheduled', ?, ?)",
+            (fmt, rnd, pool[scenario], 0, int(ranked), json.dumps(entrants), time.time()))
+        mid = int(cur.lastrowid or 0)
+        self.db.execute("UPDATE matches SET seed = ? WHERE id = ?", (match_seed(int(cfg["seed"]), mid), mid))
+        return mid
 
     def match(self, mid: int) -> MatchRow:
         """Match ``mid``."""
