@@ -130,8 +130,19 @@ def test_an_entrant_that_computes_too_long_forfeits_on_the_wall_clock(tmp_path):
 
 def test_an_entrant_that_grows_the_worker_past_the_memory_limit_forfeits(tmp_path):
     """The worker's growth is charged to the entrant whose robots logged the most (here the one
-    flooding, against a team that sits still); the limit is tiny so that the test sees it."""
-    res = play_match(spec(tmp_path, "sitter", "flood", log="mem.log", limits={"memory_mib": 0.01}, seconds=60))
+    flooding, against a team that sits still); the limit is tiny so that the test sees it. The
+    match is played in a fresh process, as a league worker plays it (a long-lived test process
+    reuses memory it freed, and would not grow)."""
+    import subprocess
+    import sys
+
+    s = spec(tmp_path, "sitter", "flood", log="mem.log", limits={"memory_mib": 0.01}, seconds=60)
+    code = ("import json, sys; from robo_comp.league.engine import play_match; "
+            "print(json.dumps(play_match(json.loads(sys.stdin.read()))))")
+    out = subprocess.run([sys.executable, "-c", code], input=json.dumps(s), capture_output=True, text=True,
+                         timeout=300)
+    assert out.returncode == 0, out.stderr
+    res = json.loads(out.stdout.strip().splitlines()[-1])
     assert res["forfeit"]["team"] == "flood" and res["forfeit"]["limit"] == "memory_mib"
     assert res["ranks"] == {"sitter": 1, "flood": 2}
 
@@ -223,3 +234,28 @@ def league_of_16(tmp_path):
         store.configure(scenarios=["demo_room", "office"], robots=2, seconds=30)
         season.submit_reference(store, 16)
         yield store
+
+
+# ------------------------------------------------------------------ ratings that say how sure they are
+def test_the_order_free_rerating_does_not_depend_on_match_order():
+    import random
+
+    from robo_comp.league.ratings import bradley_terry, kendall_tau
+
+    rng = random.Random(3)
+    truth = [f"t{i}" for i in range(8)]
+    matches = []
+    for _ in range(300):
+        a, b = rng.sample(range(8), 2)
+        p_a = 1 / (1 + 3 ** ((a - b) / 2))  # the lower index is stronger
+        matches.append({truth[a]: 1, truth[b]: 2} if rng.random() < p_a else {truth[a]: 2, truth[b]: 1})
+    one = bradley_terry(matches)
+    shuffled = matches[:]
+    rng.shuffle(shuffled)
+    again = bradley_terry(shuffled)
+    assert all(again[t] == pytest.approx(one[t]) for t in truth)
+    order = sorted(one, key=lambda t: -one[t][0])
+    assert kendall_tau(order, truth) >= 0.8
+    assert all(0 < se < 1 for _, se in one.values())  # it says how sure it is
+    few = bradley_terry(matches[:20])
+    assert max(se for _, se in few.values()) > max(se for _, se in one.values())  # fewer results, less sure

@@ -73,6 +73,8 @@ def add_parser(sub: Any) -> None:
     t = lsub.add_parser("table", help="the leaderboard (μ − 3σ)")
     t.add_argument("league", metavar="LEAGUE")
     t.add_argument("--json", action="store_true", help="print the league as JSON (standings, history, matches)")
+    t.add_argument("--order-free", action="store_true", help="also re-rate the season without regard to match "
+                   "order (Bradley-Terry over every ranked result; for finals)")
     t.set_defaults(func=_table)
 
     o = lsub.add_parser("report", help="write one static HTML page: table, rating plots, score plots, matches")
@@ -256,12 +258,22 @@ def _text(store: Any) -> str:
 def _table(args: argparse.Namespace) -> int:
     from robo_comp.league.season import league_view
 
+    from robo_comp.league.season import order_free
+
     with _store(args) as store:
         if args.json:
-            json.dump(league_view(store), sys.stdout, indent=1)
+            view = league_view(store)
+            if args.order_free:
+                view["order_free"] = order_free(store)
+            json.dump(view, sys.stdout, indent=1)
             print()
         else:
             print(_text(store))
+            if args.order_free:
+                rows = order_free(store)
+                print("\nOrder-free re-rating (Bradley-Terry over every ranked result; strength ± standard error):")
+                for r in rows:
+                    print(f"{r['rank']:>3}  {r['team']:<24} {r['strength']:+.2f} ± {r['se']:.2f}  ({r['matches']} matches)")
     return 0
 
 

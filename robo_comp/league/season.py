@@ -314,6 +314,22 @@ def league_view(store: LeagueStore) -> dict[str, Any]:
                          "seconds": (m.result or {}).get("wall_seconds")} for m in matches]}
 
 
+def order_free(store: LeagueStore) -> list[dict[str, Any]]:
+    """The season re-rated without regard to match order (Bradley–Terry over every ranked
+    match played, :func:`robo_comp.league.ratings.bradley_terry`), best first: ``rank``,
+    ``team``, ``strength`` (log-strength), ``se`` (its standard error), ``matches``. For finals
+    and for checking the table; the table itself stays openskill's, rated in match order."""
+    played = [m.result["ranks"] for m in store.matches() if m.ranked and m.status == "done" and m.result]
+    bt = ratings.bradley_terry([{t: int(r) for t, r in ranks.items()} for ranks in played])
+    counts: dict[str, int] = {}
+    for ranks in played:
+        for t in ranks:
+            counts[t] = counts.get(t, 0) + 1
+    order = sorted(bt, key=lambda t: (-bt[t][0], t))
+    return [{"rank": i + 1, "team": t, "strength": round(bt[t][0], 3), "se": round(bt[t][1], 3),
+             "matches": counts.get(t, 0)} for i, t in enumerate(order)]
+
+
 def match_notes(result: dict[str, Any] | None) -> list[str]:
     """What a match's report says about the limits its entrants ran into: the forfeit, the
     sandbox limits that stopped a robot, calls the call budget held back, and a match limit
@@ -336,5 +352,5 @@ def match_notes(result: dict[str, Any] | None) -> list[str]:
     return notes
 
 
-__all__ = ["PLAY_ARGS", "Progress", "check_submission", "league_view", "match_notes", "play", "rate_played", "rating_hold",
+__all__ = ["PLAY_ARGS", "Progress", "check_submission", "league_view", "match_notes", "order_free", "play", "rate_played", "rating_hold",
            "read_submission", "run_format", "standing", "submit", "submit_reference"]

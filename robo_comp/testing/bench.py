@@ -393,6 +393,8 @@ class Bench:
                 raise FieldError(f"robot {tag} is not on the bench; its robots are {self.tags}")
             self._queues.setdefault(tag, deque()).extend((str(n), list(a)) for n, a in steps)
         self._wall_end = t0 + timeout
+        self._rss0 = _rss_mib()  # the match's growth counts from here (modules loaded)
+        self._next_memory_check = 256
         self._drain_logs()
         self._sample_poses()
         ready = [t for t in self.tags if self._queues.get(t)]
