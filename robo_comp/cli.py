@@ -61,7 +61,20 @@ def _core(args: argparse.Namespace) -> int:
           f"tcp://{args.host}:{core.port} (events on port {core.pub_port}); state in {args.state}"
           f"{'; CurveZMQ on (keys in ' + str(Path(args.state) / 'keys') + ')' if core.curve else ''}",
           flush=True)
-    core.run()
+    advert = None
+    if args.advertise:  # off unless the organiser asks: the core is found on the LAN by this name
+        from robo_comp.discovery import advertise
+        from robo_comp.protocol import PROTOCOL_VERSION
+
+        advert = advertise(args.advertise, args.host, core.port, core.pub_port, curve=core.curve,
+                           protocol=PROTOCOL_VERSION)
+        print(f"core: advertised on the LAN as mdns:{args.advertise} (clients: --core mdns:{args.advertise})",
+              flush=True)
+    try:
+        core.run()
+    finally:
+        if advert is not None:
+            advert.close()
     return 0
 
 
@@ -82,6 +95,8 @@ def _robots(args: argparse.Namespace) -> int:
         if len(options["rcc"]) != args.count:
             raise FieldError(f"--driver er1 needs one --rcc HOST:PORT per robot ({args.count}), "
                              f"got {len(options['rcc'])}")
+    elif args.driver == "ros2":
+        options.update(_ros2_options(args))
     host = RobotHost(resolve_core(args.core), token, args.count,
                      prefix=args.prefix, speed=args.speed, report_hz=args.report_hz, seed=args.seed,
                      truth=truth, driver=args.driver, driver_options=options,
@@ -89,6 +104,24 @@ def _robots(args: argparse.Namespace) -> int:
                      positioning=_positioning(args.positioning), truth_pub=args.truth_pub)
     host.run(duration=args.duration or None)
     return 0
+
+
+def _ros2_options(args: argparse.Namespace) -> dict[str, object]:
+    """The ``ros2`` driver's options from ``--ros2-ns``, ``--ros2-domain`` and ``--ros2-speed``."""
+    import os
+
+    names = [a.strip().strip("/") for a in (args.ros2_ns or "").split(",")]
+    if len(names) != args.count or (args.count > 1 and not all(names)):
+        raise FieldError(f"--driver ros2 needs one --ros2-ns NAMESPACE per robot ({args.count}), "
+                         f"got {args.ros2_ns!r}")
+    domain = args.ros2_domain if args.ros2_domain is not None else os.environ.get("ROS_DOMAIN_ID", "0")
+    try:
+        dom = int(domain)
+    except ValueError:
+        raise FieldError(f"the ROS 2 domain id must be a whole number, not {domain!r}") from None
+    if not 0 <= dom <= 232:
+        raise FieldError(f"the ROS 2 domain id must be 0..232, not {dom}")
+    return {"ros2_ns": names, "ros2_domain": dom, "ros2_speed": args.ros2_speed}
 
 
 def _positioning(spec: str | None) -> str | None:
@@ -160,6 +193,9 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--curve", action="store_true", default=None,
                    help="CurveZMQ for a networked match: encrypted sockets, only the keys in STATE/keys "
                         "get in (run 'robo-comp keys --state STATE' first)")
+    c.add_argument("--advertise", metavar="NAME",
+                   help="let robots and consoles on the LAN find this core by name (--core mdns:NAME), over "
+                        "mDNS on the interface of --host (off by default; docs/organiser.md)")
     c.add_argument("--override", action="store_true",
                    help="on a restart, apply options that contradict the recovered match (and record them)")
     c.set_defaults(func=_core)
@@ -177,10 +213,18 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--seed", type=int, default=0)
     r.add_argument("--scenario", help="the match's scenario file (organisers only): the camera then shows victims")
     r.add_argument("--duration", type=float, default=0.0, help="exit after S seconds (0 = run until stopped)")
-    r.add_argument("--driver", choices=("sim", "er1"), default="sim",
-                   help="sim: simulated robots (default); er1: real ER1 robots through their robot control centers")
+    r.add_argument("--driver", choices=("sim", "er1", "ros2"), default="sim",
+                   help="sim: simulated robots (default); er1: real ER1 robots through their robot control "
+                        "centers; ros2: ROS 2 robots over DDS (pip install 'robo_comp[ros2]'; docs/robots.md)")
     r.add_argument("--rcc", metavar="HOST:PORT[,HOST:PORT...]",
                    help="for --driver er1: each robot's robot control center (one per robot, in order)")
+    r.add_argument("--ros2-ns", metavar="NS[,NS...]",
+                   help="for --driver ros2: each robot's ROS 2 namespace (one per robot, in order; topics "
+                        "/NS/cmd_vel, /NS/odom, /NS/scan)")
+    r.add_argument("--ros2-domain", type=int, metavar="ID",
+                   help="for --driver ros2: the robots' ROS_DOMAIN_ID (default: $ROS_DOMAIN_ID, else 0)")
+    r.add_argument("--ros2-speed", type=_positive, default=0.2, metavar="M/S",
+                   help="for --driver ros2: top speed in metres per second (default 0.2)")
     r.add_argument("--positioning", metavar="camera:URL",
                    help="take positions from an overhead camera (robo-comp camera run --pub URL) instead of "
                         "the simulated positioning system (docs/positioning.md)")
@@ -235,6 +279,9 @@ def build_parser() -> argparse.ArgumentParser:
     from robo_comp.web import cli as web_cli
 
     web_cli.add_parser(sub)
+    from robo_comp.export import cli as export_cli
+
+    export_cli.add_parser(sub)
     return parser
 
 

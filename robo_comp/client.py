@@ -28,9 +28,14 @@ from robo_comp.protocol.replies import reply_body
 
 
 def resolve_core(core: str) -> str:
-    """Turn ``--core`` into a ROUTER URL: a URL as is, or a state folder / ``core.json`` path."""
+    """Turn ``--core`` into a ROUTER URL: a URL as is, a state folder / ``core.json`` path, or
+    ``mdns:NAME``, a core advertised on the LAN (:mod:`robo_comp.discovery`)."""
     if "://" in core:
         return core
+    if core.startswith("mdns:"):
+        from robo_comp.discovery import resolve
+
+        return resolve(core[len("mdns:"):])
     path = Path(core)
     if path.is_dir():
         path = path / "core.json"

@@ -63,7 +63,9 @@ def add_connection_args(p: argparse.ArgumentParser, required: bool = True) -> No
     as the wall's ``--replay``)."""
     from robo_comp.protocol.curve import add_curve_args
 
-    p.add_argument("--core", required=required, help="ROUTER URL (tcp://HOST:PORT) or the core's state folder")
+    p.add_argument("--core", required=required,
+                   help="ROUTER URL (tcp://HOST:PORT), the core's state folder, or mdns:NAME (a core started "
+                        "with --advertise NAME on this LAN)")
     tok = p.add_mutually_exclusive_group(required=required)
     tok.add_argument("--token", help="team or referee token")
     tok.add_argument("--token-file", help="file holding the token")

@@ -292,25 +292,34 @@ def test_private_view_shows_nothing_of_the_other_team(browser, live, tmp_path: P
 
 
 def test_a_view_the_server_offers(live) -> None:
-    """``--view-token-file``: the server offers red's private view by name; other names are refused."""
+    """``--view-token-file``: the server offers red's private view by name, with its key; other
+    names, and red's without the key, are refused."""
     import asyncio
 
     import websockets
 
     m, url = live
 
+    from robo_comp.web.server import view_key
+
+    key = view_key(m.token("red"))
+
     async def talk() -> list[dict[str, Any]]:
         out = []
         async with websockets.connect(url.replace("http", "ws") + "ws") as ws:
             out.append(json.loads(await ws.recv()))
-            for view in ("blue", "red"):
-                await ws.send(json.dumps({"op": "join", "view": view}))
+            for msg in ({"view": "blue", "key": key}, {"view": "red"}, {"view": "red", "key": "guess"},
+                        {"view": "red", "key": key}):
+                await ws.send(json.dumps({"op": "join", **msg}))
                 out.append(json.loads(await ws.recv()))
         return out
 
-    hello, blue, red = in_thread(lambda: asyncio.run(talk()))
+    hello, blue, nokey, badkey, red = in_thread(lambda: asyncio.run(talk()))
     assert hello["views"] == ["red"]
     assert blue["type"] == "error" and "no view 'blue'" in blue["message"]
+    # a view offered with --view-token-file opens only with its key (or the team's token)
+    for refused in (nokey, badkey):
+        assert refused["type"] == "error" and "opens with its link" in refused["message"]
     assert red["type"] == "state" and red["view"]["name"] == "red" and red["view"]["kind"] == "private"
     assert red["state"]["robots"] and {r[1] for r in red["state"]["robots"]} == {"red"}
 

@@ -409,6 +409,10 @@ class RobotHost:
     def _reconnect(self, why: str) -> None:
         """Hello and register again on a fresh socket; robots hold still meanwhile."""
         log.warning("%s; halting robots and reconnecting", why)
+        for r in self.robots.values():  # a real robot's driver stands it still now (a simulated one
+            pause = getattr(r.driver, "pause", None)  # stands still while step() does not run)
+            if pause is not None:
+                pause()
         # Movement pauses while we are not "up": step() only runs then; the robots resume
         # their current steps once registered again.
         self.reconnects += 1
@@ -656,6 +660,10 @@ class RobotHost:
         if self.world is not None:
             rows = self.world.sense_many([r.robot_id for r in robots])
             readings = {r.tag: row for r, row in zip(robots, rows)}
+            for r in robots:  # a real robot's own sensors (a ROS 2 robot's scan) replace the arena's
+                own = getattr(r.driver, "readings", None)
+                if own is not None:
+                    readings[r.tag].update(own())
         # each plugin on its own: one that raises loses its readings only, not the others'
         for impl in self.pm.hook.robo_comp_sense.get_hookimpls():
             for r in robots:
@@ -822,6 +830,10 @@ class RobotHost:
                 self._send("leave", {"tag": r.tag})
             time.sleep(0.05)
         self.code.close()
+        for r in self.robots.values():  # a real robot's driver stops it and lets go of its link
+            close = getattr(r.driver, "close", None)
+            if close is not None:
+                close()
         self.planner.shutdown(wait=False, cancel_futures=True)
         for s in (self.fix_sock, self.truth_sock):
             if s is not None:

@@ -27,8 +27,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="address to serve on (default 127.0.0.1; 0.0.0.0 for every network)")
     p.add_argument("--port", type=int, default=8080, help="HTTP port (default 8080; 0 picks a free one)")
     p.add_argument("--view-token-file", metavar="FILE", action="append", default=[],
-                   help="a team's token file: the page offers that team's private view without asking for "
-                        "the token (for a team watching its own match; repeatable)")
+                   help="a team's token file: the gateway offers that team's private view through a link it "
+                        "prints (the link holds a key made from the token, never the token; a page without "
+                        "the link or the token gets only the public view); repeatable")
+    p.add_argument("--allow-origin", metavar="ORIGIN", action="append", default=[],
+                   help="a page origin besides the gateway's own that may open its WebSocket, e.g. "
+                        "https://match.example.org when a proxy serves the page under that name "
+                        "(repeatable; pages of every other site are refused)")
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -95,7 +100,10 @@ def run(args: argparse.Namespace) -> int:
     gw = _gateway(args)
     import uvicorn
 
-    from robo_comp.web.server import make_app
+    from robo_comp.web.server import OriginCheck, make_app, view_key
+
+    for o in args.allow_origin:
+        OriginCheck.normalise(o)  # a malformed origin is an error now, not a silent refusal later
 
     try:
         sock = socket.socket(socket.AF_INET6 if ":" in args.host else socket.AF_INET, socket.SOCK_STREAM)
@@ -107,11 +115,14 @@ def run(args: argparse.Namespace) -> int:
                          "that port? (--port 0 picks a free one)") from None
     port = sock.getsockname()[1]
     host = "127.0.0.1" if args.host in ("0.0.0.0", "::") else args.host
-    config = uvicorn.Config(make_app(gw), log_level="warning", ws_max_size=1 << 20, lifespan="on",
+    config = uvicorn.Config(make_app(gw, allow_origins=args.allow_origin), log_level="warning", ws_max_size=1 << 20, lifespan="on",
                             ws_per_message_deflate=False)  # one text for all browsers: never compress it per browser
     server = uvicorn.Server(config)
     what = f"replay of {args.replay}" if args.replay else f"live match at {args.core}"
     print(f"web: serving the {what} on http://{host}:{port}/", flush=True)
+    for name, tok in sorted(getattr(gw, "private_tokens", {}).items()):
+        print(f"web: {name}'s private view (give this link to {name} only): "
+              f"http://{host}:{port}/#view={name}&key={view_key(tok)}", flush=True)
     asyncio.run(server.serve(sockets=[sock]))
     return 0
 

@@ -2,22 +2,36 @@
 
 A browser opens ``/ws`` and sends ``{"op": "join"}`` (the public view), ``{"op": "join",
 "token": T}`` (the view of that token, as the core shows it to that token) or ``{"op": "join",
-"view": NAME}`` (a private view whose token the server was given). Then it may ask
+"view": NAME, "key": K}`` (a private view whose token the server was given; ``K`` is that view's
+key, :func:`view_key`, which the gateway prints in the view's link). Then it may ask
 ``monitor``/``find``/``picture`` questions (``{"op", "req", ...}`` answered by ``{"type": "reply",
 "req", "ok", "body" | "error"}``) and, for a replay, ``play``, ``pause``, ``speed`` and ``seek``.
 The server sends ``state`` (everything, when joining or after falling behind), ``ev`` (a batch
 of events) and, for replays, ``clock``.
+
+Against other sites (docs/security.md, "The web gateway"): ``/ws`` refuses a browser whose
+``Origin`` is neither the page's own host nor one the organiser allowed (``--allow-origin``), so
+a page on another site cannot ride on a visitor's network position; no private view opens
+without a secret (a token or a view key); every response carries a Content-Security-Policy,
+``Referrer-Policy: no-referrer`` and ``X-Frame-Options: DENY``; and a message the gateway cannot
+read (not JSON, nested too deep, not an object) gets an error reply, never a logged traceback.
 """
 from __future__ import annotations
 
 import asyncio
+import base64
 import contextlib
+import hashlib
+import hmac
+import ipaddress
 import json
 import logging
+import socket
 import time
 from collections.abc import AsyncIterator
 from pathlib import Path
 from typing import Any
+from urllib.parse import urlsplit
 
 from starlette.applications import Starlette
 from starlette.responses import FileResponse, JSONResponse, Response
@@ -33,6 +47,109 @@ log = logging.getLogger("robo_comp.web")
 STATIC = Path(__file__).parent / "static"
 #: Seconds a private view stays connected to the core after its last browser left.
 IDLE_CLOSE = 30.0
+#: Headers on every HTTP response: the page loads only its own scripts and styles, talks only
+#: to its own host, cannot be framed, and sends no Referer (a view key in a link stays private).
+SECURITY_HEADERS = {
+    "content-security-policy": "default-src 'none'; script-src 'self'; style-src 'self'; img-src 'self' data:; "
+                               "connect-src 'self'; base-uri 'none'; frame-ancestors 'none'",
+    "referrer-policy": "no-referrer",
+    "x-frame-options": "DENY",
+    "x-content-type-options": "nosniff",
+    "cross-origin-opener-policy": "same-origin",
+    "cross-origin-resource-policy": "same-origin",
+}
+#: Distinct refused origins logged (each once); the rest are refused without a word.
+ORIGINS_LOGGED = 50
+
+
+def view_key(token: str) -> str:
+    """The key of the private view offered with ``token`` (``--view-token-file``): a keyed hash of
+    the token, so the link that opens the view does not hold the token itself, and the same on
+    every start of the gateway."""
+    mac = hmac.new(token.encode(), b"robo_comp.web.view/1", hashlib.sha256).digest()
+    return base64.urlsafe_b64encode(mac[:18]).decode()
+
+
+def _local_names() -> set[str]:
+    names = {"localhost"}
+    with contextlib.suppress(OSError):
+        names |= {socket.gethostname().lower(), socket.getfqdn().lower()}
+    return names
+
+
+class OriginCheck:
+    """Which browser pages may open ``/ws``: pages served by this gateway under a name it can
+    trust (an IP address, ``localhost`` or this machine's name: a name of another site that
+    resolves here, DNS rebinding, is refused), and the origins the organiser listed
+    (``--allow-origin https://match.example.org``). A client that sends no ``Origin`` is not a
+    browser page (a script of the organiser's) and is let in: it holds no visitor's session."""
+
+    def __init__(self, allowed: list[str] | None = None) -> None:
+        self.allowed = {self.normalise(o) for o in allowed or []}
+        self.names = _local_names()
+        self.refused: set[str] = set()
+
+    @staticmethod
+    def normalise(origin: str) -> str:
+        """``scheme://host[:port]`` in lower case, without a default port or a trailing slash."""
+        u = urlsplit(origin.strip().lower())
+        if not u.scheme or not u.hostname:
+            raise FieldError(f"an origin looks like https://host[:port], not {origin!r}")
+        port = u.port
+        default = {"http": 80, "https": 443}.get(u.scheme)
+        host = f"[{u.hostname}]" if ":" in u.hostname else u.hostname
+        return f"{u.scheme}://{host}" + (f":{port}" if port and port != default else "")
+
+    def _trusted_name(self, host: str) -> bool:
+        try:
+            ipaddress.ip_address(host.strip("[]"))
+            return True
+        except ValueError:
+            return host in self.names
+
+    def allows(self, origin: str | None, host: str | None) -> bool:
+        """Whether a WebSocket with this ``Origin`` and ``Host`` header may open."""
+        if origin is None:
+            return True
+        try:
+            o = self.normalise(origin)
+        except FieldError:
+            return False
+        if o in self.allowed:
+            return True
+        u = urlsplit(o)
+        own = (host or "").strip().lower()
+        return bool(own) and u.netloc == own.removesuffix(":80" if u.scheme == "http" else ":443") \
+            and self._trusted_name(u.hostname or "")
+
+    def note_refused(self, origin: str | None) -> None:
+        """Log a refused origin the first times it comes (a flood is not logged line by line)."""
+        o = str(origin)[:200]
+        if o not in self.refused and len(self.refused) < ORIGINS_LOGGED:
+            self.refused.add(o)
+            log.warning("web: refused a WebSocket from the page origin %r (not this gateway's; "
+                        "--allow-origin lets one in)", o)
+
+
+class SecurityHeaders:
+    """ASGI middleware: :data:`SECURITY_HEADERS` on every HTTP response."""
+
+    def __init__(self, app: Any) -> None:
+        self.app = app
+        self.headers = [(k.encode(), v.encode()) for k, v in SECURITY_HEADERS.items()]
+
+    async def __call__(self, scope: Any, receive: Any, send: Any) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+
+        async def send_with_headers(message: Any) -> None:
+            if message["type"] == "http.response.start":
+                message = dict(message)
+                message["headers"] = [*message.get("headers", []), *self.headers]
+            await send(message)
+
+        await self.app(scope, receive, send_with_headers)
 
 
 class LiveGateway:
@@ -46,6 +163,7 @@ class LiveGateway:
         self.token = token
         self.keys = {"curve_cert": curve_cert, "core_key": core_key}
         self.private_tokens = dict(private_tokens or {})  # view name -> token (given to the server)
+        self.view_keys = {name: view_key(tok) for name, tok in self.private_tokens.items()}
         self.public: PublicHub | None = None
         self.private: dict[str, TeamHub] = {}
         self._reaper: asyncio.Task[None] | None = None
@@ -65,8 +183,12 @@ class LiveGateway:
         token = msg.get("token")
         view = msg.get("view")
         if view and view != "public":
-            if view not in self.private_tokens:
-                raise FieldError(f"this server offers no view {view!r}; enter the team's token instead")
+            if not isinstance(view, str) or view not in self.private_tokens:
+                raise FieldError(f"this server offers no view {str(view)[:40]!r}; enter the team's token instead")
+            key = msg.get("key")
+            if not isinstance(key, str) or not hmac.compare_digest(key.encode(), self.view_keys[view].encode()):
+                raise FieldError(f"the view {view!r} opens with its link (the gateway printed it when it started) "
+                                 "or with the team's token")
             token = self.private_tokens[view]
         if token is not None and not isinstance(token, str):
             raise FieldError("'token' must be text")
@@ -132,9 +254,10 @@ class ReplayGateway:
 class Connection:
     """One browser's WebSocket session."""
 
-    def __init__(self, gw: LiveGateway | ReplayGateway, ws: WebSocket) -> None:
+    def __init__(self, gw: LiveGateway | ReplayGateway, ws: WebSocket, origins: OriginCheck | None = None) -> None:
         self.gw = gw
         self.ws = ws
+        self.origins = origins or OriginCheck()
         self.sub = Subscriber(self._send)
         self.playback: Playback | None = None
         self._send_lock = asyncio.Lock()
@@ -144,7 +267,12 @@ class Connection:
             await self.ws.send_text(text)
 
     async def run(self) -> None:
-        """Serve the browser until it leaves."""
+        """Serve the browser until it leaves (a page of another site is refused before anything)."""
+        origin = self.ws.headers.get("origin")
+        if not self.origins.allows(origin, self.ws.headers.get("host")):
+            self.origins.note_refused(origin)
+            await self.ws.close(code=1008)  # before accept: the browser gets HTTP 403
+            return
         await self.ws.accept()
         await self._send(dumps({"type": "hello", **self.gw.info()}))
         self.sub.task = asyncio.get_running_loop().create_task(self.sub.run())
@@ -153,9 +281,15 @@ class Connection:
                 try:
                     msg = json.loads(await self.ws.receive_text())
                 except (ValueError, KeyError):  # not JSON, or a binary frame
-                    await self._send(dumps({"type": "error", "message": "messages must be JSON objects as text"}))
+                    await self._refuse("E_FIELD", "messages must be JSON objects as text")
+                    continue
+                except RecursionError:
+                    await self._refuse("E_FIELD", "this message is nested too deeply to read; messages are "
+                                                  "flat JSON objects such as {\"op\": \"join\"}")
                     continue
                 if not isinstance(msg, dict):
+                    await self._refuse("E_FIELD", "a message is a JSON object with an \"op\", such as "
+                                                  "{\"op\": \"join\"}")
                     continue
                 await self.handle(msg)
         except WebSocketDisconnect:
@@ -167,10 +301,18 @@ class Connection:
             if self.playback is not None:
                 self.playback.close()
 
+    async def _refuse(self, code: str, message: str) -> None:
+        await self._send(dumps({"type": "error", "ok": False, "error": {"code": code, "message": message},
+                                "message": message}))
+
     async def handle(self, msg: dict[str, Any]) -> None:
         """One message from the page."""
         op = msg.get("op")
         rid = msg.get("req")
+        if not isinstance(op, str) or len(op) > 40:
+            op = None if op is None else "?"
+        if not isinstance(rid, (int, str)) or isinstance(rid, bool) or len(str(rid)) > 40:
+            rid = None
         try:
             if op == "join":
                 await self.join(msg)
@@ -184,8 +326,13 @@ class Connection:
                                     "message": e.message}))
         except (WebSocketDisconnect, asyncio.CancelledError):
             raise
-        except Exception:  # a bug must not end the browser's connection: log it, say so
-            log.exception("web: %r from a page failed", op)
+        except RecursionError:  # a message nested deep below its top level
+            await self._send(dumps({"type": "reply" if rid is not None else "error", "req": rid, "ok": False,
+                                    "op": op, "error": {"code": "E_FIELD", "message": "nested too deeply"},
+                                    "message": "this message is nested too deeply to read"}))
+        except Exception as e:  # a bug must not end the browser's connection: log it once, briefly, say so
+            log.error("web: %r from a page failed: %s: %s", op, type(e).__name__, str(e)[:200])
+            log.debug("web: the failure's traceback", exc_info=True)
             await self._send(dumps({"type": "reply" if rid is not None else "error", "req": rid, "ok": False, "op": op,
                                     "error": {"code": "E_INTERNAL", "message": f"the gateway failed on {op!r}"},
                                     "message": f"the gateway failed on {op!r}; it was logged"}))
@@ -236,8 +383,12 @@ class Connection:
         return {}
 
 
-def make_app(gw: LiveGateway | ReplayGateway) -> Starlette:
-    """The Starlette application of a gateway."""
+def make_app(gw: LiveGateway | ReplayGateway, *, allow_origins: list[str] | None = None) -> Starlette:
+    """The Starlette application of a gateway (``allow_origins``: page origins besides its own
+    that may open ``/ws``)."""
+    from starlette.middleware import Middleware
+
+    origins = OriginCheck(allow_origins)
 
     async def index(request: Any) -> Response:
         return FileResponse(STATIC / "index.html", headers={"Cache-Control": "no-cache"})
@@ -246,7 +397,7 @@ def make_app(gw: LiveGateway | ReplayGateway) -> Starlette:
         return JSONResponse(gw.info())
 
     async def ws(websocket: WebSocket) -> None:
-        await Connection(gw, websocket).run()
+        await Connection(gw, websocket, origins).run()
 
     @contextlib.asynccontextmanager
     async def lifespan(app: Starlette) -> AsyncIterator[None]:
@@ -259,4 +410,4 @@ def make_app(gw: LiveGateway | ReplayGateway) -> Starlette:
 
     return Starlette(routes=[Route("/", index), Route("/info", info), Route("/favicon.ico", favicon), WebSocketRoute("/ws", ws),
                              Mount("/static", StaticFiles(directory=STATIC), name="static")],
-                     lifespan=lifespan)
+                     lifespan=lifespan, middleware=[Middleware(SecurityHeaders)])

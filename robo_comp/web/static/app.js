@@ -1,5 +1,6 @@
 // The page: a WebSocket to the gateway, the model, the canvas and the controls.
-// Hash parameters: #t=SECONDS (replay position), speed=S, play=1, view=NAME (a view the server offers).
+// Hash parameters: #t=SECONDS (replay position), speed=S, play=1, view=NAME&key=K (a view the server
+// offers, with the key from the link the gateway printed).
 import { Model } from "./model.js";
 import { Renderer } from "./view.js";
 
@@ -47,7 +48,7 @@ function ask(op, body = {}) {
 function join() {
   const msg = { op: "join" };
   if (S.token) msg.token = S.token;
-  else if (params.get("view")) msg.view = params.get("view");
+  else if (params.get("view")) { msg.view = params.get("view"); msg.key = params.get("key") || ""; }
   if (S.mode === "replay") {
     msg.t = S.replay.t || +(params.get("t") || 0);
     msg.speed = S.replay.speed;
@@ -150,8 +151,10 @@ function hud(force = false) {
   const rows = (model.score.length ? model.score : (model.arena ? model.arena.teams.map(x => ({ team: x.name, score: 0, victims: 0 })) : []));
   $("score-table").tBodies[0].innerHTML = rows.map((r, i) => {
     const c = model.colour(r.team);
-    return `<tr class="${r.disqualified ? "dq" : ""}"><td>${r.rank ?? i + 1}</td><td><span class="swatch" style="background:${esc(c)}"></span>${esc(r.team)}</td><td class="num">${esc(fmtNum(r.score))}</td><td class="num">${esc(r.victims ?? 0)}</td></tr>`;
+    return `<tr class="${r.disqualified ? "dq" : ""}"><td>${r.rank ?? i + 1}</td><td><span class="swatch" data-colour="${esc(c)}"></span>${esc(r.team)}</td><td class="num">${esc(fmtNum(r.score))}</td><td class="num">${esc(r.victims ?? 0)}</td></tr>`;
   }).join("");
+  // colours set through the DOM: the page's Content-Security-Policy allows no inline style attributes
+  for (const s of $("score-table").querySelectorAll(".swatch")) s.style.background = s.dataset.colour;
   $("messages").innerHTML = model.messages.filter(x => t - x.t < 12 || S.mode === "replay" && Math.abs(t - x.t) < 12)
     .map(x => `<div class="${esc(x.level)}">${esc(x.text)}</div>`).join("");
 }

@@ -1,0 +1,1 @@
+"""Exports of a match to other tools' formats (``robo-comp export``)."""
