@@ -141,10 +141,16 @@ class LocalRunner:
         try:
             pool = [_Worker(ctx) for _ in range(min(self.workers, len(todo)))]
             while todo or any(w.spec is not None for w in pool):
-                for w in pool:
+                for k, w in enumerate(pool):
                     if w.spec is None and todo:
+                        if not w.proc.is_alive():  # died while idle: nothing of ours was lost
+                            w.stop()
+                            pool[k] = w = _Worker(ctx)
                         w.spec = todo.pop(0)
-                        w.conn.send(w.spec)
+                        try:
+                            w.conn.send(w.spec)
+                        except OSError:  # it died just now: the next wait sees it and plays the match again
+                            pass
                 busy = [w for w in pool if w.spec is not None]
                 ready = wait_any([w.conn for w in busy] + [w.proc.sentinel for w in busy])
                 for w in list(busy):
@@ -153,7 +159,7 @@ class LocalRunner:
                     if w.conn in ready:
                         try:
                             kind, value = w.conn.recv()
-                        except (EOFError, OSError):
+                        except Exception:  # EOF, or a result cut off by the worker's death
                             kind, value = "died", None
                     elif w.proc.sentinel in ready:
                         kind, value = "died", None
@@ -167,7 +173,10 @@ class LocalRunner:
                         if n < LOCAL_RETRIES:
                             self.replayed[played.get("id")] = n + 1
                             fresh.spec = played
-                            fresh.conn.send(played)
+                            try:
+                                fresh.conn.send(played)
+                            except OSError:
+                                pass  # seen dead at the next wait
                         else:
                             on_error(played, f"the worker playing this match died {n + 1} times (last exit code {code})")
                         continue
