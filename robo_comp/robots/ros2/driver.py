@@ -44,6 +44,10 @@ ODOM_TIMEOUT = 5.0
 #: A Move is done within this many cells of the target, a Turn within this many degrees.
 POS_TOLERANCE = 0.06
 HEADING_TOLERANCE = 2.0
+#: How far a camera fix moves the odometry pose towards it (a fix is noisy; odometry is smooth).
+CAMERA_GAIN = 0.3
+#: Within this many cells of the target a Move no longer turns on the spot.
+CLOSE = 0.2
 #: Above this heading error (degrees) a Move turns on the spot before it drives.
 TURN_FIRST = 20.0
 
@@ -55,6 +59,9 @@ def _wrap(deg: float) -> float:
 
 class ROS2Driver(PoseReadings):
     """One ROS 2 robot (same interface as :class:`robo_comp.robots.drivers.ArenaDriver`)."""
+
+    #: A real robot: the host keeps its arena body at :attr:`pose` (see :mod:`robo_comp.robots.oneworld`).
+    external_body = True
 
     def __init__(self, bus: Bus, namespace: str, *, cell_m: float, x: float, y: float, heading: float = 0.0,
                  max_speed: float = 0.2, max_turn: float = 1.0) -> None:
@@ -68,7 +75,8 @@ class ROS2Driver(PoseReadings):
         self.step: Step | None = None
         self.bump: dict[str, Any] | None = None
         self._timer = 0.0
-        self._anchor: tuple[float, float, float] | None = None  # the first odometry (X, Y, yaw)
+        self._anchor: tuple[float, float, float] | None = None  # the odometry (X, Y, yaw) at ``start``
+        self._raw: tuple[float, float, float] | None = None  # the latest odometry
         self._target_heading = 0.0
         self._waited = 0.0
         self._scan: LaserScan | None = None
@@ -116,6 +124,7 @@ class ROS2Driver(PoseReadings):
             m = msgs[-1]
             p = m.pose.pose
             X, Y, yaw = p.position.x, p.position.y, yaw_of(p.orientation)
+            self._raw = (X, Y, yaw)
             if self._anchor is None:
                 self._anchor = (X, Y, yaw)
             X0, Y0, yaw0 = self._anchor
@@ -132,6 +141,15 @@ class ROS2Driver(PoseReadings):
         if scans:
             self._scan = scans[-1]
             self.scan_count += len(scans)
+
+    def camera_fix(self, x: float, y: float, heading: float) -> None:
+        """A fix of the organiser's overhead camera: the pose moves :data:`CAMERA_GAIN` of the way
+        to it (all of it before any odometry), and odometry counts on from there."""
+        px, py, ph = self._pose
+        g = 1.0 if self._raw is None else CAMERA_GAIN
+        self.start = (px + g * (x - px), py + g * (y - py), (ph + g * _wrap(heading - ph)) % 360.0)
+        self._pose = self.start
+        self._anchor = self._raw  # None before odometry: the first odometry anchors the new start
 
     # ------------------------------------------------------------------ commands
     def _publish(self, v: float, w: float) -> None:
@@ -203,9 +221,9 @@ class ROS2Driver(PoseReadings):
         if dist <= POS_TOLERANCE:
             return None
         err = _wrap(math.degrees(math.atan2(dy, dx)) - h)
-        if abs(err) > 90.0 and dist < 0.3:  # just past the target: done rather than turning round
-            return None
-        if abs(err) > TURN_FIRST:
+        if dist < CLOSE and abs(err) > 45.0:  # beside or just past it: done (turning on the spot towards
+            return None  # a point a few cm away only chases the noise of the pose)
+        if abs(err) > TURN_FIRST and dist >= CLOSE:
             return 0.0, -self._turn_rate(err)
         v = min(self.max_speed, max(0.06, 2.0 * dist * self.cell_m))
         w = max(-self.max_turn, min(self.max_turn, 2.5 * math.radians(err)))  # steer, no floor
