@@ -1,6 +1,6 @@
 """Benchmarks of the team-code sandbox (see docs/perf-sandbox.md).
 
-    .venv/bin/python bench/bench_sandbox.py [--quick]
+    .venv/bin/python bench/bench_sandbox.py [--quick] [--os-layer]
 
 1. upload → checked → available: spawn a sandbox and load ``square.py`` (spawn + compile +
    contract + init), and a warm re-upload (new version into a running child).
@@ -11,6 +11,8 @@
 3. isolation: 4 teams on one host loop; two run RPC loops, one spins forever (killed and
    restarted over and over), one allocates without bound. The RPC rate of the two well-behaved
    teams is compared with an undisturbed run.
+4. ``--os-layer`` (instead of 1–3): the cold upload and the robot-API round trip with the OS
+   layer (bubblewrap, sandbox/oswall.py) on and off, one after the other in the same run.
 """
 from __future__ import annotations
 
@@ -52,7 +54,7 @@ def pct(xs: list[float], p: float) -> float:
     return xs[min(len(xs) - 1, int(round(p / 100 * (len(xs) - 1))))]
 
 
-def bench_upload(n: int) -> None:
+def bench_upload(n: int, label: str = "") -> None:
     cold, warm = [], []
     for i in range(n):
         t0 = time.perf_counter()
@@ -64,7 +66,7 @@ def bench_upload(n: int) -> None:
         sb.load("square.py", src2)
         warm.append(time.perf_counter() - t0)
         sb.close()
-    print(f"upload -> checked -> available, cold (spawn + compile + contract + init), n={n}: "
+    print(f"upload -> checked -> available, cold (spawn + compile + contract + init){label}, n={n}: "
           f"median {statistics.median(cold) * 1e3:.1f} ms, p99 {pct(cold, 99) * 1e3:.1f} ms "
           f"(target < 300 ms)")
     print(f"upload -> checked -> available, warm (new version into a running sandbox), n={n}: "
@@ -195,10 +197,30 @@ def bench_isolation(seconds: float) -> None:
               f"hostile runs failed {stats['failed']} times, child killed {stats['kills']} times)")
 
 
+def bench_os_layer(calls: int, n: int) -> None:
+    """Upload and robot-API call cost with the OS layer on, then off, in this one run."""
+    import os
+
+    from robo_comp.sandbox import oswall
+
+    bare = bare_round_trip(calls)
+    print(f"bare msgpack round trip between two processes over a socketpair, {calls} calls: median {bare * 1e6:.0f} us")
+    for on in (True, False, True, False):  # interleaved: a drift of the machine hits both alike
+        os.environ[oswall.ENV] = "on" if on else "off"
+        label = f"OS layer {'on (bwrap)' if on else 'off'}"
+        bench_upload(n, f", {label}")
+        bench_rpc(calls, Limits(), f"default limits, {label}", bare)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="fewer repetitions")
+    ap.add_argument("--os-layer", action="store_true",
+                    help="only the upload and the robot-API call, with the OS layer on and off")
     opts = ap.parse_args()
+    if opts.os_layer:
+        bench_os_layer(2000 if opts.quick else 20000, 5 if opts.quick else 20)
+        return
     bench_upload(5 if opts.quick else 20)
     calls = 2000 if opts.quick else 20000
     bare = bare_round_trip(calls)

@@ -102,3 +102,22 @@ def test_a_long_line_is_quoted_shortened() -> None:
         policy.compile_team(src, "team.py")
     quoted = ei.value.detail.split("`")[1]
     assert len(quoted) == explain.QUOTE_CHARS and quoted.endswith("…")
+
+
+@pytest.mark.parametrize("src,line", [
+    ("x = 3\n\n\nclass Planner(x):\n    pass\n", 4),  # the class statement itself fails (its base)
+    ("def plan(robot):\n    size = 2\n\n    class Cell(size):\n        pass\n    return 1\n", 4),
+    ("@staticmethod\nclass Cell(5):\n    pass\n", 2),
+])
+def test_an_error_of_a_class_statement_is_reported_at_its_line(src: str, line: int) -> None:
+    """RestrictedPython rewrites every ``class`` statement from a template whose line (1) stayed on
+    it, so an error raised by the statement itself was reported at line 1 of the file."""
+    import traceback
+
+    glb = policy.make_globals("team.m")
+    code = policy.compile_team(src, "m.py")
+    with pytest.raises(TypeError) as ei:
+        exec(code, glb)
+        glb["plan"](None)
+    frames = [f for f in traceback.extract_tb(ei.value.__traceback__) if f.filename == "m.py"]
+    assert frames[-1].lineno == line and "class" in src.splitlines()[line - 1], frames

@@ -19,6 +19,7 @@ from robo_comp import protocol as P
 from robo_comp.core.desk import Access, Outbox
 from robo_comp.core.eventlog import EventLog
 from robo_comp.protocol.logfile import read_log
+from robo_comp.private_files import private_dir, write_private
 from robo_comp.errors import FieldError, ForbiddenError, NotYoursError, PhaseError, TooLargeError
 from robo_comp.scoring.board import Scoreboard, ScoreLine
 from robo_comp.scoring.config import ScoringConfig
@@ -227,8 +228,7 @@ class Competition:
         if not png.startswith(b"\x89PNG\r\n\x1a\n"):
             raise FieldError("'png' must be a PNG image")
         pid = self.judge.next_picture
-        self.picture_dir.mkdir(exist_ok=True)
-        (self.picture_dir / f"{pid}.png").write_bytes(png)
+        write_private(private_dir(self.picture_dir) / f"{pid}.png", png)  # the team's: 0600 in 0700
         meta = self.judge.picture(r.team, r.tag, b["x"], b["y"], b["heading"], t=time.time(),
                                   sha256=hashlib.sha256(png).hexdigest()[:16], label=b.get("label", ""))
         seen = meta["victims"]

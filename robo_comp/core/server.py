@@ -39,6 +39,7 @@ from robo_comp.protocol.curve import ServerKeys, ZapHandler, load_server_keys, s
 from robo_comp.core.mapdesk import MapDesk
 from robo_comp.core.uploads import UploadDesk
 from robo_comp.core.eventlog import EventLog, StorageFault
+from robo_comp.private_files import private_dir
 from robo_comp.core.recovery import RecoveryReport, recover
 from robo_comp.core.sessions import Session
 from robo_comp.core.registry import RobotRecord, RobotStatus, Registry
@@ -106,8 +107,7 @@ class Core:
                  port: int = 5555, pub_port: int = 0, heartbeat: float = 1.0, fsync: bool = False,
                  practice: bool = False, scoring: ScoringConfig | None = None, plugins: Any = None,
                  approve_uploads: bool = False, curve: bool = False, pose_hz: float = POSE_HZ) -> None:
-        self.state_dir = Path(state_dir)
-        self.state_dir.mkdir(parents=True, exist_ok=True)
+        self.state_dir = private_dir(state_dir)  # tokens, logs, uploads, pictures: the organiser's (0700)
         self.scenario = scenario
         self.tokens = TokenBook(self.state_dir, teams or [t.name for t in scenario.teams])
         self._arena_payload = arena_payload(scenario, self.tokens.teams)
@@ -532,8 +532,9 @@ class Core:
         self.stats["events"] += 1
         if log_it:
             self.events.append(topic, team, data)
-        if public and self.pub is not None:
-            self._out.append((self.pub, [topic.encode(), P.pack(P.public_view(data))], not log_it))
+        view = P.public_event(topic, data) if public else None  # the one table (protocol/topics.py)
+        if view is not None and self.pub is not None:
+            self._out.append((self.pub, [topic.encode(), P.pack(view)], not log_it))
         if team == P.EVERYONE:
             targets: list[bytes] = [i for group in self.watchers.values() for i in group]
         else:

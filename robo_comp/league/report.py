@@ -11,6 +11,8 @@ import io
 from pathlib import Path
 from typing import Any
 
+from robo_comp.private_files import write_private
+
 COLUMNS = ("rank", "team", "version", "rating", "mu", "sigma", "matches", "wins", "mean_score")
 HEADINGS = ("#", "team", "version", "rating (μ−3σ)", "μ", "σ", "matches", "wins", "mean score")
 
@@ -156,8 +158,7 @@ def write_report(path: str | Path, view: dict[str, Any]) -> Path:
     """Write :func:`render_report`'s page to ``path``; returns the path."""
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
-    p.write_text(render_report(view), encoding="utf-8")
-    return p
+    return write_private(p, render_report(view))  # 0600: the organiser publishes it, not the umask
 
 
 __all__ = ["held_text", "render_report", "standings_text", "write_report"]

@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from robo_comp.league.engine import play_match
+from robo_comp.private_files import private_dir, write_private
 
 OnResult = Callable[[dict[str, Any], dict[str, Any]], None]
 OnError = Callable[[dict[str, Any], str], None]
@@ -119,8 +120,7 @@ class RayRunner:
                     result, log = ray.get(ref)
                     if log is not None:
                         path = Path(spec["log"])
-                        path.parent.mkdir(parents=True, exist_ok=True)
-                        path.write_bytes(log)
+                        write_private(private_dir(path.parent) / path.name, log)
                 except Exception as e:
                     on_error(spec, f"{type(e).__name__}: {e}")
                     continue

@@ -6,7 +6,9 @@ together; ``robo-comp league`` (:mod:`robo_comp.league.cli`) is their command li
 from __future__ import annotations
 
 import hashlib
+import os
 import random
+import stat
 import sys
 import time
 from collections.abc import Callable
@@ -25,11 +27,21 @@ PLAY_ARGS = ["width", "height", "index", "count"]
 # ---------------------------------------------------------------------- submissions
 def read_submission(path: str | Path) -> dict[str, str]:
     """A submission's files: one ``.py`` file, or a folder's ``extensions/*.py`` (a team made
-    with ``robo-comp new-team``) or else its ``*.py``."""
+    with ``robo-comp new-team``) or else its ``*.py``.
+
+    A folder handed in by a team is not trusted: a symbolic link (to another team's source, or
+    to a file of the organiser whose line an error would quote), a file outside the folder, a
+    hard link or anything but a plain file is refused, naming only the entry in the team's own
+    folder."""
     p = Path(path)
+    if p.is_symlink():
+        raise FieldError(f"{p}: a symbolic link; submit the team's file or folder itself")
     if p.is_file():
-        files = [p]
+        files, root = [p], p.parent
     elif p.is_dir():
+        root = p
+        if (p / "extensions").is_symlink():
+            raise FieldError(f"{p}: extensions/ is a symbolic link; a submission's files must be in its folder")
         files = sorted((p / "extensions").glob("*.py")) if (p / "extensions").is_dir() else sorted(p.glob("*.py"))
     else:
         raise FieldError(f"{p}: no such file or folder")
@@ -37,11 +49,35 @@ def read_submission(path: str | Path) -> dict[str, str]:
         raise FieldError(f"{p}: no Python modules to submit")
     out = {}
     for f in files:
-        try:
-            out[f.name] = f.read_text(encoding="utf-8")
-        except UnicodeDecodeError:
-            raise UploadError(f"{f.name}: not UTF-8 text", file=f.name, rule="encoding") from None
+        out[f.name] = _read_own(f, root)
     return out
+
+
+def _read_own(f: Path, root: Path) -> str:
+    """The text of ``f``, a plain file of the submission's own folder ``root`` (opened without
+    following a link, so nothing can be swapped in between the check and the read)."""
+    where = f.relative_to(root) if f.is_relative_to(root) else f.name
+    if f.is_symlink():
+        raise UploadError(f"{where}: a symbolic link; a submission holds its own files, not links to others",
+                          file=f.name, rule="link")
+    if not f.resolve().is_relative_to(root.resolve()):
+        raise UploadError(f"{where}: outside the submission's folder", file=f.name, rule="link")
+    try:
+        fd = os.open(f, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
+    except OSError as e:
+        raise UploadError(f"{where}: cannot be read ({e.strerror})", file=f.name, rule="link") from None
+    with os.fdopen(fd, "rb") as fh:
+        st = os.fstat(fh.fileno())
+        if not stat.S_ISREG(st.st_mode):
+            raise UploadError(f"{where}: not a plain file", file=f.name, rule="link")
+        if st.st_nlink > 1:
+            raise UploadError(f"{where}: a hard link to another file; submit a copy of the file",
+                              file=f.name, rule="link")
+        data = fh.read()
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        raise UploadError(f"{f.name}: not UTF-8 text", file=f.name, rule="encoding") from None
 
 
 def check_submission(files: dict[str, str]) -> dict[str, dict[str, Any]]:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import sqlite3
 import time
 from collections.abc import Iterable, Iterator
@@ -21,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from robo_comp.errors import FieldError
+from robo_comp.private_files import private_dir, private_file
 from robo_comp.league.ratings import initial
 
 SCHEMA = """
@@ -100,7 +102,11 @@ class LeagueStore:
         if not db.exists() and not create:
             raise FieldError(f"{self.root} is not a league (no league.db); start one with "
                              f"'robo-comp league init {self.root}'")
-        self.root.mkdir(parents=True, exist_ok=True)
+        private_dir(self.root)  # every team's source and logs: the organiser's alone (0700)
+        if not db.exists():
+            os.close(os.open(db, os.O_WRONLY | os.O_CREAT, 0o600))  # SQLite's WAL and SHM take its mode
+        for f in (db, db.with_name("league.db-wal"), db.with_name("league.db-shm")):
+            private_file(f)
         try:
             self.db = sqlite3.connect(db, isolation_level=None, timeout=30.0)
             self.db.execute("PRAGMA journal_mode=WAL")

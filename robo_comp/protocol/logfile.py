@@ -9,6 +9,7 @@ before any reply of that turn leaves (see docs/protocol.md, "Event log").
 """
 from __future__ import annotations
 
+import os
 import struct
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
@@ -113,7 +114,11 @@ def write_log(path: Path, events: Iterable[tuple[str, str | None, dict[str, Any]
     for seq, (topic, team, data, t) in enumerate(events, start=1):
         put({"seq": seq, "t": t, "topic": topic, "team": team, "data": data})
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_bytes(bytes(out))
+    # 0600 from the first byte, as the core's own log: a match log holds the teams' tasks and finds
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+    with os.fdopen(fd, "wb") as f:
+        os.fchmod(fd, 0o600)
+        f.write(out)
     return path
 
 

@@ -1,4 +1,11 @@
-"""Event topics and what of an event the public may see."""
+"""Event topics and what of an event the public may see: the one visibility table.
+
+Every public feed takes what it carries from :func:`public_event`: the core's live PUB socket
+(``Core.emit``), a replay core's PUB socket (``robo-comp replay``) and the public view of a web
+replay (``robo-comp web --replay``). So a recorded match shown to the public shows exactly what
+the live public feed showed, never more. A topic missing from :data:`PUBLIC_TOPICS` is never
+public (a new topic is private until it is listed here).
+"""
 from __future__ import annotations
 
 from typing import Any
@@ -17,6 +24,33 @@ TOPICS = (
     "picture", "robot.bump", "robot.tasks", "robot.log", "upload.pending", "upload.sent", "upload.done",
     "upload.unloaded", "sandbox.reset",
 )
+
+
+#: Topics the public feeds carry: ``None`` = the event's data without the :data:`PRIVATE_KEYS`;
+#: a tuple = only these fields of it.
+PUBLIC_TOPICS: dict[str, tuple[str, ...] | None] = {
+    "robot.registered": None, "robot.positions": None, "robot.lost": None, "robot.returned": None,
+    "robot.left": None, "task.given": None, "task.started": None, "task.done": None, "robot.stopped": None,
+    "core.started": None, "core.recovered": None, "core.storage": None, "match.phase": None, "score": None,
+    "score.change": None, "penalty": None, "disqualified": None, "broadcast": None, "find.reported": None,
+    "robot.bump": None, "robot.tasks": None,
+    # the logged record also names the victims in sight and the image's hash: the team's own
+    "picture": ("id", "tag", "team", "x", "y", "heading", "t"),
+}
+#: Topics that reach only the event's team and the referee, live and replayed.
+PRIVATE_TOPICS = frozenset({"radio", "refused", "robot.log", "upload.pending", "upload.sent", "upload.done",
+                            "upload.unloaded", "sandbox.reset"})
+assert set(TOPICS) == PUBLIC_TOPICS.keys() | PRIVATE_TOPICS and not PUBLIC_TOPICS.keys() & PRIVATE_TOPICS
+
+
+def public_event(topic: str, data: dict[str, Any]) -> dict[str, Any] | None:
+    """What a public feed carries of this event (``None``: nothing, the topic is never public)."""
+    if topic not in PUBLIC_TOPICS:
+        return None
+    fields = PUBLIC_TOPICS[topic]
+    if fields is not None:
+        return {k: data[k] for k in fields if k in data}
+    return public_view(data)
 
 
 def public_view(data: dict[str, Any]) -> dict[str, Any]:

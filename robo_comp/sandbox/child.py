@@ -776,6 +776,8 @@ def main(argv: list[str] | None = None) -> None:
         pass
     _install_async_exc()
     child = Child(sock, limits)  # imports the policy and starts the workers
+    if limits.get("test_policy_hole"):  # tests only (Limits.test_policy_hole): the real modules
+        child.policy.modules.update(os=os, socket=socket)  # type: ignore[call-overload]
     _warm_up(child)
     sys.stdout = _CappedStream(child, "stdout")
     sys.stderr = _CappedStream(child, "stderr")

@@ -34,7 +34,7 @@ from typing import Any, Callable, Iterable
 import msgpack
 
 from robo_comp.errors import BadTaskError, NotYoursError, UnavailableError, UploadError
-from robo_comp.sandbox import contract
+from robo_comp.sandbox import contract, oswall
 from robo_comp.sandbox.contract import BUILTIN_TASKS, ModuleInfo
 from robo_comp.sandbox.child import (
     EXIT_INTERNAL, EXIT_MEMORY, EXIT_PROTOCOL, FrameError, FrameReader, pack,
@@ -101,13 +101,16 @@ class Limits:
     """How long a sandbox that hit its limits too often rests before it restarts by itself with
     the team's modules; doubled each time it happens again, up to ``max_cooldown``."""
     max_cooldown: float = 600.0
+    test_policy_hole: bool = False
+    """TESTS ONLY: team code may ``import os`` and ``import socket`` (the real modules), a planted
+    hole in the policy through which tests check what the OS layer still stops (sandbox/oswall.py)."""
 
     def wire(self, seed: int) -> dict[str, Any]:
         """The subset the child needs."""
         return {"cpu_seconds": self.cpu_seconds, "memory_mib": self.memory_mib,
                 "message_bytes": self.message_bytes, "result_bytes": self.result_bytes,
                 "output_bytes": self.output_bytes, "workers": self.max_runs + 1, "seed": seed,
-                "nice": self.nice,
+                "nice": self.nice, "test_policy_hole": self.test_policy_hole,
                 "debug": os.environ.get("ROBO_COMP_SANDBOX_DEBUG") == "1"}
 
 
@@ -252,6 +255,8 @@ class Sandbox:
         self.seed = seed
         self.builtin_tasks = tuple(builtin_tasks)
         self.proc: subprocess.Popen | None = None
+        #: Whether the child runs inside the OS layer (bubblewrap; see sandbox/oswall.py).
+        self.os_sandbox = False
         self.sock: socket.socket | None = None
         self._reader: FrameReader | None = None
         self._outbuf = bytearray()
@@ -292,6 +297,9 @@ class Sandbox:
                "from robo_comp.sandbox.child import main; main()",
                "--fd", str(child.fileno()),
                "--limits", msgpack.packb(self.limits.wire(self.seed)).hex()]
+        wrapped = oswall.wrap(cmd, pkg_root)  # the OS layer (bubblewrap), or a clear refusal
+        self.os_sandbox = wrapped is not cmd
+        cmd = wrapped
         try:
             self.proc = subprocess.Popen(
                 cmd, stdin=subprocess.DEVNULL,
@@ -311,8 +319,11 @@ class Sandbox:
 
     @property
     def pid(self) -> int | None:
-        """The child's process id (None when not running)."""
-        return self.proc.pid if self.proc is not None and self.proc.returncode is None else None
+        """The child's process id (None when not running); inside the OS layer the Python child's
+        own, below bwrap's."""
+        if self.proc is None or self.proc.returncode is not None:
+            return None
+        return oswall.leaf_pid(self.proc.pid) if self.os_sandbox else self.proc.pid
 
     @property
     def alive(self) -> bool:
@@ -817,7 +828,7 @@ class Sandbox:
             except subprocess.TimeoutExpired:
                 self._kill()
                 rc = self.proc.returncode
-        reason, text = self._classify(rc)
+        reason, text = self._classify(oswall.exit_code(rc, self.os_sandbox))
         self._stop(reason, text, already_dead=True)
 
     def _classify(self, rc: int | None) -> tuple[str, str]:
@@ -846,7 +857,7 @@ class Sandbox:
         if self.proc is None:
             return False
         try:
-            with open(f"/proc/{self.proc.pid}/status", "rb") as f:
+            with open(f"/proc/{self.pid}/status", "rb") as f:
                 for line in f:
                     if line.startswith(b"VmPeak:"):
                         kib = int(line.split()[1])
@@ -880,7 +891,7 @@ class Sandbox:
         """Kill the child, fail its runs, and respawn it with the good modules."""
         if not already_dead and self.proc is not None and self.proc.poll() is not None:
             # it died by itself before we noticed (e.g. SIGXCPU): report that instead
-            reason, message = self._classify(self.proc.returncode)
+            reason, message = self._classify(oswall.exit_code(self.proc.returncode, self.os_sandbox))
             culprit = None
         elif reason == "wall" and self._near_memory_limit():
             # team code swallowed its MemoryErrors and spun: name the real cause

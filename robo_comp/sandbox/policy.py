@@ -17,6 +17,7 @@ The process boundary and rlimits (see the child) are the second line of defence.
 """
 from __future__ import annotations
 
+import ast as _ast
 import builtins as _py_builtins
 import heapq as _heapq
 import math as _math
@@ -33,7 +34,7 @@ from RestrictedPython.Guards import (
     guarded_unpack_sequence,
     safe_builtins,
 )
-from RestrictedPython.transformer import INSPECT_ATTRIBUTES
+from RestrictedPython.transformer import INSPECT_ATTRIBUTES, RestrictingNodeTransformer
 
 from robo_comp.sandbox.explain import explain_compile_error
 
@@ -81,13 +82,32 @@ def _parse_line(err: str) -> tuple[int | None, str]:
     return None, err
 
 
+class _Transformer(RestrictingNodeTransformer):
+    """RestrictedPython's transformer, with each class statement kept at its own line.
+
+    RestrictedPython rebuilds every ``class`` statement from a parsed template to add
+    ``metaclass=__metaclass__``, and the template's line (1) stayed on the new statement: an
+    error raised by the class statement itself (a base that is not a class) was reported at line 1.
+    """
+
+    def visit_ClassDef(self, node: _ast.ClassDef) -> Any:
+        """The class statement as RestrictedPython rewrites it, at the line of ``node``."""
+        new = super().visit_ClassDef(node)
+        if isinstance(new, _ast.ClassDef):
+            _ast.copy_location(new, node)
+            for kw in new.keywords:
+                _ast.copy_location(kw, node)
+                _ast.copy_location(kw.value, node)
+        return new
+
+
 def compile_team(source: str, filename: str) -> _types.CodeType:
     """Compile team ``source`` under the policy; raise :class:`PolicyError` on the first error.
 
     Syntax errors get rule ``syntax``; RestrictedPython refusals get rule ``policy``.
     """
     try:
-        result = compile_restricted_exec(source, filename)
+        result = compile_restricted_exec(source, filename, policy=_Transformer)
     except RecursionError:
         raise PolicyError(None, "policy", "the code is nested too deeply for Python to read (brackets or "
                                           "blocks inside each other hundreds of times); flatten it") from None

@@ -26,9 +26,37 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                   default="")
 
 
+#: Why the tests run team code without the OS sandbox (None: they run it inside).
+OS_SANDBOX_OFF: str | None = None
+
+
 def pytest_configure(config: pytest.Config) -> None:
-    """Register the ``slow`` marker used by team tests that run a real match."""
+    """Register the ``slow`` marker used by team tests that run a real match; on a machine
+    without the OS sandbox (bubblewrap: a student's laptop), run the tests' team code without it
+    (``ROBO_COMP_OS_SANDBOX=off``) and say so in the header, rather than refuse every test."""
+    global OS_SANDBOX_OFF
     config.addinivalue_line("markers", "slow: long-running tests (deselect with -m 'not slow')")
+    import os
+
+    import robo_comp
+    from robo_comp.errors import RoboCompError
+    from robo_comp.sandbox import oswall
+
+    if not oswall.enabled():
+        OS_SANDBOX_OFF = f"{oswall.ENV}=off in the environment"
+        return
+    try:
+        oswall.check(str(Path(robo_comp.__file__).resolve().parent.parent))
+    except RoboCompError as e:
+        OS_SANDBOX_OFF = e.message.split(": ", 1)[-1].split(". ", 1)[0]
+        os.environ[oswall.ENV] = "off"
+
+
+def pytest_report_header(config: pytest.Config) -> str:
+    """Whether team code in these tests runs inside the OS sandbox."""
+    if OS_SANDBOX_OFF is None:
+        return "robo_comp: team code runs inside the OS sandbox (bubblewrap)"
+    return f"robo_comp: team code runs WITHOUT the OS sandbox ({OS_SANDBOX_OFF})"
 
 
 @pytest.fixture(scope="session")

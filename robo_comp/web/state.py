@@ -15,14 +15,13 @@ from typing import Any
 
 import numpy as np
 
-from robo_comp.protocol import public_view
+from robo_comp import protocol as P
 from robo_comp.wall.model import WallModel
 
 #: Topics the core never publishes (they reach only the team and the referee).
-NEVER_PUBLIC = frozenset({"radio", "refused", "robot.log", "upload.sent", "upload.pending", "upload.done",
-                          "upload.unloaded"})
+NEVER_PUBLIC = P.PRIVATE_TOPICS
 #: The fields of a ``picture`` event the core publishes (the logged record holds more).
-PUBLIC_PICTURE = ("id", "tag", "team", "x", "y", "heading", "t")
+PUBLIC_PICTURE = P.PUBLIC_TOPICS["picture"] or ()
 #: The fields of a robot row and of a find that the public view shows (those the PUB feed carries).
 PUBLIC_ROBOT = ("tag", "team", "status", "x", "y", "heading", "moving")
 PUBLIC_FIND = ("id", "team", "tag", "x", "y", "kind", "state")
@@ -31,12 +30,9 @@ ROBOT_FIELDS = ("tag", "team", "x", "y", "heading", "status", "moving", "task")
 
 
 def public_event(topic: str, data: dict[str, Any]) -> dict[str, Any] | None:
-    """The event as the core's PUB feed carries it (None: never published), for logged records."""
-    if topic in NEVER_PUBLIC:
-        return None
-    if topic == "picture":
-        return {k: data[k] for k in PUBLIC_PICTURE if k in data}
-    return public_view(data)
+    """The event as the core's PUB feed carries it (None: never published), for logged records:
+    :func:`robo_comp.protocol.topics.public_event`, the table the core's feed uses too."""
+    return P.public_event(topic, data)
 
 
 def public_snapshot(snap: dict[str, Any]) -> dict[str, Any]:
