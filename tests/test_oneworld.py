@@ -5,11 +5,13 @@ range sensor sees the ROS 2 robot's body, and the ROS 2 robot's readings include
 robot its own lidar cannot see."""
 from __future__ import annotations
 
+import math
 import os
 import socket
 import subprocess
 import sys
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -98,8 +100,21 @@ def test_a_ros2_robot_and_a_simulated_robot_see_each_other(core, tmp_path, monke
                             f"followPath {path} to end")
             assert done["ok"], (path, done, client.monitor(tag))
 
-        follow(red, r_row["tag"], [[cx + 1, cy], [cx, cy]])  # the ROS 2 robot ends at (cx, cy) facing west
-        follow(blue, b_row["tag"], [[cx - 4, cy], [cx - 3, cy]])  # the simulated one 3 cells west, facing east
+        def place(client, tag: int, path: list[list[int]], heading: float) -> None:
+            """Follow ``path``; again while, once the camera's fixes have settled, the robot believes
+            it is not at its end facing ``heading`` (on a loaded machine the camera's frames lag, and
+            a robot that plans from where it wrongly believes it is stops short)."""
+            for _ in range(3):
+                follow(client, tag, path)
+                time.sleep(1.5)  # standing still: a few fresh frames
+                m = client.monitor(tag)
+                if math.hypot(m["x"] - path[-1][0], m["y"] - path[-1][1]) < 0.3 and \
+                        abs((m["heading"] - heading + 180) % 360 - 180) < 8:
+                    return
+            raise AssertionError(f"robot {tag} did not get to {path[-1]} facing {heading}: {client.monitor(tag)}")
+
+        place(red, r_row["tag"], [[cx + 1, cy], [cx, cy]], 180.0)  # the ROS 2 robot at (cx, cy) facing west
+        place(blue, b_row["tag"], [[cx - 4, cy], [cx - 3, cy]], 0.0)  # the simulated one 3 cells west, facing east
         # each sees the other 2.5 cells (62.5 cm) away; with nothing there both would read 4.5 cells or more
         def front(client, tag: int) -> float:
             return float((client.monitor(tag).get("sensors") or {}).get("front") or 1e9)
@@ -110,8 +125,8 @@ def test_a_ros2_robot_and_a_simulated_robot_see_each_other(core, tmp_path, monke
                     f"red at {n['x'], n['y'], n['heading']} sensing {n.get('sensors')}")
 
         try:
-            wait_for(lambda: 55 < front(blue, b_row["tag"]) < 72, 10, "the simulated robot to see the ROS 2 robot")
-            wait_for(lambda: 55 < front(red, r_row["tag"]) < 72, 10, "the ROS 2 robot to see the virtual robot")
+            wait_for(lambda: 55 < front(blue, b_row["tag"]) < 72, 20, "the simulated robot to see the ROS 2 robot")
+            wait_for(lambda: 55 < front(red, r_row["tag"]) < 72, 20, "the ROS 2 robot to see the virtual robot")
         except AssertionError as e:
             raise AssertionError(f"{e}: {where()}") from None
         own = host.robots["red-1"].driver.readings()  # its lidar alone does not see the virtual robot
