@@ -574,6 +574,7 @@ class _Worker:
             self.child.sources[file] = source.splitlines()
             code = R.compile_team(source, file)
             tree = ast.parse(source, file)
+            C.check_imports(tree)
             manifest = C.read_manifest(tree)
             C.check_signatures(tree, manifest)
         except C.ContractError as exc:
@@ -706,6 +707,7 @@ def _warm_up(child: "Child") -> None:
     C, R = child.contract, child.restricted
     code = R.compile_team(_WARM_UP, "warm.py")
     tree = _ast.parse(_WARM_UP)
+    C.check_imports(tree)
     C.check_signatures(tree, C.read_manifest(tree))
     glb = R.Policy(0, lambda text: None).make_globals("team.warm")
     exec(code, glb)
