@@ -1,7 +1,7 @@
 """Transport figures (issue 28): the core's memory under the unfinished-multipart attack, its
 longest loop turn under frames slow to decode, and report throughput, before/after in one run.
 
-    .venv/bin/python bench/bench_transport.py [--baseline REV] [--attack-mib 256] [--seconds 3] [--robots 100]
+    .venv/bin/python bench/bench_transport.py [--baseline REV] [--attack-mib 256] [--seconds 3] [--robots 100] [--reps 1]
 
 Everything runs as real processes over TCP on localhost: the core (``robo-comp core``) in its own
 process, the attacks and the load in this one. The core of git revision ``--baseline`` (default:
@@ -23,6 +23,7 @@ import argparse
 import json
 import os
 import socket
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -130,7 +131,7 @@ def stall(state: Path, frames: int = 20) -> dict[str, float]:
         attacker.send(f)
     answered = 0
     t_end = time.monotonic() + 60
-    while answered < frames and time.monotonic() < t_end and attacker.poll(1000):
+    while answered < frames and time.monotonic() < t_end and attacker.poll(10_000):
         attacker.recv()
         answered += 1
     t.join()
@@ -145,8 +146,8 @@ def child(a: argparse.Namespace) -> None:
         proc = start_core(state, "--heartbeat", "1.0", "--teams", "red,blue", "--port", "0")
         try:
             out: dict[str, float] = {}
+            out["rate"], _ = core_rate(state, a.robots, a.seconds)  # first: it counts the core's errors
             out.update(stall(state))
-            out["rate"], _ = core_rate(state, a.robots, a.seconds)
             out.update(memory_attack(state, a.attack_mib))  # last: the old core keeps what it took
         finally:
             stop_all([proc])
@@ -159,6 +160,7 @@ def main() -> int:
     ap.add_argument("--attack-mib", type=int, default=256, help="MiB the unfinished message sends")
     ap.add_argument("--seconds", type=float, default=3.0, help="seconds of report load")
     ap.add_argument("--robots", type=int, default=100, help="connections sending reports")
+    ap.add_argument("--reps", type=int, default=1, help="interleaved before/after runs (medians are printed)")
     ap.add_argument("--tree", help="child mode: measure the robo_comp of this folder and print JSON")
     a = ap.parse_args()
     if a.tree:
@@ -166,17 +168,20 @@ def main() -> int:
         return 0
     with tempfile.TemporaryDirectory() as tmp:
         old = _export(a.baseline, Path(tmp))
-        runs = {}
-        for name, tree in (("before", old), ("after", ROOT)):
-            env = dict(os.environ, PYTHONPATH=str(tree))
-            out = subprocess.run([sys.executable, __file__, "--tree", str(tree), "--attack-mib", str(a.attack_mib),
-                                  "--seconds", str(a.seconds), "--robots", str(a.robots)],
-                                 capture_output=True, text=True, env=env, cwd=str(tree), timeout=900)
-            if out.returncode != 0:
-                raise RuntimeError(f"{name} run failed: {out.stderr[-3000:]}")
-            runs[name] = json.loads(out.stdout.strip().splitlines()[-1])
-    b, n = runs["before"], runs["after"]
-    print(f"transport figures, before = {a.baseline}, after = this tree (one run each, same machine, same run):")
+        runs: dict[str, list[dict[str, float]]] = {"before": [], "after": []}
+        for k in range(a.reps):
+            order = [("before", old), ("after", ROOT)] if k % 2 == 0 else [("after", ROOT), ("before", old)]
+            for name, tree in order:
+                env = dict(os.environ, PYTHONPATH=str(tree))
+                out = subprocess.run([sys.executable, __file__, "--tree", str(tree), "--attack-mib",
+                                      str(a.attack_mib), "--seconds", str(a.seconds), "--robots", str(a.robots)],
+                                     capture_output=True, text=True, env=env, cwd=str(tree), timeout=900)
+                if out.returncode != 0:
+                    raise RuntimeError(f"{name} run failed: {out.stderr[-3000:]}")
+                runs[name].append(json.loads(out.stdout.strip().splitlines()[-1]))
+    b, n = ({key: statistics.median(r[key] for r in rows) for key in rows[0]} for rows in runs.values())
+    print(f"transport figures, before = {a.baseline}, after = this tree ({a.reps} interleaved runs each, "
+          "medians; same machine, same run):")
     for name, r in (("before", b), ("after", n)):
         print(f"  {name:6s} memory: {r['rss_base']:.0f} MiB -> {r['rss_attack']:.0f} MiB after "
               f"{r['attack_sent']:.0f} MiB of one unfinished message from a peer without a credential "
@@ -186,7 +191,8 @@ def main() -> int:
               f"{r['turn_attack_ms']:.1f} ms under 20 frames of 300,000 maps ({r['slow_answered']:.0f} answered; "
               "target < 50 ms)")
     print(f"  reports absorbed ({a.robots} connections): {b['rate']:,.0f} -> {n['rate']:,.0f} msg/s "
-          f"({n['rate'] / b['rate'] - 1:+.1%})")
+          f"({n['rate'] / b['rate'] - 1:+.1%}); every run: "
+          + "; ".join(f"{k} " + ", ".join(f"{r['rate']:,.0f}" for r in v) for k, v in runs.items()))
     return 0
 
 
