@@ -206,3 +206,27 @@ def test_scores_png_draws_each_team_in_its_own_colour(tmp_path: Path) -> None:
     assert (title_band.sum(axis=2) < 200).sum() > 50  # a title in dark ink above the plot
     axis_labels = px[:, h - 25:h]
     assert (axis_labels.sum(axis=2) < 200).sum() > 50  # "match time (s)" below it
+
+
+def test_robot_host_says_when_its_robots_register_and_when_the_core_is_back(tmp_path: Path) -> None:
+    import time
+
+    from conftest import wait_for
+    from robo_comp.launch import start_core
+
+    state = tmp_path / "state"
+    m = start_match(state, "demo_room", teams=["red", "blue"])
+    try:
+        m.robots("red", 2)
+        log = state / "robots-red.log"
+        wait_for(lambda: "registered" in m.log_tail("robots-red.log"), 30, "the host to say its robots registered")
+        assert re.search(r"robots: team red: 2 robot\(s\) registered with the core at \S+; tags \d+, \d+",
+                         log.read_text()), log.read_text()
+        m.proc.terminate()
+        m.proc.wait(10)
+        time.sleep(0.5)
+        m.proc = start_core(state, "--scenario", str(m.scenario), "--teams", "red,blue", "--practice")
+        wait_for(lambda: "again" in m.log_tail("robots-red.log"), 60, "the host to say the core is back")
+        assert re.search(r"registered again \(reconnect \d+: the core is back\)", log.read_text()), log.read_text()
+    finally:
+        m.close()
