@@ -5,6 +5,7 @@ import argparse
 import logging
 import sys
 from pathlib import Path
+from typing import Any
 
 from robo_comp import __version__
 from robo_comp.errors import FieldError, RoboCompError
@@ -63,6 +64,50 @@ def _core(args: argparse.Namespace) -> int:
 
 
 def _serve(args: argparse.Namespace, state: Path) -> int:
+    """Start (recover) the match's core, waiting for room on a full disk, and serve until stopped."""
+    from robo_comp.core import room
+    from robo_comp.errors import StorageError
+
+    while True:
+        try:
+            core, recovering = _start_core(args, state)
+            break
+        except OSError as e:
+            if not room.no_room(e):
+                raise
+            said = room.full_disk(state, e)
+            if args.on_full_disk == "exit":
+                raise StorageError(f"{said}, then start the core again.") from None
+            print(f"core: {said}; the core starts by itself once there is room (it checks every second; "
+                  "Ctrl-C gives up).", file=sys.stderr, flush=True)
+            waited = room.wait_for_room(state)
+            print(f"core: there is room again after {waited:.0f} s; starting", file=sys.stderr, flush=True)
+    if recovering:
+        print(f"core: recovered the match of {state} (settings from {state / 'match.json'})", flush=True)
+    print(f"core: serving {core.scenario.name!r} for teams {', '.join(core.tokens.teams)} on "
+          f"tcp://{args.host}:{core.port} (events on port {core.pub_port}); state in {args.state}"
+          f"{'; CurveZMQ on (keys in ' + str(Path(args.state) / 'keys') + ')' if core.curve else ''}",
+          flush=True)
+    advert = None
+    if args.advertise:  # off unless the organiser asks: the core is found on the LAN by this name
+        from robo_comp.discovery import advertise
+        from robo_comp.protocol import PROTOCOL_VERSION
+
+        advert = advertise(args.advertise, args.host, core.port, core.pub_port, curve=core.curve,
+                           protocol=PROTOCOL_VERSION)
+        print(f"core: advertised on the LAN as mdns:{args.advertise} (clients: --core mdns:{args.advertise})",
+              flush=True)
+    try:
+        core.run()
+    finally:
+        if advert is not None:
+            advert.close()
+    return 0
+
+
+def _start_core(args: argparse.Namespace, state: Path) -> tuple[Any, bool]:
+    """Recover or create the match, bind and record it: ``(core, recovering)``. An ``OSError``
+    (a full disk) leaves nothing open behind it, so that the start can be tried again."""
     from robo_comp.core import matchfile
     from robo_comp.core.server import Core
     from robo_comp.world.scenario import default_scenario, load_scenario
@@ -89,33 +134,18 @@ def _serve(args: argparse.Namespace, state: Path) -> int:
                 heartbeat=settings.get("heartbeat", 1.0), fsync=args.fsync, plugins=pm,
                 practice=practice, approve_uploads=bool(settings.get("approve_uploads")),
                 curve=bool(settings.get("curve")), pose_hz=settings.get("pose_hz", 10.0))
-    core.bind()
-    matchfile.write(state, {"teams": core.tokens.teams, "scenario": scenario_file,
-                            "scenario_sha256": settings.get("scenario_sha256"), "practice": practice,
-                            "approve_uploads": bool(settings.get("approve_uploads")), "rules": settings.get("rules"),
-                            "curve": bool(settings.get("curve")), "pose_hz": settings.get("pose_hz", 10.0),
-                            "heartbeat": core.heartbeat, "port": core.port})
-    if recovering:
-        print(f"core: recovered the match of {state} (settings from {state / matchfile.MATCH_FILE})", flush=True)
-    print(f"core: serving {scenario.name!r} for teams {', '.join(core.tokens.teams)} on "
-          f"tcp://{args.host}:{core.port} (events on port {core.pub_port}); state in {args.state}"
-          f"{'; CurveZMQ on (keys in ' + str(Path(args.state) / 'keys') + ')' if core.curve else ''}",
-          flush=True)
-    advert = None
-    if args.advertise:  # off unless the organiser asks: the core is found on the LAN by this name
-        from robo_comp.discovery import advertise
-        from robo_comp.protocol import PROTOCOL_VERSION
-
-        advert = advertise(args.advertise, args.host, core.port, core.pub_port, curve=core.curve,
-                           protocol=PROTOCOL_VERSION)
-        print(f"core: advertised on the LAN as mdns:{args.advertise} (clients: --core mdns:{args.advertise})",
-              flush=True)
     try:
-        core.run()
-    finally:
-        if advert is not None:
-            advert.close()
-    return 0
+        core.bind()
+        matchfile.write(state, {"teams": core.tokens.teams, "scenario": scenario_file,
+                                "scenario_sha256": settings.get("scenario_sha256"), "practice": practice,
+                                "approve_uploads": bool(settings.get("approve_uploads")),
+                                "rules": settings.get("rules"), "curve": bool(settings.get("curve")),
+                                "pose_hz": settings.get("pose_hz", 10.0), "heartbeat": core.heartbeat,
+                                "port": core.port})
+    except OSError:
+        core.close()
+        raise
+    return core, recovering
 
 
 def _robots(args: argparse.Namespace) -> int:
@@ -239,6 +269,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "mDNS on the interface of --host (off by default; docs/organiser.md)")
     c.add_argument("--override", action="store_true",
                    help="on a restart, apply options that contradict the recovered match (and record them)")
+    c.add_argument("--on-full-disk", choices=("wait", "exit"), default="wait",
+                   help="when the state folder's disk is too full to start: say so and wait until there is "
+                        "room, then start (default), or say so and exit")
     c.set_defaults(func=_core)
 
     r = sub.add_parser("robots", help="host simulated robots of one team",

@@ -49,10 +49,17 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                          description="A sandbox whose code hit its limits too often rests (60 s, doubling) "
                                      "and restarts by itself; this restarts it at once.")
     sr.add_argument("tags", help="robot tag, or several separated by commas")
-    m = cmds.add_parser("match", help="referee: start, pause, resume, finish or extend the match")
-    m.add_argument("action", choices=("start", "pause", "resume", "finish", "extend"))
+    m = cmds.add_parser("match", help="referee: start, pause, resume, finish or extend the match; "
+                                      "or set the outage rule",
+                        description="'outage --rule pause|count' chooses what a core outage (a crash, a restart) "
+                                    "does to the running match clock: pause (the default: it stands still while "
+                                    "no core runs) or count (the outage is match time).")
+    m.add_argument("action", choices=("start", "pause", "resume", "finish", "extend", "outage"))
     m.add_argument("--seconds", type=float, help="for extend: seconds to add")
+    m.add_argument("--rule", choices=("pause", "count"), help="for outage: the rule")
     cmds.add_parser("score", help="the scoreboard, phase and clock")
+    cmds.add_parser("recovery", help="referee: what the core recovered from its event log when it started "
+                                     "(events, damage and the events it cost, how the clock was set)")
     e = cmds.add_parser("events", help="print events as they happen")
     e.add_argument("--count", type=int, default=0, help="stop after N events (0 = never)")
     e.add_argument("--timeout", type=float, default=0.0, help="stop after S seconds (0 = never)")
@@ -249,13 +256,25 @@ def _run(c: Client, args: argparse.Namespace) -> int:
                 print(f"{mod['name']} {mod['version']} ({mod['kind']}, {mod['file']}, sha256 {mod['sha256'][:12]}): "
                       f"{', '.join(mod['tasks'])}")
     elif args.cmd == "match":
-        out = c.match(args.action, args.seconds)
+        out = c.match(args.action, args.seconds, rule=args.rule)
         if not args.json:
             print(_clock(out))
     elif args.cmd == "score":
         out = c.score()
         if not args.json:
             _print_score(out)
+    elif args.cmd == "recovery":
+        out = c.request("stats").get("recovered") or {}
+        if not args.json:
+            if not out:
+                print("the core started on an empty state folder: nothing was recovered")
+            else:
+                print(f"recovered {out['events']} events in {out['seconds']:.2f} s"
+                      + (f"; {out['legacy_records']} of them of the previous log format (no checksums)"
+                         if out.get("legacy_records") else ""))
+                print(out.get("damage") or "the event log is undamaged")
+                if out.get("clock"):
+                    print(out["clock"])
     elif args.cmd == "events":
         return _events(c, args)
     else:  # pragma: no cover - argparse prevents it
@@ -322,7 +341,9 @@ def _off_map(c: Client, spec: dict[str, Any] | None, args: list[Any]) -> str | N
 
 def _clock(s: dict[str, Any]) -> str:
     rem = s.get("remaining")
-    return f"match {s.get('phase', '?')}; " + (f"{rem:.0f} s left" if rem is not None else "no time limit")
+    return (f"match {s.get('phase', '?')}; " + (f"{rem:.0f} s left" if rem is not None else "no time limit")
+            + (f"; a core outage: the clock {'stands still' if s['outage'] == 'pause' else 'counts it'}"
+               if s.get("outage") else ""))
 
 
 def _print_score(s: dict[str, Any]) -> None:

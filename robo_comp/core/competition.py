@@ -24,7 +24,7 @@ from robo_comp.errors import FieldError, ForbiddenError, NotYoursError, PhaseErr
 from robo_comp.scoring.board import Scoreboard, ScoreLine
 from robo_comp.scoring.config import ScoringConfig
 from robo_comp.scoring.judge import FindJudge
-from robo_comp.scoring.match import MatchClock
+from robo_comp.scoring.match import MatchClock, monotonic_mark
 from robo_comp.teams.policy import check_owner, check_referee
 from robo_comp.world.scenario import Scenario
 
@@ -134,10 +134,21 @@ class Competition:
             self._write_results_now()
         return st
 
+    def log_clock(self) -> None:
+        """Record the running clock in the event log (``match.clock``; log only, not pushed): what
+        recovery restores, with the machine's boot-time clock for the ``count`` outage rule."""
+        if self.clock.phase == "running":
+            self.events().append("match.clock", None, dict(self.state(), **monotonic_mark()))
+
     def _on_match(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
         who = self.access.session(ident).who
         check_referee(who, "change the match phase")
         action = msg.body["action"]
+        if action == "outage":  # not a phase change: the rule for the clock across a core outage
+            self.clock.set_outage(msg.body.get("rule"))
+            st = self.state()
+            self.out.emit("match.phase", EVERYONE, dict(st, action=action, by=who.name, was=st["phase"]))
+            return st
         seconds = msg.body.get("seconds")
         return self._change(action, who.name, float(seconds) if seconds is not None else None)
 

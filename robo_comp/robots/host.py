@@ -110,6 +110,11 @@ class SimRobot:
 PLANNER_NICE = 10
 
 
+#: Answers to a task.done that end it: the core judged the report itself. Other refusals (an
+#: unknown session after a core restart, a full disk, ...) keep it for the next registration.
+DONE_REFUSED = frozenset({"E_FIELD", "E_TOO_LARGE", "E_MALFORMED", "E_NOT_YOURS"})
+
+
 def _lower_priority() -> None:
     """Run in the planner thread: lower this thread's priority (where the OS has per-thread nice)."""
     try:
@@ -222,6 +227,8 @@ class RobotHost:
             self.truth_sock.bind(truth_pub)
         self.camera_fixes = 0
         self._code_fd: int | None = None
+        #: robot id -> its task.done not yet answered by the core (sent again on re-registering).
+        self.unacked_done: dict[str, dict[str, Any]] = {}
 
     # ------------------------------------------------------------------ sending
     def _send(self, type_: str, body: dict[str, Any], on_reply: Reply | None = None) -> None:
@@ -278,7 +285,7 @@ class RobotHost:
             b = r.driver
             self._send("register", {"token": self.token, "robot_id": r.robot_id, "tasks": self.adverts(r.tag),
                                     "x": b.x, "y": b.y, "heading": b.heading,
-                                    "task_id": r.task.id if r.task else None},
+                                    "task_id": r.task.id if r.task else None, **self._resend(r)},
                        lambda ok, body, r=r: self._on_registered(r, ok, body))
 
     def adverts(self, tag: int) -> list[dict[str, Any]]:
@@ -381,10 +388,20 @@ class RobotHost:
             sensors_warm_up()
             self.world.sense_many([next(iter(self.robots))])
 
+    def _resend(self, r: SimRobot) -> dict[str, Any]:
+        """What a registration carries besides the robot: whether this host registers it for the
+        first time, and the task.done the core has not acknowledged (the core takes it once)."""
+        extra: dict[str, Any] = {"fresh": not r.tag}
+        done = self.unacked_done.get(r.robot_id)
+        if done is not None:
+            extra["done"] = {k: done[k] for k in ("task_id", "ok", "status", "result")}
+        return extra
+
     def _on_registered(self, r: SimRobot, ok: bool, body: dict[str, Any]) -> None:
         if not ok:
             log.error("robot %s was refused: %s", r.robot_id, body.get("message"))
         else:
+            self.unacked_done.pop(r.robot_id, None)  # the core has it (or had it already)
             if r.tag and r.tag != body["tag"]:
                 self.by_tag.pop(r.tag, None)
             r.tag = body["tag"]
@@ -558,10 +575,16 @@ class RobotHost:
         t.gen.close()  # team code still running is cancelled here
         r.driver.halt()
         self._report_one(r, time.monotonic())  # the owner sees the final pose with the result
-        self._send("task.done", {"tag": r.tag, "task_id": t.id, "ok": ok, "status": status,
-                                 "result": result}, lambda ok_, body, r=r: self._on_done_reply(r, ok_, body))
+        done = {"tag": r.tag, "task_id": t.id, "ok": ok, "status": status, "result": result}
+        # kept until the core answers: a core that goes down before it does gets it again with
+        # the robot's registration after the reconnect
+        self.unacked_done[r.robot_id] = done
+        self._send("task.done", done, lambda ok_, body, r=r, tid=t.id: self._on_done_reply(r, tid, ok_, body))
 
-    def _on_done_reply(self, r: SimRobot, ok: bool, body: dict[str, Any]) -> None:
+    def _on_done_reply(self, r: SimRobot, task_id: int, ok: bool, body: dict[str, Any]) -> None:
+        held = self.unacked_done.get(r.robot_id)
+        if held is not None and held["task_id"] == task_id and (ok or body.get("code") in DONE_REFUSED):
+            del self.unacked_done[r.robot_id]  # taken, or refused for what it says (not for who sent it)
         nxt = body.get("next") if ok else None
         if nxt is not None and r.task is None:
             self._start(r, nxt)
