@@ -263,7 +263,7 @@ class RobotHost:
             self.poller.unregister(self.sock)
             self.sock.close(0)
         self.session = None  # a new connection opens a new session
-        self.sock = open_dealer(self.ctx, self.url, self.curve, SNDHWM=100_000, RCVHWM=100_000)
+        self.sock = open_dealer(self.ctx, self.url, self.curve, self.token, SNDHWM=100_000, RCVHWM=100_000)
         self.poller.register(self.sock, zmq.POLLIN)
         self.replies.clear()
         self._set_state("hello")
