@@ -20,6 +20,7 @@ for tests, tools and simple hosts.
 from __future__ import annotations
 
 import collections
+import contextlib
 import math
 import os
 import select
@@ -867,6 +868,14 @@ class Sandbox:
         return False
 
     def _kill(self) -> None:
+        if self.proc is not None and self.proc.poll() is None:
+            if self.os_sandbox:  # the child first: bwrap's init reaps it and then bwrap ends
+                inner = self.pid
+                if inner is not None and inner != self.proc.pid:
+                    with contextlib.suppress(ProcessLookupError, PermissionError):
+                        os.kill(inner, signal.SIGKILL)
+                    with contextlib.suppress(subprocess.TimeoutExpired):
+                        self.proc.wait(timeout=2.0)
         if self.proc is not None and self.proc.poll() is None:
             try:
                 os.killpg(self.proc.pid, signal.SIGKILL)
