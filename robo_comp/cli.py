@@ -5,6 +5,7 @@ import argparse
 import logging
 import sys
 from pathlib import Path
+from typing import Any
 
 from robo_comp import __version__
 from robo_comp.errors import FieldError, RoboCompError
@@ -21,12 +22,96 @@ def _positive(text: str) -> float:
     return value
 
 
+def _running_core(state: Path) -> int | None:
+    """The pid of a live core serving ``state`` (from its core.json), else None."""
+    import json
+    import os
+
+    try:
+        pid = int(json.loads((state / "core.json").read_text())["pid"])
+        cmd = Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    if pid == os.getpid() or "robo" not in cmd or " core" not in cmd:
+        return None  # core.json of a core that is gone (its pid now another program's, or none)
+    return pid
+
+
 def _core(args: argparse.Namespace) -> int:
+    import shutil
+
+    import zmq
+
+    state = Path(args.state)
+    pid = _running_core(state)
+    if pid is not None:
+        raise FieldError(f"a core (pid {pid}) is already serving {state}; stop it first, or give another --state "
+                         "folder for a second match")
+    if args.scenario and not Path(args.scenario).is_file():  # a bundled scenario's name, as the league takes
+        from robo_comp.testing.match import resolve_scenario
+
+        args.scenario = str(resolve_scenario(args.scenario))
+    made = not state.exists()
+    try:
+        return _serve(args, state)
+    except (zmq.ZMQError, OSError) as e:
+        if made:  # leave no half-made folder behind
+            shutil.rmtree(state, ignore_errors=True)
+        if isinstance(e, zmq.ZMQError) and e.errno == zmq.EADDRINUSE:
+            raise FieldError(f"cannot listen: {e}; another core or program has that port: give --port N, or "
+                             "--port 0 for any free port") from None
+        raise FieldError(f"cannot start the core with state in {state}: {e}") from None
+
+
+def _serve(args: argparse.Namespace, state: Path) -> int:
+    """Start (recover) the match's core, waiting for room on a full disk, and serve until stopped."""
+    from robo_comp.core import room
+    from robo_comp.errors import StorageError
+
+    while True:
+        try:
+            core, recovering = _start_core(args, state)
+            break
+        except OSError as e:
+            if not room.no_room(e):
+                raise
+            said = room.full_disk(state, e)
+            if args.on_full_disk == "exit":
+                raise StorageError(f"{said}, then start the core again.") from None
+            print(f"core: {said}; the core starts by itself once there is room (it checks every second; "
+                  "Ctrl-C gives up).", file=sys.stderr, flush=True)
+            waited = room.wait_for_room(state)
+            print(f"core: there is room again after {waited:.0f} s; starting", file=sys.stderr, flush=True)
+    if recovering:
+        print(f"core: recovered the match of {state} (settings from {state / 'match.json'})", flush=True)
+    print(f"core: serving {core.scenario.name!r} for teams {', '.join(core.tokens.teams)} on "
+          f"tcp://{args.host}:{core.port} (events on port {core.pub_port}); state in {args.state}"
+          f"{'; CurveZMQ on (keys in ' + str(Path(args.state) / 'keys') + ')' if core.curve else ''}",
+          flush=True)
+    advert = None
+    if args.advertise:  # off unless the organiser asks: the core is found on the LAN by this name
+        from robo_comp.discovery import advertise
+        from robo_comp.protocol import PROTOCOL_VERSION
+
+        advert = advertise(args.advertise, args.host, core.port, core.pub_port, curve=core.curve,
+                           protocol=PROTOCOL_VERSION)
+        print(f"core: advertised on the LAN as mdns:{args.advertise} (clients: --core mdns:{args.advertise})",
+              flush=True)
+    try:
+        core.run()
+    finally:
+        if advert is not None:
+            advert.close()
+    return 0
+
+
+def _start_core(args: argparse.Namespace, state: Path) -> tuple[Any, bool]:
+    """Recover or create the match, bind and record it: ``(core, recovering)``. An ``OSError``
+    (a full disk) leaves nothing open behind it, so that the start can be tried again."""
     from robo_comp.core import matchfile
     from robo_comp.core.server import Core
     from robo_comp.world.scenario import default_scenario, load_scenario
 
-    state = Path(args.state)
     given = {"teams": [t.strip() for t in args.teams.split(",") if t.strip()] if args.teams else None,
              "scenario": str(Path(args.scenario).resolve()) if args.scenario else None,
              "scenario_sha256": matchfile.scenario_hash(args.scenario),
@@ -49,33 +134,18 @@ def _core(args: argparse.Namespace) -> int:
                 heartbeat=settings.get("heartbeat", 1.0), fsync=args.fsync, plugins=pm,
                 practice=practice, approve_uploads=bool(settings.get("approve_uploads")),
                 curve=bool(settings.get("curve")), pose_hz=settings.get("pose_hz", 10.0))
-    core.bind()
-    matchfile.write(state, {"teams": core.tokens.teams, "scenario": scenario_file,
-                            "scenario_sha256": settings.get("scenario_sha256"), "practice": practice,
-                            "approve_uploads": bool(settings.get("approve_uploads")), "rules": settings.get("rules"),
-                            "curve": bool(settings.get("curve")), "pose_hz": settings.get("pose_hz", 10.0),
-                            "heartbeat": core.heartbeat, "port": core.port})
-    if recovering:
-        print(f"core: recovered the match of {state} (settings from {state / matchfile.MATCH_FILE})", flush=True)
-    print(f"core: serving {scenario.name!r} for teams {', '.join(core.tokens.teams)} on "
-          f"tcp://{args.host}:{core.port} (events on port {core.pub_port}); state in {args.state}"
-          f"{'; CurveZMQ on (keys in ' + str(Path(args.state) / 'keys') + ')' if core.curve else ''}",
-          flush=True)
-    advert = None
-    if args.advertise:  # off unless the organiser asks: the core is found on the LAN by this name
-        from robo_comp.discovery import advertise
-        from robo_comp.protocol import PROTOCOL_VERSION
-
-        advert = advertise(args.advertise, args.host, core.port, core.pub_port, curve=core.curve,
-                           protocol=PROTOCOL_VERSION)
-        print(f"core: advertised on the LAN as mdns:{args.advertise} (clients: --core mdns:{args.advertise})",
-              flush=True)
     try:
-        core.run()
-    finally:
-        if advert is not None:
-            advert.close()
-    return 0
+        core.bind()
+        matchfile.write(state, {"teams": core.tokens.teams, "scenario": scenario_file,
+                                "scenario_sha256": settings.get("scenario_sha256"), "practice": practice,
+                                "approve_uploads": bool(settings.get("approve_uploads")),
+                                "rules": settings.get("rules"), "curve": bool(settings.get("curve")),
+                                "pose_hz": settings.get("pose_hz", 10.0), "heartbeat": core.heartbeat,
+                                "port": core.port})
+    except OSError:
+        core.close()
+        raise
+    return core, recovering
 
 
 def _robots(args: argparse.Namespace) -> int:
@@ -175,7 +245,8 @@ def build_parser() -> argparse.ArgumentParser:
                                    "port and options; an option that contradicts them is refused "
                                    "(--override applies it).")
     c.add_argument("--state", required=True, help="state folder (tokens, core.json, event log)")
-    c.add_argument("--scenario", help="scenario file (TOML); default: the built-in arena")
+    c.add_argument("--scenario", help="scenario file (TOML) or a bundled scenario's name (demo_room, office, "
+                                      "big_rooms); default: the built-in arena")
     c.add_argument("--teams", help="comma-separated team names (default: the scenario's teams)")
     c.add_argument("--host", default="127.0.0.1", help="address to bind (0.0.0.0 for a LAN)")
     c.add_argument("--port", type=int, help="ROUTER port (0 = any free port; default 5555, or the recovered match's)")
@@ -198,6 +269,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "mDNS on the interface of --host (off by default; docs/organiser.md)")
     c.add_argument("--override", action="store_true",
                    help="on a restart, apply options that contradict the recovered match (and record them)")
+    c.add_argument("--on-full-disk", choices=("wait", "exit"), default="wait",
+                   help="when the state folder's disk is too full to start: say so and wait until there is "
+                        "room, then start (default), or say so and exit")
     c.set_defaults(func=_core)
 
     r = sub.add_parser("robots", help="host simulated robots of one team",
@@ -293,6 +367,11 @@ def main(argv: list[str] | None = None) -> int:
                         format="%(asctime)s %(name)s %(levelname)s %(message)s")
     try:
         return int(args.func(args) or 0)
+    except BrokenPipeError:  # `robo-comp ctl robots | head`: the reader has what it wanted
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at exit
+        return 0
     except RoboCompError as e:
         print(f"robo-comp {args.command}: {e.message}", file=sys.stderr)
         return 2

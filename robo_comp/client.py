@@ -251,11 +251,14 @@ class Client:
         after too many limit kills); ``results`` says per robot whether it was resting."""
         return self.request("sandbox.reset", tags=list(tags))
 
-    def match(self, action: str, seconds: float | None = None) -> dict[str, Any]:
-        """Referee: ``start``, ``pause``, ``resume``, ``finish`` or ``extend`` (by ``seconds``)."""
+    def match(self, action: str, seconds: float | None = None, rule: str | None = None) -> dict[str, Any]:
+        """Referee: ``start``, ``pause``, ``resume``, ``finish`` or ``extend`` (by ``seconds``);
+        ``outage`` with ``rule`` ``pause`` or ``count``: what a core outage does to the clock."""
         body: dict[str, Any] = {"action": action}
         if seconds is not None:
             body["seconds"] = seconds
+        if rule is not None:
+            body["rule"] = rule
         return self.request("match", **body)
 
     def score(self) -> dict[str, Any]:

@@ -26,10 +26,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         c = cmds.add_parser(name, help=text)
         c.add_argument("tag", type=int)
     g = cmds.add_parser("give", help="give a task now (interrupting) or --queue it",
-                        description="Example: give 101 goTo '[3, 4]'")
+                        description="Examples: give 101 goTo 3 4; give 101 goTo '[3, 4]'; "
+                                    "give 101 followPath '[[3, 4], [5, 6]]'. A cell in a wall or outside the "
+                                    "arena is refused before the task is given.")
     g.add_argument("tag", type=int)
     g.add_argument("task", help="task name as the robot advertises it (see 'tasks TAG')")
-    g.add_argument("args", nargs="?", default="[]", help="arguments as a JSON list, e.g. '[3, 4]'")
+    g.add_argument("args", nargs="*", default=[],
+                   help="the task's arguments: each a value (3 4), or all of them as one JSON list ('[3, 4]')")
     g.add_argument("--queue", action="store_true", help="queue the task instead of interrupting")
     u = cmds.add_parser("upload", help="upload an extension or code module to robots",
                         description="Example: upload 101,102 square.py. The module is checked on each robot "
@@ -46,14 +49,25 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                          description="A sandbox whose code hit its limits too often rests (60 s, doubling) "
                                      "and restarts by itself; this restarts it at once.")
     sr.add_argument("tags", help="robot tag, or several separated by commas")
-    m = cmds.add_parser("match", help="referee: start, pause, resume, finish or extend the match")
-    m.add_argument("action", choices=("start", "pause", "resume", "finish", "extend"))
+    m = cmds.add_parser("match", help="referee: start, pause, resume, finish or extend the match; "
+                                      "or set the outage rule",
+                        description="'outage --rule pause|count' chooses what a core outage (a crash, a restart) "
+                                    "does to the running match clock: pause (the default: it stands still while "
+                                    "no core runs) or count (the outage is match time).")
+    m.add_argument("action", choices=("start", "pause", "resume", "finish", "extend", "outage"))
     m.add_argument("--seconds", type=float, help="for extend: seconds to add")
+    m.add_argument("--rule", choices=("pause", "count"), help="for outage: the rule")
     cmds.add_parser("score", help="the scoreboard, phase and clock")
+    cmds.add_parser("recovery", help="referee: what the core recovered from its event log when it started "
+                                     "(events, damage and the events it cost, how the clock was set)")
     e = cmds.add_parser("events", help="print events as they happen")
     e.add_argument("--count", type=int, default=0, help="stop after N events (0 = never)")
     e.add_argument("--timeout", type=float, default=0.0, help="stop after S seconds (0 = never)")
     e.add_argument("--public", action="store_true", help="read the public wall feed instead of your own events")
+    e.add_argument("--topic", action="append", default=[], metavar="PREFIX",
+                   help="only topics starting with PREFIX (repeatable), e.g. --topic find --topic score")
+    e.add_argument("--skip", action="append", default=[], metavar="PREFIX",
+                   help="leave out topics starting with PREFIX (repeatable), e.g. --skip robot.positions")
     p.set_defaults(func=run)
 
 
@@ -79,6 +93,58 @@ def _print_robots(rows: list[dict[str, Any]]) -> None:
         label = f"{task['name']}#{task['task_id']}" if task else "-"
         print(f"{r['tag']:>5} {r['team']:<8} {r['status']:<10} {r['x']:>7.2f} {r['y']:>7.2f} "
               f"{r['heading']:>5.0f}  {label:<22} {r['queue']}")
+
+
+def _when(v: Any) -> str:
+    """An epoch time as the clock time and how long ago."""
+    if not isinstance(v, (int, float)):
+        return "-"
+    ago = time.time() - float(v)
+    return time.strftime("%H:%M:%S", time.localtime(float(v))) + (f" ({ago:.1f} s ago)" if ago >= 0 else "")
+
+
+def _task_line(d: dict[str, Any]) -> str:
+    args = d.get("args")
+    text = f"{d.get('name')}#{d.get('task_id')} {json.dumps(args) if args is not None else ''}".rstrip()
+    if "ok" in d and d.get("state") == "done":
+        text += f"  {'ok' if d['ok'] else 'FAILED'}" + (f": {d['status']}" if d.get("status") else "")
+    elif d.get("state"):
+        text += f"  {d['state']}"
+    return text
+
+
+def _print_monitor(m: dict[str, Any]) -> None:
+    """Monitor data for people: no None, no epoch seconds, no Python dict lists."""
+    def row(k: str, v: Any) -> None:
+        print(f"{k:>14}: {v}")
+
+    for k, v in m.items():
+        if k in ("advertised", "queued", "done", "sensors", "task") or k.endswith("_at") or k == "last_report":
+            continue
+        row(k, "-" if v is None else (f"{v:.2f}" if isinstance(v, float) else v))
+    task = m.get("task")
+    row("task", _task_line(task) if isinstance(task, dict) else (task or "-"))
+    sensors = m.get("sensors")
+    if isinstance(sensors, dict):
+        parts = []
+        for k, v in sensors.items():
+            if k == "time":
+                continue
+            parts.append(f"{k} {'-' if v is None else (f'{v:g}' if isinstance(v, (int, float)) and not isinstance(v, bool) else v)}")
+        row("sensors", ", ".join(parts) + ("  (ranges in cm; - = nothing in range)" if parts else ""))
+    for k, v in m.items():
+        if k.endswith("_at") or k == "last_report":
+            row(k.replace("_", " "), _when(v))
+    adv = m.get("advertised")
+    if isinstance(adv, list):
+        row("can run", ", ".join(f"{s.get('name')}({', '.join(a.get('name', '?') for a in s.get('args') or [])})"
+                                 for s in adv if isinstance(s, dict)) or "-")
+    for k in ("queued", "done"):
+        items = m.get(k)
+        if isinstance(items, list):
+            row(k, "-" if not items else _task_line(items[0]))
+            for d in items[1:]:
+                print(" " * 16 + _task_line(d))
 
 
 def _print_tasks(t: dict[str, Any]) -> None:
@@ -121,20 +187,24 @@ def _run(c: Client, args: argparse.Namespace) -> int:
     elif args.cmd == "monitor":
         out = c.monitor(args.tag)
         if not args.json:
-            for k, v in out.items():
-                print(f"{k:>14}: {v}")
+            _print_monitor(out)
     elif args.cmd == "tasks":
         out = c.tasks(args.tag)
         if not args.json:
             _print_tasks(out)
     elif args.cmd == "give":
-        try:
-            task_args = json.loads(args.args)
-        except ValueError:
-            print(f"error: arguments must be a JSON list such as '[3, 4]', got {args.args!r}", file=sys.stderr)
+        task_args = _task_args(args.args)
+        if task_args is None:
+            print(f"error: arguments must be values (goTo 3 4) or one JSON list ('[3, 4]'), got {args.args!r}",
+                  file=sys.stderr)
             return 2
-        if not isinstance(task_args, list):
-            task_args = [task_args]
+        spec = _spec(c, args.tag, args.task)
+        if spec is not None and len(spec.get("args") or []) == 1 and len(task_args) != 1 and args.args:
+            task_args = [task_args]  # followPath '[[3, 4], [5, 6]]': the one argument, not the list of them
+        bad = _off_map(c, spec, task_args)
+        if bad:
+            print(f"error: {bad}; the task was not given", file=sys.stderr)
+            return 1
         out = c.give(args.tag, args.task, task_args, queue=args.queue)
         if not args.json:
             extra = f" (interrupts task {out['interrupts']})" if out.get("interrupts") else ""
@@ -186,13 +256,25 @@ def _run(c: Client, args: argparse.Namespace) -> int:
                 print(f"{mod['name']} {mod['version']} ({mod['kind']}, {mod['file']}, sha256 {mod['sha256'][:12]}): "
                       f"{', '.join(mod['tasks'])}")
     elif args.cmd == "match":
-        out = c.match(args.action, args.seconds)
+        out = c.match(args.action, args.seconds, rule=args.rule)
         if not args.json:
             print(_clock(out))
     elif args.cmd == "score":
         out = c.score()
         if not args.json:
             _print_score(out)
+    elif args.cmd == "recovery":
+        out = c.request("stats").get("recovered") or {}
+        if not args.json:
+            if not out:
+                print("the core started on an empty state folder: nothing was recovered")
+            else:
+                print(f"recovered {out['events']} events in {out['seconds']:.2f} s"
+                      + (f"; {out['legacy_records']} of them of the previous log format (no checksums)"
+                         if out.get("legacy_records") else ""))
+                print(out.get("damage") or "the event log is undamaged")
+                if out.get("clock"):
+                    print(out["clock"])
     elif args.cmd == "events":
         return _events(c, args)
     else:  # pragma: no cover - argparse prevents it
@@ -202,9 +284,66 @@ def _run(c: Client, args: argparse.Namespace) -> int:
     return 0
 
 
+def _task_args(words: list[str]) -> list[Any] | None:
+    """``['3', '4']`` → ``[3, 4]``; ``['[3, 4]']`` → ``[3, 4]``; a word that is no JSON value is
+    taken as text (a name); ``None`` for a malformed JSON list."""
+    if len(words) == 1 and words[0].lstrip().startswith("["):
+        try:
+            v = json.loads(words[0])
+        except ValueError:
+            return None
+        return v if isinstance(v, list) else [v]
+    out: list[Any] = []
+    for w in words:
+        try:
+            out.append(json.loads(w))
+        except ValueError:
+            out.append(w)
+    return out
+
+
+def _spec(c: Client, tag: int, task: str) -> dict[str, Any] | None:
+    """The task as the robot advertises it (None: unknown here; the give itself says why)."""
+    try:
+        return next((s for s in c.tasks(tag)["advertised"] if s.get("name") == task), None)
+    except (RoboCompError, KeyError, TypeError):
+        return None
+
+
+def _off_map(c: Client, spec: dict[str, Any] | None, args: list[Any]) -> str | None:
+    """Why a cell among the task's arguments cannot be a goal (a wall, outside the arena), going by
+    the arguments the robot advertises for the task (``x``/``y`` and ``points``), else None."""
+    if spec is None:
+        return None
+    names = [a.get("name") for a in spec.get("args") or []]
+    cells: list[Any] = []
+    if "x" in names and "y" in names and len(args) > max(names.index("x"), names.index("y")):
+        cells.append((args[names.index("x")], args[names.index("y")]))
+    for i, a in enumerate(spec.get("args") or []):
+        if a.get("type") == "points" and i < len(args) and isinstance(args[i], list):
+            cells += [tuple(p) for p in args[i] if isinstance(p, (list, tuple)) and len(p) == 2]
+    if not cells:
+        return None
+    from robo_comp.protocol import unpack_walls
+
+    walls = unpack_walls(c.arena())
+    h, w = walls.shape
+    for x, y in cells:
+        if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in (x, y)):
+            continue  # the robot's own argument check names it
+        cx, cy = int(round(x)), int(round(y))
+        if not (0 <= cx < w and 0 <= cy < h):
+            return f"({x}, {y}) is outside the {w}×{h} arena"
+        if walls[cy, cx]:
+            return f"({x}, {y}) is a wall; pick a free cell (robo-comp plan shows the map)"
+    return None
+
+
 def _clock(s: dict[str, Any]) -> str:
     rem = s.get("remaining")
-    return f"match {s.get('phase', '?')}; " + (f"{rem:.0f} s left" if rem is not None else "no time limit")
+    return (f"match {s.get('phase', '?')}; " + (f"{rem:.0f} s left" if rem is not None else "no time limit")
+            + (f"; a core outage: the clock {'stands still' if s['outage'] == 'pause' else 'counts it'}"
+               if s.get("outage") else ""))
 
 
 def _print_score(s: dict[str, Any]) -> None:
@@ -225,6 +364,7 @@ def _jsonable(o: Any) -> Any:
 def _events(c: Client, args: argparse.Namespace) -> int:
     n = 0
     t_end = time.monotonic() + args.timeout if args.timeout else None
+    pictures: set[Any] = set()  # a picture comes twice (with what it shows, then its public copy)
     sub = None
     if args.public:
         sub = c.subscribe()
@@ -241,6 +381,16 @@ def _events(c: Client, args: argparse.Namespace) -> int:
             ev = c.next_event(left)
             if ev is None:
                 continue
+        topic = str(ev["topic"])
+        if args.topic and not any(topic.startswith(p) for p in args.topic):
+            continue
+        if any(topic.startswith(p) for p in args.skip):
+            continue
+        if topic == "picture":
+            pid = (ev["data"] or {}).get("id")
+            if pid in pictures:
+                continue
+            pictures.add(pid)
         n += 1
         if args.json:
             print(json.dumps(ev, default=_jsonable), flush=True)

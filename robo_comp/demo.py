@@ -1,8 +1,14 @@
 """``robo-comp demo``: a core and two teams of simulated robots on localhost, in one command.
 
-Everything runs as real processes talking over real sockets: the core, one robot host per
-team. Two team clients give tasks (now and queued), one robot is stopped and given a new
-task, a cross-team command is refused, and a live summary prints every second.
+Everything runs as real processes talking over real sockets: the core (the bundled ``demo_room``
+scenario, with match phases), one robot host per team. The referee starts the match; two team
+clients give tasks (now and queued); one robot of each team examines the area of a victim and
+the team reports it with the pictures as evidence (the demo knows where the victims are: a
+team's code has to search for them); one robot is stopped and given a new task; a cross-team
+command is refused; a live summary prints every second; the referee finishes the match.
+
+The state folder (event log, results, pictures) is kept and its path printed, with the command
+that replays the match in a browser (``robo-comp web --replay STATE/events.log``).
 """
 from __future__ import annotations
 
@@ -11,6 +17,7 @@ import random
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -18,6 +25,24 @@ from robo_comp.client import Client
 from robo_comp.protocol import unpack_walls
 from robo_comp.errors import RoboCompError
 from robo_comp.launch import start_core, start_robots, stop_all
+from robo_comp.world.scenario import bundled_scenario_path, load_scenario
+
+#: The demo's scenario (bundled): a 24×16 room with three hidden victims.
+SCENARIO = "demo_room"
+#: Seconds the robots have to register (a loaded machine starts Python processes slowly).
+REGISTER_WITHIN = 60.0
+
+
+@dataclass
+class Search:
+    """A victim the demo sends a robot to: examine the area next to it, then report it."""
+
+    team: str
+    tag: int
+    victim: dict[str, Any]
+    at: tuple[int, int]
+    task_id: int = -1
+    reported: bool = False
 
 
 def _free_cells(walls: Any) -> list[tuple[int, int]]:
@@ -50,20 +75,20 @@ def _start_camera(state: Path, teams: list[str], robots: int, out: Any) -> list[
 
     from robo_comp.world.overhead.binding import Bindings
     from robo_comp.world.overhead.synth import floor_markers
-    from robo_comp.world.scenario import default_scenario
 
     def port() -> int:
         with socket.socket() as s:
             s.bind(("127.0.0.1", 0))
             return int(s.getsockname()[1])
 
-    h, w = default_scenario().walls.shape
+    h, w = load_scenario(bundled_scenario_path(SCENARIO)).walls.shape
     bind = Bindings({10 + i * robots + k: f"{t}-{k + 1}" for i, t in enumerate(teams) for k in range(robots)},
                     floor_markers(w, h))
     (state / "markers.toml").write_text(bind.to_toml())
     fixes = f"tcp://127.0.0.1:{port()}"
     truths = [f"tcp://127.0.0.1:{port()}" for _ in teams]
-    procs = [start_robots(state, t, robots, "--positioning", f"camera:{fixes}", "--truth-pub", u)
+    procs = [start_robots(state, t, robots, "--positioning", f"camera:{fixes}", "--truth-pub", u,
+                          "--scenario", str(bundled_scenario_path(SCENARIO)))
              for t, u in zip(teams, truths)]
     log = open(state / "camera.log", "wb")
     procs.append(subprocess.Popen([sys.executable, "-m", "robo_comp.cli", "camera", "run", "--markers",
@@ -80,49 +105,86 @@ def run_demo(duration: float = 20.0, robots: int = 3, out: Any = None, web: int 
     positions come only from synthetic overhead-camera frames (docs/positioning.md)."""
     out = out or sys.stdout
     rng = random.Random(7)
-    with tempfile.TemporaryDirectory(prefix="robo-comp-demo-") as tmp:
-        state = Path(tmp)
-        core = start_core(state)
-        procs = [core]
-        try:
-            teams = json.loads((state / "core.json").read_text())["teams"][:2]
-            if web is not None:
-                procs.append(_start_web(state, web, out))
-            if camera:
-                procs += _start_camera(state, teams, robots, out)
-            else:
-                procs += [start_robots(state, t, robots) for t in teams]
-            clients = {t: Client(str(state), (state / "teams" / f"{t}.token").read_text().strip(),
-                                 client="demo") for t in teams}
-            for c in clients.values():
-                c.watch(True)
-            t_end = time.monotonic() + 15
-            while any(len(c.robots()) < robots for c in clients.values()):
-                if time.monotonic() > t_end:
-                    raise RuntimeError("robots did not register within 15 s")
-                time.sleep(0.1)
-            free = _free_cells(unpack_walls(next(iter(clients.values())).arena()))
-            print(f"demo: core and {len(teams)} teams of {robots} robots up; "
-                  f"arena {len(free)} free cells", file=out)
-            _give_opening_tasks(clients, free, rng, out)
-            counts = _watch(clients, free, rng, duration, out)
-            _final_table(clients, counts, out)
-            for c in clients.values():
-                c.close()
-        except (RoboCompError, RuntimeError) as e:
-            print(f"demo failed: {e}", file=out)
-            return 1
-        finally:
-            stop_all(procs)
+    scenario = bundled_scenario_path(SCENARIO)
+    state = Path(tempfile.mkdtemp(prefix="robo-comp-demo-"))  # kept: the match can be replayed
+    procs: list[Any] = []
+    try:
+        procs.append(start_core(state, "--scenario", str(scenario)))
+        teams = json.loads((state / "core.json").read_text())["teams"][:2]
+        if web is not None:
+            procs.append(_start_web(state, web, out))
+        if camera:
+            procs += _start_camera(state, teams, robots, out)
+        else:  # organiser's hosts: their cameras show the hidden victims
+            procs += [start_robots(state, t, robots, "--scenario", str(scenario)) for t in teams]
+        clients = {t: Client(str(state), (state / "teams" / f"{t}.token").read_text().strip(),
+                             client="demo") for t in teams}
+        referee = Client(str(state), (state / "referee.token").read_text().strip(), client="demo-referee")
+        for c in clients.values():
+            c.watch(True)
+        t_end = time.monotonic() + REGISTER_WITHIN
+        while any(len(c.robots()) < robots for c in clients.values()):
+            if time.monotonic() > t_end:
+                raise RuntimeError(f"robots did not register within {REGISTER_WITHIN:.0f} s "
+                                   f"(see {state}/robots-*.log and {state}/core.log)")
+            time.sleep(0.1)
+        free = _free_cells(unpack_walls(next(iter(clients.values())).arena()))
+        print(f"demo: core and {len(teams)} teams of {robots} robots up; "
+              f"arena {len(free)} free cells", file=out)
+        referee.request("match", action="start")
+        print("demo: the referee started the match", file=out)
+        searches = _plan_searches(clients, load_scenario(scenario).victims, free)
+        _give_opening_tasks(clients, free, rng, out, searches)
+        counts = _watch(clients, free, rng, duration, out, searches)
+        referee.request("match", action="finish")
+        print("demo: the referee finished the match", file=out)
+        _final_table(clients, counts, out)
+        _scores(referee, out)
+        referee.close()
+        for c in clients.values():
+            c.close()
+    except (RoboCompError, RuntimeError) as e:
+        print(f"demo failed: {e}", file=out)
+        print(f"demo: the logs are in {state}", file=out)
+        return 1
+    finally:
+        stop_all(procs)
+    print(f"demo: the match's state folder is kept in {state} (event log, results, pictures); "
+          f"watch it again with: robo-comp web --replay {state / 'events.log'}", file=out)
     return 0
 
 
-def _give_opening_tasks(clients: dict[str, Client], free: list[tuple[int, int]], rng: random.Random,
-                        out: Any) -> None:
+def _plan_searches(clients: dict[str, Client], victims: list[Any], free: list[tuple[int, int]]) -> list[Search]:
+    """One victim for a robot of each team in turn (the first robots of each team): examine from
+    a free cell next to the victim."""
+    free_set = set(free)
+    out: list[Search] = []
+    rows = {t: c.robots() for t, c in clients.items()}
     teams = list(clients)
+    for i, v in enumerate(victims):
+        team = teams[i % len(teams)]
+        k = i // len(teams)
+        if k >= len(rows[team]) - 1:  # the last robot of each team is the one the demo stops
+            continue
+        spots = [(v.x + dx, v.y + dy) for dx, dy in ((0, 1), (0, -1), (1, 0), (-1, 0))]
+        at = next((p for p in spots if p in free_set), None)
+        if at is not None:
+            out.append(Search(team, rows[team][k]["tag"], v.to_dict(), at))
+    return out
+
+
+def _give_opening_tasks(clients: dict[str, Client], free: list[tuple[int, int]], rng: random.Random,
+                        out: Any, searches: list[Search]) -> None:
+    teams = list(clients)
+    for s in searches:
+        s.task_id = clients[s.team].give(s.tag, "examineArea", list(s.at))["task_id"]
+        print(f"demo: team {s.team} sends robot {s.tag} to examine the area at {s.at}", file=out)
+    searching = {s.tag for s in searches}
     for team, c in clients.items():
         for i, r in enumerate(c.robots()):
             tag = r["tag"]
+            if tag in searching:
+                continue
             x, y = rng.choice(free)
             if i % 3 == 0:
                 c.give(tag, "goTo", [x, y])
@@ -141,8 +203,28 @@ def _give_opening_tasks(clients: dict[str, Client], free: list[tuple[int, int]],
               file=out)
 
 
+def _report(c: Client, s: Search, result: Any, out: Any) -> None:
+    """The team reports the victim its robot examined, citing the pictures it took."""
+    pictures = result.get("pictures", []) if isinstance(result, dict) else []
+    v = s.victim
+    try:
+        answer = c.request("find", tag=s.tag, x=v["x"], y=v["y"], kind=v.get("kind", ""), evidence=pictures)
+        print(f"demo: team {s.team} reported {v.get('kind')} at ({v['x']}, {v['y']}) with {len(pictures)} "
+              f"pictures: {answer['state']} ({answer.get('message', '')})", file=out)
+    except RoboCompError as e:
+        print(f"demo: team {s.team}'s report was refused: {e.code}: {e.message}", file=out)
+    s.reported = True
+
+
+def _scores(referee: Client, out: Any) -> None:
+    print("\nscores", file=out)
+    for row in referee.score().get("teams", []):
+        print(f"  {row.get('rank')}. {row['team']:<8} {row['score']:>6g} points, {row['victims']} victim{'' if row['victims'] == 1 else 's'}", file=out)
+
+
 def _watch(clients: dict[str, Client], free: list[tuple[int, int]], rng: random.Random, duration: float,
-           out: Any) -> dict[str, int]:
+           out: Any, searches: list[Search] | None = None) -> dict[str, int]:
+    by_task = {(s.team, s.task_id): s for s in searches or []}
     counts = {"task.done": 0, "robot.stopped": 0, "robot.lost": 0}
     t0 = time.monotonic()
     next_print = t0 + 1
@@ -154,13 +236,20 @@ def _watch(clients: dict[str, Client], free: list[tuple[int, int]], rng: random.
                 topic, data = ev["topic"], ev["data"]
                 if topic in counts:
                     counts[topic] += 1
+                s = by_task.get((team, data.get("task_id"))) if topic == "task.done" else None
+                if s is not None and not s.reported:
+                    if data.get("ok"):
+                        _report(c, s, data.get("result"), out)
+                    else:
+                        print(f"demo: robot {s.tag} could not examine {s.at}: {data.get('status')}", file=out)
+                        s.reported = True
                 if topic == "task.done" and data.get("state") == "done":
                     # keep robots busy: a new queued task whenever one finishes
                     c.give(data["tag"], "goTo", list(rng.choice(free)), queue=True)
                 ev = c.next_event(0)
         if not stopped and time.monotonic() - t0 > duration / 3:
             team, c = next(iter(clients.items()))
-            tag = c.robots()[0]["tag"]
+            tag = c.robots()[-1]["tag"]  # (the first robots are searching)
             res = c.stop(tag)
             print(f"demo: STOP robot {tag}: halted in {res['ms']:.1f} ms, cancelled {res['cancelled']}",
                   file=out)

@@ -10,12 +10,13 @@ import subprocess
 import sys
 import time
 from collections.abc import Iterator
+from typing import Any
 from pathlib import Path
 
 import pytest
 
-from conftest import CoreHandle, next_event_where, wait_robots
-from robo_comp.errors import StorageError, TimeoutError_
+from conftest import CoreHandle, next_event_where, wait_for, wait_robots
+from robo_comp.errors import FieldError, StorageError, TimeoutError_
 from robo_comp.launch import start_core
 
 
@@ -310,3 +311,384 @@ def test_a_console_stopped_past_the_heartbeat_holds_up_nothing(core: CoreHandle,
     given = {json.loads(line)["data"].get("task_id") for line in out.read_text().splitlines()
              if json.loads(line)["topic"] == "task.given"}
     assert {during, after} <= given, given
+
+
+# ---------------------------------------------------------------------------------------------
+# Records that prove themselves (issue 32): a damaged byte costs the record it is in, no more.
+
+
+def _flip(path: Path, offset: int, bits: int = 0x09) -> None:
+    """Change one byte of ``path`` in place."""
+    with open(path, "r+b") as f:
+        f.seek(offset)
+        b = f.read(1)[0]
+        f.seek(offset)
+        f.write(bytes([b ^ bits]))
+
+
+def _kill9_between_writes(proc: subprocess.Popen[bytes]) -> None:
+    """``kill -9`` the core, but not in the middle of a write to its log: stopped first (a stop takes
+    effect between system calls), so that the test's own damage is the log's only one. (A record
+    torn by a kill is the case of ``tests/test_recovery.py``.)"""
+    os.kill(proc.pid, signal.SIGSTOP)
+    t_end = time.monotonic() + 10
+    while Path(f"/proc/{proc.pid}/stat").read_text().rsplit(")", 1)[1].split()[0] not in ("T", "t"):
+        assert time.monotonic() < t_end, "the core did not stop"
+        time.sleep(0.01)
+    proc.kill()
+    proc.wait()
+
+
+def test_one_damaged_byte_in_the_middle_of_the_log_costs_that_record_only(tmp_path: Path) -> None:
+    """The core is killed, a penalty's score line in the middle of the log has its points changed
+    (-1 would read as -1.25), the core restarts: that one record is reported lost (by seq and
+    topic), every record after it recovers, the file is not cut, and no sequence number is used
+    twice; then the last record is damaged too, and the next restart reuses none of its numbers."""
+    from robo_comp.protocol.logfile import read_log
+
+    state = tmp_path / "state"
+    log = state / "events.log"
+    proc = start_core(state, "--heartbeat", "0.2", "--teams", "red,blue")
+    match = CoreHandle(state, None, proc)
+    try:
+        ref = match.referee()
+        for i in range(30):
+            ref.request("penalty", team=("red", "blue")[i % 2], points=-1, reason=f"foul {i:02d}")
+        _kill9_between_writes(proc)
+        raw = log.read_bytes()
+        size = len(raw)
+        lines = [r for r in read_log(log) if r.topic == "score.change"]
+        assert len(lines) == 30
+        victim = next(r for r in lines if r.data["reason"] == "foul 15")
+        at = raw.index(b"foul 15", raw.index(b"foul 15") + 1)  # the second: the score line's
+        points = raw.rindex(b"\xa6points", 0, at) + 7
+        assert raw[points:points + 3] == b"\xcb\xbf\xf0"  # msgpack's float64 -1.0
+        _flip(log, points + 2, 0x04)  # -1.25
+        before = [(r.seq, r.topic) for r in read_log(log, strict=False)]
+        match.proc = proc = start_core(state)
+        ref = match.referee()
+        rec = ref.request("stats")["recovered"]
+        assert rec["lost"] == [victim.seq], rec
+        assert rec["damages"][0]["lost"] == [{"seq": victim.seq, "topic": "score.change"}], rec
+        assert "1 event lost" in rec["damage"] and f"{victim.seq} (probably score.change)" in rec["damage"]
+        shown_ctl = subprocess.run([sys.executable, "-m", "robo_comp.cli", "ctl", "--core", str(state), "--token-file",
+                                    str(state / "referee.token"), "recovery"], capture_output=True, text=True, timeout=60)
+        assert f"lost event {victim.seq} (probably score.change)" in shown_ctl.stdout, shown_ctl
+        assert log.stat().st_size >= size  # nothing was cut
+        shown = ref.score()["lines"]
+        assert sorted(ln["reason"] for ln in shown) == sorted(f"foul {i:02d}" for i in range(30) if i != 15)
+        assert {ln["points"] for ln in shown} == {-1}, "a changed value was read back"
+        ref.request("penalty", team="red", points=-1, reason="after the restart")
+        seqs = [r.seq for r in read_log(log, strict=False)]
+        assert len(seqs) == len(set(seqs)), "a sequence number was used twice"
+        assert [(s, t) for s, t in before] == [(r.seq, r.topic) for r in read_log(log, strict=False)][:len(before)]
+        # now the last record: an unfinished write or a damaged byte at the very end
+        _kill9_between_writes(proc)
+        last = list(read_log(log, strict=False))[-1]
+        _flip(log, log.stat().st_size - 3)
+        match.proc = proc = start_core(state)
+        ref = match.referee()
+        rec = ref.request("stats")["recovered"]
+        assert set(rec["lost"]) == {victim.seq, last.seq}, rec
+        assert rec["damages"][-1]["tail"] and rec["damaged_copy"], rec
+        ref.request("penalty", team="blue", points=-1, reason="after the second restart")
+        after = list(read_log(log, strict=False))
+        assert len({r.seq for r in after}) == len(after), "a sequence number was used twice"
+        assert all(r.seq > last.seq for r in after if r.t > last.t and r.topic == "penalty"), \
+            "the damaged last record's number was given to a new event"
+        assert "after the second restart" in {ln["reason"] for ln in ref.score()["lines"]}
+    finally:
+        match.close()
+
+
+def test_every_single_damaged_byte_costs_at_most_its_record_and_is_reported(tmp_path: Path) -> None:
+    """Each byte of a log, changed in turn: at most the one record it belongs to is lost, exactly
+    its sequence number is reported, and no record reads back changed (the checksum)."""
+    from robo_comp.core.eventlog import EventLog
+    from robo_comp.protocol.logfile import LogReader
+
+    path = tmp_path / "events.log"
+    ev = EventLog(path)
+    for i in range(12):
+        ev.append(("penalty", "score.change", "robot.positions")[i % 3], "red",
+                  {"points": -1, "i": i, "x": [1.5, 2.5]}, t=1000.0 + i)
+    ev.close()
+    raw = path.read_bytes()
+    good = {r.seq: r for r in LogReader(path)}
+    assert len(good) == 12
+    bad = tmp_path / "damaged.log"
+    for off in range(len(raw)):
+        damaged = bytearray(raw)
+        damaged[off] ^= 0x10
+        bad.write_bytes(bytes(damaged))
+        reader = LogReader(bad)
+        got = {r.seq: r for r in reader}
+        lost = set(good) - set(got)
+        assert len(lost) <= 1, (off, lost)
+        assert all(good[s] == r for s, r in got.items()), f"byte {off}: a record read back changed"
+        assert {s for d in reader.damages for s in d.lost} == lost, (off, [d.describe() for d in reader.damages])
+        assert reader.damages, f"byte {off}: a changed byte went unnoticed"
+        assert reader.next_seq > max(good), f"byte {off}: sequence number {reader.next_seq} would be reused"
+
+
+def test_a_log_of_the_previous_format_is_read_and_said_so(tmp_path: Path) -> None:
+    """A format-1 log (no checksums) recovers in a core of today, which says so and appends
+    format-2 records after it; the whole file reads back."""
+    import struct
+
+    import msgpack
+
+    from robo_comp.protocol.logfile import LogReader
+
+    state = tmp_path / "state"
+    state.mkdir()
+    old = [{"format": "robo_comp-eventlog", "version": 1, "started": 1000.0}]
+    for i, rid in enumerate(("red-1", "red-2")):
+        old.append({"seq": 1 + i, "t": 1000.0 + i, "topic": "robot.registered", "team": "red",
+                    "data": {"tag": 101 + i, "team": "red", "robot_id": rid, "x": 1.0, "y": 1.0, "heading": 0.0}})
+    old.append({"seq": 3, "t": 1003.0, "topic": "score.change", "team": "red",
+                "data": {"team": "red", "points": -1, "kind": "penalty", "reason": "old foul", "t": 0.0}})
+    with open(state / "events.log", "wb") as f:
+        for obj in old:
+            blob = msgpack.packb(obj, use_bin_type=True)
+            f.write(struct.pack(">I", len(blob)) + blob)
+    proc = start_core(state, "--heartbeat", "0.2", "--teams", "red,blue")
+    match = CoreHandle(state, None, proc)
+    try:
+        ref = match.referee()
+        rec = ref.request("stats")["recovered"]
+        assert rec["legacy_records"] == 3 and rec["damage"] is None, rec
+        assert sorted(r["tag"] for r in ref.robots()) == [101, 102]
+        assert [ln["reason"] for ln in ref.score()["lines"]] == ["old foul"]
+        assert "previous format" in match.log_tail()
+        ref.request("penalty", team="red", points=-1, reason="new foul")
+        _kill9_between_writes(proc)
+        reader = LogReader(state / "events.log")
+        recs = list(reader)
+        assert not reader.damages and reader.legacy == 3
+        assert [r.seq for r in recs] == list(range(1, len(recs) + 1))
+        assert "new foul" in {r.data.get("reason") for r in recs if r.topic == "score.change"}
+        match.proc = start_core(state)  # format 1 then 2 in one file: read again, nothing lost
+        rec = match.referee().request("stats")["recovered"]
+        assert rec["legacy_records"] == 3 and rec["damage"] is None and rec["events"] == len(recs) + 0, rec
+    finally:
+        match.close()
+
+
+# ---------------------------------------------------------------------------------------------
+# Match time that only the match moves (issue 32).
+
+
+def test_the_match_clock_ignores_wall_clock_steps_across_restarts(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The core under libfaketime: a scored match runs, the machine's clock steps +2 h, the core is
+    killed and restarted, the clock steps -1 h, killed and restarted again. The match clock stays
+    within 1 s of the time the match really ran (the outage rule 'pause': downtime not counted)."""
+    lib = _libfaketime()
+    if lib is None:
+        pytest.skip("libfaketime is not installed (Debian package faketime; .ci/run installs it)")
+    wall = tmp_path / "faketime.rc"
+    wall.write_text("+0\n")
+    # an NTP step moves the wall clock only: the monotonic clocks are left alone
+    monkeypatch.setenv("LD_PRELOAD", lib)
+    monkeypatch.setenv("FAKETIME_TIMESTAMP_FILE", str(wall))
+    monkeypatch.setenv("FAKETIME_NO_CACHE", "1")
+    monkeypatch.setenv("FAKETIME_DONT_FAKE_MONOTONIC", "1")
+    from robo_comp.world import scenario as scen
+
+    demo = Path(scen.__file__).parent / "scenarios" / "demo_room.toml"
+    state = tmp_path / "state"
+    proc = start_core(state, "--heartbeat", "0.2", "--scenario", str(demo))
+    match = CoreHandle(state, None, proc)
+    ran = 0.0
+    try:
+        match.referee().match("start")
+        since = time.monotonic()
+        for step in ("+7200", "-3600"):
+            time.sleep(1.0)
+            wall.write_text(step + "\n")
+            time.sleep(0.5)  # the core writes events stamped with the stepped clock
+            proc.kill()
+            proc.wait()
+            ran += time.monotonic() - since
+            time.sleep(1.0)  # the outage: not match time under the default rule
+            match.proc = proc = start_core(state)
+            since = time.monotonic()
+            st = match.referee().score()
+            assert st["phase"] == "running", st
+            assert abs(st["elapsed"] - ran) < 1.0, (step, st, ran)
+            assert st["outage"] == "pause"
+        rec = match.referee().request("stats")["recovered"]
+        assert "'pause'" in rec["clock"], rec
+    finally:
+        match.close()
+
+
+def test_practice_keeps_its_clock_and_the_referee_chooses_the_outage_rule(tmp_path: Path) -> None:
+    """A practice match (no phases) keeps its clock across kill -9; with the outage rule 'count'
+    the time the core was down is match time, with 'pause' (the default) it is not."""
+    state = tmp_path / "state"
+    proc = start_core(state, "--heartbeat", "0.2", "--teams", "red")
+    match = CoreHandle(state, None, proc)
+    try:
+        ref = match.referee()
+        st = ref.score()
+        assert st["phase"] == "running" and st["outage"] == "pause", st
+        time.sleep(1.5)
+        before = ref.score()["elapsed"]
+        proc.kill()
+        proc.wait()
+        time.sleep(2.0)
+        match.proc = proc = start_core(state)
+        after = match.referee().score()["elapsed"]
+        assert before - 0.3 <= after < before + 1.0, (before, after)  # not 0, and the outage not counted
+        ctl = subprocess.run([sys.executable, "-m", "robo_comp.cli", "ctl", "--core", str(state), "--token-file",
+                              str(state / "referee.token"), "match", "outage", "--rule", "count"],
+                             capture_output=True, text=True, timeout=60)
+        assert "a core outage: the clock counts it" in ctl.stdout, ctl
+        assert match.referee().score()["outage"] == "count"
+        time.sleep(0.5)
+        before = match.referee().score()["elapsed"]
+        proc.kill()
+        proc.wait()
+        time.sleep(2.0)
+        match.proc = proc = start_core(state)
+        st = match.referee().score()
+        assert st["outage"] == "count" and st["elapsed"] >= before + 2.0, (before, st)
+        rec = match.referee().request("stats")["recovered"]
+        assert "'count'" in rec["clock"] and "boot-time clock" in rec["clock"], rec
+        with pytest.raises(FieldError, match="'pause'"):
+            match.referee().match("outage", rule="sometimes")
+    finally:
+        match.close()
+
+
+# ---------------------------------------------------------------------------------------------
+# A host's results are not lost to an outage (issue 32).
+
+
+def test_a_task_done_while_the_core_is_down_is_sent_again_and_taken_once(tmp_path: Path) -> None:
+    """The core is frozen right after giving a short task, the robot finishes it (its task.done
+    finds no core), the core is killed and restarted: the host sends the result again with its
+    registration, and the log has the task done once, with its result, not cancelled."""
+    from robo_comp.launch import start_robots
+
+    state = tmp_path / "state"
+    proc = start_core(state, "--heartbeat", "1.0", "--teams", "red")  # the host holds after 3 s of silence
+    match = CoreHandle(state, None, proc)
+    try:
+        match.procs.append(start_robots(state, "red", 1, "--speed", "4"))
+        red = match.client("red")
+        row = wait_robots(red, 1)[0]
+        tag, x, y = row["tag"], int(row["x"]), int(row["y"])
+        goal = [x + 1 if x < 5 else x - 1, y]  # a neighbouring cell: a fraction of a second away
+        tid = red.give(tag, "goTo", goal)["task_id"]
+        os.kill(proc.pid, signal.SIGSTOP)  # the task went out with the reply; its task.done finds no core
+        host_log = state / "robots-red.log"
+        t_end = time.monotonic() + 20
+        while "lost the core" not in host_log.read_text(errors="replace"):  # 3 s: long after the task ended
+            assert time.monotonic() < t_end, host_log.read_text()[-2000:]
+            time.sleep(0.1)
+        proc.kill()
+        proc.wait()
+        assert not [e for e in match.logged_events("task.done") if e["data"]["task_id"] == tid]
+        match.proc = start_core(state)
+        red = match.client("red")
+
+        def finished() -> dict[str, Any] | None:
+            return next((t for t in red.tasks(tag)["done"] if t["task_id"] == tid), None)
+
+        task = wait_for(finished, 30, "the task's result after the restart")
+        assert task["ok"] is True and task["state"] == "done", task
+        done = [e["data"] for e in match.logged_events("task.done") if e["data"]["task_id"] == tid]
+        assert len(done) == 1 and done[0]["ok"] and done[0]["state"] == "done", done
+        assert "restarted" not in done[0]["status"]
+    finally:
+        match.close()
+
+
+def test_task_done_is_idempotent_and_a_task_lost_on_the_way_is_handed_over_again(core: CoreHandle) -> None:
+    """Raw frames: a task.done sent twice is taken once (the second answer says so); a host that
+    re-registers without the task it never got is given it again; a host that restarted gets
+    its task cancelled with a sentence that says so."""
+    from test_hostile_clients import Peer, raw_host, router
+
+    host, tag = raw_host(core, "red", "r1")
+    red = core.client("red")
+    tid = red.give(tag, "goTo", [3, 3])["task_id"]
+    body = {"tag": tag, "task_id": tid, "ok": True, "status": "arrived", "result": {"reached": [3, 3]}}
+    first = host.own("task.done", body)
+    again = host.own("task.done", body)
+    assert first["ok"] and not first["body"].get("duplicate"), first
+    assert again["ok"] and again["body"]["duplicate"] is True, again
+    assert [e["data"]["task_id"] for e in core.logged_events("task.done")].count(tid) == 1
+    # the same result again with a registration (a reconnect whose answer was lost): taken once too
+    second = red.give(tag, "goTo", [4, 4])["task_id"]
+    back = Peer(router(core))
+    assert back.own("hello", {"token": core.token("red"), "client": "robots"})["ok"]
+    reg = back.own("register", {"token": core.token("red"), "robot_id": "r1", "fresh": False, "done": body,
+                                "tasks": [{"name": "goTo", "args": [{"name": "x", "type": "int"},
+                                                                    {"name": "y", "type": "int"}]}]})
+    assert reg["ok"] and reg["body"]["task"]["task_id"] == second, reg  # never got it: handed over again
+    assert [e["data"]["task_id"] for e in core.logged_events("task.done")].count(tid) == 1
+    assert red.tasks(tag)["current"]["task_id"] == second
+    # a host that restarted (fresh) and runs nothing: the task is cancelled, saying why
+    fresh = Peer(router(core))
+    assert fresh.own("hello", {"token": core.token("red"), "client": "robots"})["ok"]
+    reg = fresh.own("register", {"token": core.token("red"), "robot_id": "r1", "tasks": []})
+    assert reg["ok"] and reg["body"]["task"] is None, reg
+    cancelled = next(t for t in red.tasks(tag)["done"] if t["task_id"] == second)
+    assert cancelled["state"] == "cancelled" and "host restarted" in cancelled["status"], cancelled
+    for p in (host, back, fresh):
+        p.close()
+
+
+# ---------------------------------------------------------------------------------------------
+# A restart on a full disk (issue 32).
+
+
+def test_a_core_restarted_on_a_full_disk_says_so_waits_and_comes_up_by_itself(small_disk: Path, tmp_path: Path) -> None:
+    """The core is killed, its disk filled to the last byte, the core started again: it says what
+    is full and how much room it needs (no traceback) and waits; once space is freed it comes up
+    by itself with the match. With ``--on-full-disk exit`` it exits with the sentence instead."""
+    state = small_disk / "state"
+    proc = start_core(state, "--heartbeat", "0.2", "--teams", "red")
+    match = CoreHandle(state, None, proc)
+    try:
+        match.referee().request("penalty", team="red", points=-1, reason="before the disk filled")
+        proc.kill()
+        proc.wait()
+        (state / "core.json").unlink()
+        filler = fill(small_disk)
+        err = tmp_path / "core.err"  # beside the full disk, not on it
+        with open(err, "wb") as f:
+            proc = subprocess.Popen([sys.executable, "-m", "robo_comp.cli", "core", "--state", str(state)],
+                                    stdout=subprocess.DEVNULL, stderr=f, stdin=subprocess.DEVNULL)
+        match.proc = proc
+        t_end = time.monotonic() + 30
+        while "is full" not in err.read_text():
+            assert proc.poll() is None, err.read_text()
+            assert time.monotonic() < t_end, err.read_text()
+            time.sleep(0.1)
+        said = err.read_text()
+        assert f"mounted on {small_disk}" in said and "needs at least 1.0 MiB" in said, said
+        assert "starts by itself once there is room" in said and "Traceback" not in said, said
+        assert proc.poll() is None and not (state / "core.json").exists()
+        filler.unlink()
+        t_end = time.monotonic() + 30
+        while not (state / "core.json").exists():
+            assert proc.poll() is None, err.read_text()
+            assert time.monotonic() < t_end, err.read_text()
+            time.sleep(0.1)
+        lines = match.referee().score()["lines"]
+        assert [ln["reason"] for ln in lines] == ["before the disk filled"]
+        assert "there is room again" in err.read_text() and "Traceback" not in err.read_text()
+        proc.kill()
+        proc.wait()
+        filler = fill(small_disk)
+        out = subprocess.run([sys.executable, "-m", "robo_comp.cli", "core", "--state", str(state),
+                              "--on-full-disk", "exit"], capture_output=True, text=True, timeout=60)
+        assert out.returncode == 2, out
+        assert "is full" in out.stderr and "start the core again" in out.stderr and "Traceback" not in out.stderr
+        filler.unlink()
+    finally:
+        match.close()

@@ -11,7 +11,7 @@ import pytest
 
 from conftest import wait_robots
 from robo_comp.client import Client
-from robo_comp.protocol.logfile import LogCorrupt, read_log
+from robo_comp.protocol.logfile import LogCorrupt, pack_record, read_log
 from robo_comp.launch import start_core, start_robots, stop_all
 
 import robo_comp.world.scenario as scen
@@ -130,8 +130,8 @@ def test_truncated_and_corrupt_tails_are_reported_and_the_rest_recovers(tmp_path
         _kill9(core)
     log = state / "events.log"
     good = len(list(read_log(log)))
-    with open(log, "ab") as f:
-        f.write(b"\x00\x00\x01\x00garbage")  # a torn record at the end
+    with open(log, "ab") as f:  # a torn record at the end (an unfinished write)
+        f.write(pack_record({"seq": 10**6, "t": 0.0, "topic": "x", "team": None, "data": {"pad": "y" * 100}})[:60])
     with pytest.raises(LogCorrupt, match="truncated record"):
         list(read_log(log))
     core = start_core(state, "--heartbeat", "0.3", port=port)
@@ -145,5 +145,6 @@ def test_truncated_and_corrupt_tails_are_reported_and_the_rest_recovers(tmp_path
         recs = list(read_log(log))  # the tail was cut off: the log reads cleanly again
         rec = next(r for r in recs if r.topic == "core.recovered")
         assert "truncated record" in rec.data["damage"] and os.path.exists(rec.data["damaged_copy"])
+        assert "cut off" in rec.data["damage"] and rec.data["damages"][0]["tail"]
     finally:
         stop_all([core])

@@ -51,6 +51,8 @@ def every_topic() -> list[tuple[str, str | None, dict[str, Any]]]:
         "match.phase": (P.EVERYONE, {"phase": "running", "elapsed": 0.0, "duration": 600, "action": "start",
                                      "by": "referee", "was": "setup"}),
         "score": (P.EVERYONE, {"teams": [], "phase": "running"}),
+        "match.clock": (None, {"phase": "running", "elapsed": 1.0, "remaining": 599.0, "duration": 600,
+                               "outage": "pause", "boot": 1.0, "boot_id": SECRET}),
         "score.change": ("red", {"team": "red", "points": 1, "kind": "find", "reason": "victim found", "t": 1.0}),
         "penalty": ("red", {"team": "red", "points": -1, "reason": "bump"}),
         "disqualified": (P.EVERYONE, {"team": "blue", "tags": [201], "reason": "rules"}),

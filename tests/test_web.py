@@ -133,6 +133,8 @@ def open_page(browser, url: str, *, width: int = 1280, height: int = 800, frames
     page = browser.new_page(viewport={"width": width, "height": height})
     errors: list[str] = []
     page.on("pageerror", lambda e: errors.append(str(e)))
+    # what the page's Content-Security-Policy refused (an inline style, a script) counts as an error too
+    page.on("console", lambda m: errors.append(m.text) if "Content Security Policy" in m.text else None)
     if frames is not None:
         page.on("websocket", lambda ws: ws.on("framereceived", lambda payload: frames.append(payload)))
     page.goto(url)
@@ -529,6 +531,8 @@ def test_websocket_protocol_errors(tmp_path: Path) -> None:
             await ws.send(json.dumps({"op": "join", "token": "wrong"}))
             out.append(json.loads(await ws.recv()))
             await ws.send(json.dumps({"op": "join", "t": 12}))
+            story = json.loads(await ws.recv())  # a view's story comes first, once
+            assert story["type"] == "story" and story["view"] == "public", story
             out.append(json.loads(await ws.recv()))
             await ws.send(json.dumps({"op": "speed", "req": 2, "value": 100}))
             while True:

@@ -24,7 +24,7 @@ from robo_comp.errors import FieldError, ForbiddenError, NotYoursError, PhaseErr
 from robo_comp.scoring.board import Scoreboard, ScoreLine
 from robo_comp.scoring.config import ScoringConfig
 from robo_comp.scoring.judge import FindJudge
-from robo_comp.scoring.match import MatchClock
+from robo_comp.scoring.match import MatchClock, monotonic_mark
 from robo_comp.teams.policy import check_owner, check_referee
 from robo_comp.world.scenario import Scenario
 
@@ -121,7 +121,11 @@ class Competition:
         before = self.clock.phase
         self.clock.apply(action, now, seconds)
         st = self.clock.state(now)
-        self.out.emit("match.phase", EVERYONE, dict(st, action=action, by=by, was=before))
+        reveal: dict[str, Any] = {}
+        if self.clock.phase == "finished" and before != "finished":  # the hidden victims, for spectators
+            reveal["victims"] = [dict(v, found_by=sorted(t for t, ids in self.board.found.items() if v["id"] in ids))
+                                 for v in self.judge.victims]
+        self.out.emit("match.phase", EVERYONE, dict(st, action=action, by=by, was=before, **reveal))
         if self.clock.phase != before:
             hold = self.clock.phase in ("paused", "finished")
             for ident in self.access.host_sessions():
@@ -130,10 +134,21 @@ class Competition:
             self._write_results_now()
         return st
 
+    def log_clock(self) -> None:
+        """Record the running clock in the event log (``match.clock``; log only, not pushed): what
+        recovery restores, with the machine's boot-time clock for the ``count`` outage rule."""
+        if self.clock.phase == "running":
+            self.events().append("match.clock", None, dict(self.state(), **monotonic_mark()))
+
     def _on_match(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
         who = self.access.session(ident).who
         check_referee(who, "change the match phase")
         action = msg.body["action"]
+        if action == "outage":  # not a phase change: the rule for the clock across a core outage
+            self.clock.set_outage(msg.body.get("rule"))
+            st = self.state()
+            self.out.emit("match.phase", EVERYONE, dict(st, action=action, by=who.name, was=st["phase"]))
+            return st
         seconds = msg.body.get("seconds")
         return self._change(action, who.name, float(seconds) if seconds is not None else None)
 
@@ -215,7 +230,8 @@ class Competition:
         who = self.access.session(ident).who
         check_referee(who, "broadcast messages")
         text = msg.body["message"][:500]
-        self.out.emit("broadcast", EVERYONE, {"message": text, "by": who.name})
+        # "text" too: "message" is one of the keys the public feed leaves out (a verdict's reason)
+        self.out.emit("broadcast", EVERYONE, {"message": text, "text": text, "by": who.name})
         return {}
 
     # ------------------------------------------------------------------ pictures and finds

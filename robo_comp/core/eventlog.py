@@ -1,10 +1,10 @@
 """The append-only event log: every event the core emits, for debugging, replay and recovery
 (its format and its readers: :mod:`robo_comp.protocol.logfile`).
 
-File layout: records of ``[4-byte big-endian length][msgpack map]``. The first record is a
-header ``{"format": "robo_comp-eventlog", "version": 1, "started": t}``; then one record per
-event ``{"seq": n, "t": unix_time, "topic": str, "team": str | None, "data": map}``.
-Records are written in order; the core flushes the buffer at the end of every loop turn,
+File layout (format 2): records framed as marker, length, CRC-32C and a msgpack map (see
+:mod:`robo_comp.protocol.logfile`). The first record is a header ``{"format":
+"robo_comp-eventlog", "version": 2, "started": t}``; then one record per event ``{"seq": n,
+"t": unix_time, "topic": str, "team": str | None, "data": map}``. Records are written in order; the core flushes the buffer at the end of every loop turn,
 before any reply of that turn leaves (see docs/protocol.md, "Event log").
 """
 from __future__ import annotations
@@ -14,9 +14,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-import msgpack
-
-from robo_comp.protocol.logfile import FORMAT, FORMAT_VERSION, RECORD_LENGTH as _LEN
+from robo_comp.protocol.logfile import FORMAT, FORMAT_VERSION, pack_record
 
 
 class StorageFault(Exception):
@@ -37,9 +35,13 @@ class EventLog:
     full, EIO, ...) raises :class:`StorageFault` and keeps every unwritten byte for the next
     flush, so that the file, once the fault clears, holds every record in order."""
 
-    def __init__(self, path: Path, fsync: bool = False, *, seq: int = 0, good_end: int | None = None) -> None:
-        """Open ``path`` for appending. After recovery pass the last ``seq`` and the offset
-        ``good_end`` past the last good record: a damaged tail beyond it is cut off."""
+    def __init__(self, path: Path, fsync: bool = False, *, seq: int = 0, good_end: int | None = None,
+                 legacy: bool = False) -> None:
+        """Open ``path`` for appending. After recovery pass the last ``seq`` used (the next event
+        gets ``seq + 1``) and the offset ``good_end`` past the last good record: damaged bytes
+        beyond it (which hold no record that checks out) are cut off; damage between good
+        records stays where it is (the reader skips it). ``legacy``: the log so far is of format
+        1, so a format-2 header goes first."""
         self.path = path
         self.fsync = fsync
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -56,7 +58,7 @@ class EventLog:
         self.seq = seq
         #: The write error that holds records back (None while the log is healthy).
         self.fault: StorageFault | None = None
-        if fresh:
+        if fresh or legacy:
             self._write({"format": FORMAT, "version": FORMAT_VERSION, "started": time.time()})
             try:
                 self.flush()
@@ -64,9 +66,7 @@ class EventLog:
                 pass  # kept in memory: the owner's next flush tries again and reports the fault
 
     def _write(self, obj: dict[str, Any]) -> None:
-        blob = msgpack.packb(obj, use_bin_type=True)
-        self._pending += _LEN.pack(len(blob))
-        self._pending += blob
+        self._pending += pack_record(obj)
 
     def append(self, topic: str, team: str | None, data: dict[str, Any], t: float | None = None) -> int:
         """Append one event; return its sequence number."""

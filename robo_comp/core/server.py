@@ -59,6 +59,7 @@ from robo_comp.errors import (
 )
 from robo_comp.plugins.manager import get_plugin_manager
 from robo_comp.scoring.config import ScoringConfig
+from robo_comp.scoring.match import CLOCK_PERIOD
 from robo_comp.teams.policy import check_owner, check_referee
 from robo_comp.teams.tokens import REFEREE, Principal, TokenBook
 from robo_comp.world.public import arena_payload
@@ -185,7 +186,7 @@ class Core:
         if log_path.exists() and log_path.stat().st_size > 0:
             self.recovered = recover(self, log_path)
             self.events = EventLog(log_path, fsync=fsync, seq=self.recovered.seq,
-                                   good_end=self.recovered.good_end)
+                                   good_end=self.recovered.good_end, legacy=self.recovered.legacy_tail)
         else:
             self.events = EventLog(log_path, fsync=fsync)
 
@@ -239,6 +240,17 @@ class Core:
             self.emit("core.recovered", None, self.recovered.to_dict())
         self._commit()
 
+    def close(self) -> None:
+        """Close the sockets and the log of a core that will not run (its start failed)."""
+        for sock in (self.router, self.pub):
+            if sock is not None:
+                sock.close(0)
+        self.router = self.pub = None
+        if self._zap is not None:
+            self._zap.close()
+            self.ctx.term()
+        self.events.close()
+
     def stop(self) -> None:
         """Ask the loop to end after the current turn (or, before it started, not to start)."""
         self._stop_asked = True
@@ -278,6 +290,7 @@ class Core:
         self._running = not self._stop_asked
         next_tick = time.monotonic() + self.heartbeat
         next_pose = time.monotonic() + self.pose_period
+        next_clock = time.monotonic()  # the match clock's record in the log (see MatchClock)
         try:
             while self._running:
                 if next_tick - time.monotonic() > self.heartbeat:  # the clock went back: beat now
@@ -289,6 +302,8 @@ class Core:
                     timeout = min(timeout, 0.2)
                 if self._posed:
                     timeout = min(timeout, max(0.0, next_pose - time.monotonic()))
+                if self.competition.phase == "running":
+                    timeout = min(timeout, max(0.0, next_clock - time.monotonic()))
                 if self._slices:  # background work left: look at the socket, then do the next slice
                     timeout = 0.0
                 if poller.poll(math.ceil(timeout * 1000)):
@@ -308,6 +323,10 @@ class Core:
                 if now >= next_tick:
                     self._tick(now)
                     next_tick = now + self.heartbeat
+                if now >= next_clock:
+                    if self.storage_fault is None:  # (not while the log cannot be written, like positions)
+                        self.competition.log_clock()
+                    next_clock = now + CLOCK_PERIOD
                 if self._slices:
                     self._slices.popleft()()
                 self._commit()
@@ -316,6 +335,7 @@ class Core:
                 signal.set_wakeup_fd(old_wakeup)
             wake.close()
             wake_w.close()
+            self.competition.log_clock()  # a clean stop records the clock to the last moment
             self._commit()
             self.events.close()
             self.router.close(0)
@@ -818,7 +838,8 @@ class Core:
             by_status[r.status] = by_status.get(r.status, 0) + 1
         return dict(self.stats, robots=by_status, sessions=len(self.sessions), log_seq=self.events.seq,
                     storage=self.storage_fault, log_unwritten=self.events.unwritten,
-                    uptime=time.monotonic() - self.started)
+                    uptime=time.monotonic() - self.started,
+                    recovered=self.recovered.to_dict() if self.recovered is not None else None)
 
     def _on_snapshot(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
         s = self.session(ident)
@@ -906,10 +927,18 @@ class Core:
         r.status = RobotStatus.DISQUALIFIED if r.tag in self.competition.disqualified_robots else RobotStatus.CONNECTED
         r.last_report = time.time()
         if returning:
-            if r.current is not None and r.current.id != b.get("task_id"):
-                # the host no longer runs what we think it runs (it restarted): start afresh
-                self.tasks.finish(r, r.current, False, "the robot restarted and lost this task",
-                                  state=TaskState.CANCELLED)
+            done = b.get("done")
+            if done is not None and r.current is not None and done.get("task_id") == r.current.id:
+                # the host finished it while the core could not hear (the core was down, the link
+                # cut): its task.done comes with the registration; taken once, like task.done
+                self._take_done(r, done)
+            elif r.current is not None and r.current.id != b.get("task_id"):
+                if b.get("fresh", True):
+                    # the host no longer runs what we think it runs (it restarted): start afresh
+                    self.tasks.finish(r, r.current, False, "the robot's host restarted and lost this task",
+                                      state=TaskState.CANCELLED)
+                # else the host never got this task (the core went down, or the link, before it
+                # arrived): the reply below hands it over again
             self.emit("robot.returned", r.team, {"tag": r.tag, "x": r.x, "y": r.y, "was": was,
                                                  "tasks": list(specs.values())})
         else:
@@ -988,12 +1017,21 @@ class Core:
         r = self.hosted(ident, b["tag"])
         tid = b["task_id"]
         if r.current is None or r.current.id != tid:
+            if any(t.id == tid for t in r.done):  # sent again (its answer was lost): taken once
+                return {"next": r.current.wire() if r.current is not None else None, "duplicate": True}
             raise FieldError(f"task {tid} is not robot {r.tag}'s current task")
+        nxt = self._take_done(r, b)
+        return {"next": nxt.wire() if nxt is not None else None}
+
+    def _take_done(self, r: RobotRecord, b: dict[str, Any]) -> TaskRecord | None:
+        """Finish ``r``'s current task with the host's report ``b`` (ok, status, result); return
+        the task that starts next."""
         result = b.get("result")
         if len(P.pack(result)) > MAX_RESULT:
             raise TooLargeError(f"a task result may be at most {MAX_RESULT} bytes once packed")
-        nxt = self.tasks.complete(r, b["ok"], b["status"][:500], result)
-        return {"next": nxt.wire() if nxt is not None else None}
+        if not isinstance(b.get("ok"), bool) or not isinstance(b.get("status"), str):
+            raise FieldError("a task's report needs 'ok' (true or false) and 'status' (text)")
+        return self.tasks.complete(r, b["ok"], b["status"][:500], result)
 
     def _on_radio(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
         b = msg.body

@@ -50,7 +50,7 @@ REQUESTS: dict[str, dict[str, tuple[str, bool]]] = {
     "arena": {},
     "stats": {},
     # the match (referee: match, penalty, disqualify, broadcast)
-    "match": {"action": (_STR, True), "seconds": (_NUM, False)},
+    "match": {"action": (_STR, True), "seconds": (_NUM, False), "rule": (_STR, False)},
     "score": {},
     "penalty": {"team": (_STR, True), "points": (_NUM, True), "reason": (_STR, True)},
     "disqualify": {"tag": (_OPT_INT, False), "team": (_STR, False), "reason": (_STR, False)},
@@ -72,6 +72,9 @@ REQUESTS: dict[str, dict[str, tuple[str, bool]]] = {
         "token": (_STR, True), "robot_id": (_STR, True), "tasks": (_LIST, False),
         "x": (_NUM, False), "y": (_NUM, False), "heading": (_NUM, False),
         "task_id": (_OPT_INT, False),
+        # a task.done the core has not acknowledged (sent again after a reconnect), and whether
+        # the robot registers for the first time since its host started
+        "done": (_MAP, False), "fresh": (_BOOL, False),
     },
     "report": {
         "tag": (_INT, True), "x": (_NUM, True), "y": (_NUM, True), "heading": (_NUM, True),

@@ -20,6 +20,7 @@ EVERYONE = "*"
 TOPICS = (
     "robot.registered", "robot.positions", "robot.lost", "robot.returned", "robot.left",
     "task.given", "task.started", "task.done", "robot.stopped", "radio", "refused", "core.started", "core.recovered", "core.storage",
+    "match.clock",
     "match.phase", "score", "score.change", "penalty", "disqualified", "broadcast", "find.reported",
     "picture", "robot.bump", "robot.tasks", "robot.log", "upload.pending", "upload.sent", "upload.done",
     "upload.unloaded", "sandbox.reset",
@@ -36,6 +37,8 @@ PUBLIC_TOPICS: dict[str, tuple[str, ...] | None] = {
     "robot.bump": None, "robot.tasks": None,
     # the logged record also names the victims in sight and the image's hash: the team's own
     "picture": ("id", "tag", "team", "x", "y", "heading", "t"),
+    # the running match clock as the log records it (a replay shows it; the machine's boot clock is not public)
+    "match.clock": ("phase", "elapsed", "remaining", "duration", "outage"),
 }
 #: Topics that reach only the event's team and the referee, live and replayed.
 PRIVATE_TOPICS = frozenset({"radio", "refused", "robot.log", "upload.pending", "upload.sent", "upload.done",

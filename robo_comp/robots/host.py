@@ -32,6 +32,7 @@ from robo_comp.protocol.taskspec import check_args
 from robo_comp.errors import RoboCompError
 from robo_comp.plugins.manager import get_plugin_manager
 from robo_comp.robots.drivers import ArenaDriver
+from robo_comp.robots.oneworld import Foreign, is_real, merge_readings
 from robo_comp.robots.steps import Capture, Plan, Step, TaskFailed, TaskSpec
 from robo_comp.robots.teamcode import TeamCode, free_cell, in_bounds, stop_status
 from robo_comp.world.arena import Arena
@@ -100,14 +101,27 @@ class SimRobot:
         return plan_around(self.host.walls, self.free_cell(), goal, self.others_cells())
 
     def others_cells(self) -> set[tuple[int, int]]:
-        """The cells the host's other robots stand in now."""
+        """The cells the host's other robots stand in now, and those of other hosts' robots the
+        camera sees (:mod:`robo_comp.robots.oneworld`)."""
         me = self
-        return {r.cell() for r in self.host.robots.values() if r is not me}
+        cells = {r.cell() for r in self.host.robots.values() if r is not me}
+        world = self.host.world
+        if world is not None:
+            for rid in self.host.foreign.seen:
+                if rid in world:
+                    p = world.pose(rid)
+                    cells.add((int(round(p.x)), int(round(p.y))))
+        return cells
 
 
 #: How much lower the planner thread's scheduling priority is than the host loop's (Linux
 #: schedules threads on their own): when many hosts plan at once on a few cores, the loops win.
 PLANNER_NICE = 10
+
+
+#: Answers to a task.done that end it: the core judged the report itself. Other refusals (an
+#: unknown session after a core restart, a full disk, ...) keep it for the next registration.
+DONE_REFUSED = frozenset({"E_FIELD", "E_TOO_LARGE", "E_MALFORMED", "E_NOT_YOURS"})
 
 
 def _lower_priority() -> None:
@@ -221,7 +235,11 @@ class RobotHost:
             self.truth_sock.setsockopt(zmq.SNDHWM, 10)
             self.truth_sock.bind(truth_pub)
         self.camera_fixes = 0
+        #: Bodies of other hosts' robots the camera tracks (one world for real and virtual robots).
+        self.foreign = Foreign()
         self._code_fd: int | None = None
+        #: robot id -> its task.done not yet answered by the core (sent again on re-registering).
+        self.unacked_done: dict[str, dict[str, Any]] = {}
 
     # ------------------------------------------------------------------ sending
     def _send(self, type_: str, body: dict[str, Any], on_reply: Reply | None = None) -> None:
@@ -278,7 +296,7 @@ class RobotHost:
             b = r.driver
             self._send("register", {"token": self.token, "robot_id": r.robot_id, "tasks": self.adverts(r.tag),
                                     "x": b.x, "y": b.y, "heading": b.heading,
-                                    "task_id": r.task.id if r.task else None},
+                                    "task_id": r.task.id if r.task else None, **self._resend(r)},
                        lambda ok, body, r=r: self._on_registered(r, ok, body))
 
     def adverts(self, tag: int) -> list[dict[str, Any]]:
@@ -381,10 +399,20 @@ class RobotHost:
             sensors_warm_up()
             self.world.sense_many([next(iter(self.robots))])
 
+    def _resend(self, r: SimRobot) -> dict[str, Any]:
+        """What a registration carries besides the robot: whether this host registers it for the
+        first time, and the task.done the core has not acknowledged (the core takes it once)."""
+        extra: dict[str, Any] = {"fresh": not r.tag}
+        done = self.unacked_done.get(r.robot_id)
+        if done is not None:
+            extra["done"] = {k: done[k] for k in ("task_id", "ok", "status", "result")}
+        return extra
+
     def _on_registered(self, r: SimRobot, ok: bool, body: dict[str, Any]) -> None:
         if not ok:
             log.error("robot %s was refused: %s", r.robot_id, body.get("message"))
         else:
+            self.unacked_done.pop(r.robot_id, None)  # the core has it (or had it already)
             if r.tag and r.tag != body["tag"]:
                 self.by_tag.pop(r.tag, None)
             r.tag = body["tag"]
@@ -549,10 +577,16 @@ class RobotHost:
         t.gen.close()  # team code still running is cancelled here
         r.driver.halt()
         self._report_one(r, time.monotonic())  # the owner sees the final pose with the result
-        self._send("task.done", {"tag": r.tag, "task_id": t.id, "ok": ok, "status": status,
-                                 "result": result}, lambda ok_, body, r=r: self._on_done_reply(r, ok_, body))
+        done = {"tag": r.tag, "task_id": t.id, "ok": ok, "status": status, "result": result}
+        # kept until the core answers: a core that goes down before it does gets it again with
+        # the robot's registration after the reconnect
+        self.unacked_done[r.robot_id] = done
+        self._send("task.done", done, lambda ok_, body, r=r, tid=t.id: self._on_done_reply(r, tid, ok_, body))
 
-    def _on_done_reply(self, r: SimRobot, ok: bool, body: dict[str, Any]) -> None:
+    def _on_done_reply(self, r: SimRobot, task_id: int, ok: bool, body: dict[str, Any]) -> None:
+        held = self.unacked_done.get(r.robot_id)
+        if held is not None and held["task_id"] == task_id and (ok or body.get("code") in DONE_REFUSED):
+            del self.unacked_done[r.robot_id]  # taken, or refused for what it says (not for who sent it)
         nxt = body.get("next") if ok else None
         if nxt is not None and r.task is None:
             self._start(r, nxt)
@@ -589,6 +623,10 @@ class RobotHost:
                                         "with": other.tag if other else None})
         self.loc.update()
         for r in self.robots.values():
+            if is_real(r.driver):  # runs without a step too: it reads odometry and scans
+                if r.driver.step is None:
+                    r.driver.update(dt)
+                self.world.place(r.robot_id, self.team or "", *r.driver.pose)
             if r.driver.step is not None and r.driver.update(dt):
                 if r.driver.bump is not None and r.task is not None:
                     b = r.driver.bump
@@ -602,6 +640,8 @@ class RobotHost:
                     self._advance(r)
         if self._planning:
             self._take_plans()
+        if self.foreign.seen:
+            self.foreign.expire(self.world, time.monotonic())
 
     def _take_plans(self) -> None:
         """Hand finished plans to their tasks (a task replaced or stopped meanwhile drops its plan)."""
@@ -660,10 +700,10 @@ class RobotHost:
         if self.world is not None:
             rows = self.world.sense_many([r.robot_id for r in robots])
             readings = {r.tag: row for r, row in zip(robots, rows)}
-            for r in robots:  # a real robot's own sensors (a ROS 2 robot's scan) replace the arena's
+            for r in robots:  # a real robot's own sensors (a ROS 2 robot's scan) and the virtual world's
                 own = getattr(r.driver, "readings", None)
                 if own is not None:
-                    readings[r.tag].update(own())
+                    readings[r.tag] = merge_readings(readings[r.tag], own())
         # each plugin on its own: one that raises loses its readings only, not the others'
         for impl in self.pm.hook.robo_comp_sense.get_hookimpls():
             for r in robots:
@@ -735,7 +775,13 @@ class RobotHost:
                 try:
                     rid = f["robot"]
                     r = self.robots.get(rid)
+                    if r is None and self.world is not None and isinstance(rid, str):  # another host's robot:
+                        self.foreign.fix(self.world, rid, float(f["x"]), float(f["y"]),  # a body in this arena
+                                         float(f["heading"]), time.monotonic())
                     if r is not None:
+                        own_fix = getattr(r.driver, "camera_fix", None)  # a real robot's pose follows the camera
+                        if own_fix is not None:
+                            own_fix(float(f["x"]), float(f["y"]), float(f["heading"]))
                         before = self.loc.estimate(rid)
                         self.loc.camera_fix(rid, float(f["x"]), float(f["y"]), float(f["heading"]),
                                             float(f["sigma"]), t)
@@ -754,7 +800,9 @@ class RobotHost:
         assert self.truth_sock is not None and self.world is not None
         w = self.world
         robots = []
-        for rid in self.robots:
+        for rid, r in self.robots.items():
+            if is_real(r.driver):  # its truth is the real world's (a simulated ROS 2 robot publishes its own)
+                continue
             p = w.pose(rid)
             robots.append([rid, round(p.x, 4), round(p.y, 4), round(p.heading, 3)])
         h, wd = w.walls.shape

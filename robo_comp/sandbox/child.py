@@ -2,8 +2,12 @@
 
 Started by :class:`robo_comp.sandbox.parent.Sandbox` as::
 
-    python -I -B -c "...; from robo_comp.sandbox.child import main; main()" \
+    python -s -P -B -c "...; from robo_comp.sandbox.child import main; main()" \
         --fd N --limits <msgpack hex>
+
+(``-I`` but for ``-E``: the parent gives the whole environment, and ``PYTHONHASHSEED`` in it
+fixes ``hash()`` per match; a ``deterministic`` child starts itself again once with address
+randomisation off, see :func:`_without_aslr`.)
 
 Order of start-up (everything that needs files or new threads happens *before* the limits):
 import all we need → die-with-parent → drop root to ``nobody`` (if root) → start the worker
@@ -198,6 +202,7 @@ class Child:
             return
         if type(text) is not str:
             text = str(text)
+        text = self.restricted._determinism.scrub(text)  # no memory addresses in the log
         cap = self.limits["output_bytes"]
         left = cap - run.output
         if left <= 0 or len(text) > left:
@@ -574,6 +579,7 @@ class _Worker:
             self.child.sources[file] = source.splitlines()
             code = R.compile_team(source, file)
             tree = ast.parse(source, file)
+            C.check_imports(tree)
             manifest = C.read_manifest(tree)
             C.check_signatures(tree, manifest)
         except C.ContractError as exc:
@@ -706,6 +712,7 @@ def _warm_up(child: "Child") -> None:
     C, R = child.contract, child.restricted
     code = R.compile_team(_WARM_UP, "warm.py")
     tree = _ast.parse(_WARM_UP)
+    C.check_imports(tree)
     C.check_signatures(tree, C.read_manifest(tree))
     glb = R.Policy(0, lambda text: None).make_globals("team.warm")
     exec(code, glb)
@@ -753,6 +760,30 @@ def _set_limits(limits: dict, keep_fds: int) -> None:
         resource.RLIM_INFINITY)
 
 
+#: personality(2) flag: no address-space layout randomisation.
+ADDR_NO_RANDOMIZE = 0x0040000
+
+
+def _without_aslr() -> None:
+    """Start this process again with address randomisation off (a replayable child: the
+    addresses that reach team code through ``repr()`` of functions and plain objects, default
+    ``hash()`` and the order of their sets then follow the code, not the kernel's dice).
+    Returns only when it is already off or the kernel does not let us turn it off."""
+    try:
+        import ctypes
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.personality.restype = ctypes.c_int
+        libc.personality.argtypes = [ctypes.c_ulong]
+        now = libc.personality(0xFFFFFFFF)
+        if now < 0 or now & ADDR_NO_RANDOMIZE:
+            return
+        if libc.personality(now | ADDR_NO_RANDOMIZE) < 0 or not libc.personality(0xFFFFFFFF) & ADDR_NO_RANDOMIZE:
+            return
+    except Exception:
+        return
+    os.execv(sys.executable, list(sys.orig_argv))
+
+
 def main(argv: list[str] | None = None) -> None:
     """Child entry point (``python -m robo_comp.sandbox.child``)."""
     ap = argparse.ArgumentParser()
@@ -760,6 +791,8 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--limits", required=True)
     opts = ap.parse_args(argv)
     limits = msgpack.unpackb(bytes.fromhex(opts.limits), raw=False)
+    if limits.get("deterministic") and argv is None:
+        _without_aslr()
     fd = opts.fd
     low = os.dup(fd)  # the lowest free descriptor: keeps RLIMIT_NOFILE small whatever the parent had open
     if low < fd:

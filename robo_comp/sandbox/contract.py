@@ -6,7 +6,9 @@ error messages as ``file:line: rule: detail``):
 ``filename``  the file name is ``[A-Za-z0-9_.-]{1,64}`` ending in ``.py``;
 ``size``      the source is UTF-8 text of at most ``MAX_SOURCE_BYTES``;
 ``syntax``    it parses;
-``policy``    it compiles under the RestrictedPython policy (:mod:`.restricted`);
+``policy``    it compiles under the RestrictedPython policy (:mod:`.restricted`), and every
+              ``import`` in it, at top level or inside a function, names an allowed module
+              (:data:`robo_comp.sandbox.policy.ALLOWED_IMPORTS`);
 ``manifest``  a top-level ``MANIFEST = {...}`` literal exists and has the strict shape below;
 ``signature`` every declared task has a top-level ``def task(robot, <args in order>)`` and an
               optional ``def init(robot)`` takes exactly ``robot``;
@@ -39,7 +41,7 @@ from robo_comp.errors import UploadError
 
 __all__ = [
     "ARG_TYPES", "BUILTIN_TASKS", "MAX_SOURCE_BYTES", "ContractError", "ModuleInfo",
-    "check_filename", "check_source", "read_manifest", "check_signatures", "check_task_args",
+    "check_filename", "check_source", "read_manifest", "check_signatures", "check_task_args", "check_imports",
     "upload_error", "source_hash",
 ]
 
@@ -287,6 +289,24 @@ def check_signatures(tree: ast.Module, manifest: dict[str, Any]) -> None:
         if problem or got != ["robot"] or init.decorator_list:
             raise ContractError("signature", "init must be declared as def init(robot)",
                                 init.lineno)
+
+
+def check_imports(tree: ast.Module) -> None:
+    """Rule ``policy``: every ``import`` anywhere in the module (a function's too, which would
+    otherwise fail only when the function first runs, in the match) names an allowed module."""
+    from robo_comp.sandbox.policy import ALLOWED_IMPORTS
+
+    for node in ast.walk(tree):
+        names: list[str] = []
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            names = ["." * node.level + (node.module or "")]
+        for name in names:
+            if name.split(".")[0] not in ALLOWED_IMPORTS or name.startswith("."):
+                raise ContractError("policy", f"import of {name!r} is not allowed in the sandbox; import only "
+                                              f"{', '.join(ALLOWED_IMPORTS)} (an import inside a function "
+                                              "counts too)", getattr(node, "lineno", None))
 
 
 def check_task_args(spec: dict[str, Any], args: Any) -> list[Any]:

@@ -2,16 +2,28 @@
 
 Only the referee changes phases. The clock counts only while running; ``extend`` adds time.
 The core asks :meth:`MatchClock.expired` every heartbeat and finishes the match at zero.
+
+The clock is match time, kept by the core on its monotonic clock and recorded in the event log
+(with every phase change and every :data:`CLOCK_PERIOD` while running), never computed from
+wall-clock stamps: a step of the machine's clock changes nothing. What an outage of the core
+does to a running clock is the referee's :data:`OUTAGE_RULES` choice (default ``pause``).
 """
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
 from typing import Any
 
 from robo_comp.errors import FieldError, PhaseError
 
 PHASES = ("setup", "running", "paused", "finished")
+#: What a core outage (a crash, a restart) does to a running match clock: ``pause`` (the clock
+#: stands still while no core runs: the default) or ``count`` (the outage is match time).
+OUTAGE_RULES = ("pause", "count")
+#: How often a running clock is recorded in the event log (``match.clock``): at most this much
+#: running time is not recorded when the core is killed.
+CLOCK_PERIOD = 0.25
 ACTIONS = ("start", "pause", "resume", "finish", "extend")
 # action -> (phases it is allowed from, phase it leads to)
 _TRANSITIONS: dict[str, tuple[tuple[str, ...], str | None]] = {
@@ -23,6 +35,32 @@ _TRANSITIONS: dict[str, tuple[tuple[str, ...], str | None]] = {
 }
 
 
+def _boot_id() -> str:
+    try:
+        with open("/proc/sys/kernel/random/boot_id") as f:
+            return f.read().strip()
+    except OSError:
+        return ""
+
+
+BOOT_ID = _boot_id()
+
+
+def monotonic_mark() -> dict[str, Any]:
+    """This machine's boot-time clock (it runs on while no core does and ignores steps of the
+    wall clock) and its boot id: what the ``count`` outage rule measures an outage with."""
+    return {"boot": round(time.clock_gettime(time.CLOCK_BOOTTIME), 3), "boot_id": BOOT_ID}
+
+
+def outage_seconds(mark: dict[str, Any], wall_then: float) -> tuple[float, str]:
+    """How long the core was down since ``mark`` (a :func:`monotonic_mark` logged at wall time
+    ``wall_then``) and how that was measured: by the boot-time clock on the same boot, else by
+    the wall clock (the only clock that spans a reboot)."""
+    if mark.get("boot_id") and mark.get("boot_id") == BOOT_ID and "boot" in mark:
+        return max(0.0, time.clock_gettime(time.CLOCK_BOOTTIME) - float(mark["boot"])), "the machine's boot-time clock"
+    return max(0.0, time.time() - wall_then), "the wall clock (the machine was restarted since)"
+
+
 @dataclass
 class MatchClock:
     """The phase and the running time of one match; times are ``time.monotonic()`` seconds."""
@@ -31,6 +69,8 @@ class MatchClock:
     phase: str = "setup"
     elapsed_before: float = 0.0
     running_since: float | None = None
+    #: One of :data:`OUTAGE_RULES`.
+    outage: str = "pause"
 
     def elapsed(self, now: float) -> float:
         """Seconds the match has been running."""
@@ -66,12 +106,19 @@ class MatchClock:
         self.phase = to
         return to
 
+    def set_outage(self, rule: Any) -> None:
+        """Choose what a core outage does to the running clock (one of :data:`OUTAGE_RULES`)."""
+        if rule not in OUTAGE_RULES:
+            raise FieldError(f"the outage rule is 'pause' (the clock stands still while the core is down) "
+                             f"or 'count' (the outage is match time), not {rule!r}")
+        self.outage = rule
+
     def state(self, now: float) -> dict[str, Any]:
         """Phase and times as plain data (``remaining`` is nil without a time limit)."""
         rem = self.remaining(now)
         return {"phase": self.phase, "elapsed": round(self.elapsed(now), 3),
                 "remaining": None if math.isinf(rem) else round(rem, 3),
-                "duration": None if math.isinf(self.duration) else self.duration}
+                "duration": None if math.isinf(self.duration) else self.duration, "outage": self.outage}
 
     def restore(self, phase: str, elapsed: float, duration: float | None, now: float) -> None:
         """Set the clock from a logged state (recovery): a running match keeps running."""

@@ -289,6 +289,9 @@ def describe_event(e: LogEntry) -> str:
     if t == "core.storage":
         return (f"STORAGE FAULT: {d.get('message', '')}" if not d.get("ok") else
                 f"storage OK again: {d.get('message', '')}")
+    if t == "core.recovered":
+        return (f"core RECOVERED {d.get('events', 0)} events: LOG DAMAGED: {d['damage']}" if d.get("damage") else
+                f"core recovered {d.get('events', 0)} events in {d.get('seconds', 0):.2f} s")
     if t == "sandbox.reset":
         return f"the referee restarted the sandbox of robot(s) {', '.join(map(str, d.get('tags') or []))}"
     if t == "upload.done":

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import copy
 import json
 import logging
 import time
@@ -34,6 +35,7 @@ from robo_comp.errors import FieldError, RoboCompError
 from robo_comp.tui.connection import CoreLink, LinkState
 from robo_comp.wall.model import WallModel
 from robo_comp.web.state import TaskNames, jsonable, map_png, public_snapshot, state_json
+from robo_comp.web.story import Story
 from robo_comp.world.mapservice import unpack_costs
 
 log = logging.getLogger("robo_comp.web")
@@ -127,6 +129,8 @@ class Hub:
         self.empty_since: float | None = time.monotonic()
         self._map: tuple[int, str] = (-1, "")
         self.events_in = 0
+        self.story = Story()
+        self.t0 = time.monotonic()  # the live timeline's zero (the story's ``t``)
 
     # ------------------------------------------------------------------ browsers
     def view_info(self) -> dict[str, Any]:
@@ -139,7 +143,20 @@ class Hub:
         if self._map[0] != av and self.model.arena is not None:
             self._map = (av, map_png(self.model))
         body = state_json(self.model, self.model.clock(), map_url=self._map[1], tasks=self.tasks.names)
+        body["story"] = self.story.to_json()
+        body["now"] = round(time.monotonic() - self.t0, 3)
         return dumps({"type": "state", "view": self.view_info(), "live": True, "state": body})
+
+    def _match_clock(self) -> float | None:
+        """The match clock now (None while the core reports no phases)."""
+        m = self.model.match
+        return m.now(self.model.clock())[0] if m.phase else None
+
+    def adopt_story(self, other: Hub) -> None:
+        """Start this view's story from another view's (a team view opened mid-match starts
+        with what the public view told so far, on the same timeline)."""
+        self.story = copy.deepcopy(other.story)
+        self.t0 = other.t0
 
     def attach(self, sub: Subscriber) -> None:
         """Start sending this view to ``sub`` (its state first, then every event)."""
@@ -159,15 +176,29 @@ class Hub:
     def publish(self, events: list[tuple[str, dict[str, Any]]]) -> None:
         """Apply a batch of events to the model and send it, serialised once, to every browser."""
         resync = False
+        told: dict[int, dict[str, Any]] = {}
+        samples = len(self.story.scores)
+        now = time.monotonic() - self.t0
         for topic, data in events:
             self.model.apply(topic, data)
             self.tasks.apply(topic, data)
+            if topic != "robot.positions":
+                for it in self.story.apply(topic, data, now, self._match_clock()):
+                    told[it.id] = it.to_dict()
             resync |= topic == "core.started"
         self.events_in += len(events)
         if resync:  # a new arena: everyone starts again from a state
             text = self.state_text()
         else:
-            text = dumps({"type": "ev", "e": [[t, compact(t, d)] for t, d in events]})
+            msg: dict[str, Any] = {"type": "ev", "e": [[t, compact(t, d)] for t, d in events]}
+            if told:
+                msg["s"] = list(told.values())
+            if len(self.story.scores) != samples and self.story.scores:
+                t, c, board = self.story.scores[-1]
+                msg["k"] = [round(t, 3), None if c is None else round(c, 2), board]
+            if any(t == "match.phase" for t, _ in events):
+                msg["v"] = self.story.victims
+            text = dumps(msg)
         for s in list(self.subs):
             s.offer(text)
 

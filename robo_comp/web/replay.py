@@ -24,7 +24,9 @@ from robo_comp import protocol as P
 from robo_comp.errors import AuthError, FieldError
 from robo_comp.protocol.logfile import read_recording
 from robo_comp.wall.model import WallModel
+from robo_comp.wall.replay import ScoreFold
 from robo_comp.web.state import TaskNames, jsonable, map_png, public_event, state_json
+from robo_comp.web.story import Story
 
 #: Seconds of recording between two keyframes.
 KEYFRAME_EVERY = 10.0
@@ -53,6 +55,7 @@ class RecordingView:
     key_index: list[int] = field(default_factory=list)  # events applied before each keyframe
     key_json: list[str] = field(default_factory=list)
     pictures: dict[int, str | None] = field(default_factory=dict)  # picture id -> its team
+    story_json: str = "{}"  # the view's whole story (ticker, markers, score over time)
 
     def seek_text(self, at: float, duration: float) -> str:
         """The ``state`` message of the moment ``at``: the keyframe before it plus the events after."""
@@ -80,8 +83,24 @@ class Recording:
         self.t0 = self.records[0].t if self.records else 0.0
         self.duration = self.records[-1].t - self.t0 if self.records else 0.0
         self.tokens = _tokens_beside(self.path)
+        self.start = self._start()
         self._views: dict[str, RecordingView] = {}
         self._lock = asyncio.Lock()
+
+    def _start(self) -> float:
+        """Where a replay opens without a time: when the match started running (or, without
+        phases, when the first robot came), never on the empty arena of the log's first second."""
+        first_robot = None
+        for rec in self.records:
+            if rec.topic == "match.phase" and rec.data.get("phase") == "running":
+                return max(0.0, rec.t - self.t0)
+            if first_robot is None and rec.topic in ("robot.registered", "robot.positions"):
+                first_robot = rec.t - self.t0
+        return min(self.duration, first_robot + 1.0) if first_robot is not None else 0.0
+
+    def summary(self) -> dict[str, Any]:
+        """What the page learns in ``hello``: the length and where to open."""
+        return {"duration": self.duration, "start": round(self.start, 3)}
 
     def view_for_token(self, token: str) -> str:
         """The view a token of the recorded match opens (a team's name or ``referee``)."""
@@ -107,6 +126,8 @@ class Recording:
         model = WallModel(clock=lambda: now[0])
         model.replay = True
         tasks = TaskNames()
+        fold = ScoreFold()  # the scores, read as the wall's replay reads them
+        story = Story(limit=None)
         team_of: dict[int, str | None] = {}
         maps: dict[int, str] = {}
         next_key = 0.0
@@ -119,21 +140,28 @@ class Recording:
                 team_of[rec.data.get("tag")] = rec.data.get("team")
             if rec.topic == "picture" and isinstance(rec.data.get("id"), int):
                 v.pictures[rec.data["id"]] = rec.data.get("team") or rec.team
+            table = fold.feed(rec.topic, rec.data)  # every view: the core publishes its table to everyone
             data = self._filter(name, rec.topic, rec.team, rec.data, team_of)
-            if data is None:
-                continue
             now[0] = t
-            model.apply(rec.topic, data)
-            tasks.apply(rec.topic, data)
-            if rec.topic == "core.started":
-                continue  # the page gets the arena from a keyframe
-            v.times.append(t)
-            v.frags.append(_dump([rec.topic, data, round(t, 3)]))
+            if data is not None:
+                model.apply(rec.topic, data)
+                tasks.apply(rec.topic, data)
+                if rec.topic != "robot.positions":
+                    story.apply(rec.topic, data, t, model.match.now(t)[0] if model.match.phase else None)
+                if rec.topic != "core.started":  # the page gets the arena from a keyframe
+                    v.times.append(t)
+                    v.frags.append(_dump([rec.topic, data, round(t, 3)]))
+            if table is not None:
+                model.apply("score", table)
+                v.times.append(t)
+                v.frags.append(_dump(["score", table, round(t, 3)]))
         while model.arena is not None and (not v.key_times or next_key <= self.duration):
             self._keyframe(v, model, tasks, maps, next_key, now)
             next_key += KEYFRAME_EVERY
         if not v.key_times:
             raise FieldError(f"{self.path}: the log holds no arena to show")
+        v.story_json = _dump(dict(story.to_json(), end_clock=model.match.now(self.duration)[0]
+                                  if model.match.phase else None))
         return v
 
     def _keyframe(self, v: RecordingView, model: WallModel, tasks: TaskNames, maps: dict[int, str],
@@ -196,7 +224,9 @@ class Playback:
         self._task: asyncio.Task[None] | None = None
 
     async def open(self, view: RecordingView, at: float, *, play: bool, speed: float) -> None:
-        """Show ``view`` from ``at`` seconds."""
+        """Show ``view`` from ``at`` seconds (its story first, when the view changes)."""
+        if view is not self.view:
+            await self.send(f'{{"type":"story","view":{_dump(view.name)},"story":{view.story_json}}}')
         self.view = view
         self.set_speed(speed)
         await self.seek(at)

@@ -199,6 +199,8 @@ class LiveGateway:
             hub = self.private.get(token)  # type: ignore[assignment]  -- both gateways' hubs answer the same calls
             if hub is None:
                 th = TeamHub("private", self.core, token, **self.keys)
+                if self.public is not None:  # the story so far (public events: every team saw them)
+                    th.adopt_story(self.public)
                 self.private[token] = th
                 th.start()
                 hub = th
@@ -245,7 +247,7 @@ class ReplayGateway:
 
     def info(self) -> dict[str, Any]:
         """What the page needs to know before joining."""
-        return {"mode": self.mode, "duration": self.recording.duration, "views": []}
+        return {"mode": self.mode, **self.recording.summary(), "views": []}
 
     async def close(self) -> None:
         """Nothing to leave."""

@@ -9,6 +9,7 @@ handlers). The map is sent once, as a PNG with one pixel per cell coloured like 
 from __future__ import annotations
 
 import base64
+import os
 import struct
 import zlib
 from typing import Any
@@ -18,6 +19,9 @@ import numpy as np
 from robo_comp import protocol as P
 from robo_comp.wall.model import WallModel
 
+# The map is drawn in the wall's colours, from its pygame module: without pygame's greeting on stdout.
+os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
+
 #: Topics the core never publishes (they reach only the team and the referee).
 NEVER_PUBLIC = P.PRIVATE_TOPICS
 #: The fields of a ``picture`` event the core publishes (the logged record holds more).
@@ -25,8 +29,11 @@ PUBLIC_PICTURE = P.PUBLIC_TOPICS["picture"] or ()
 #: The fields of a robot row and of a find that the public view shows (those the PUB feed carries).
 PUBLIC_ROBOT = ("tag", "team", "status", "x", "y", "heading", "moving")
 PUBLIC_FIND = ("id", "team", "tag", "x", "y", "kind", "state")
-#: Robots sent as rows ``[tag, team, x, y, heading, status, moving, task]``.
-ROBOT_FIELDS = ("tag", "team", "x", "y", "heading", "status", "moving", "task")
+#: Robots sent as rows ``[tag, team, x, y, heading, status, moving, task, trail]`` (``trail``: the
+#: last :data:`TRAIL_SENT` trail points as a flat ``[x0, y0, x1, y1, ...]``).
+ROBOT_FIELDS = ("tag", "team", "x", "y", "heading", "status", "moving", "task", "trail")
+#: Trail points per robot in a ``state`` message (a page that joins or seeks sees where robots were).
+TRAIL_SENT = 24
 
 
 def public_event(topic: str, data: dict[str, Any]) -> dict[str, Any] | None:
@@ -40,8 +47,31 @@ def public_snapshot(snap: dict[str, Any]) -> dict[str, Any]:
     out = dict(snap)
     out["robots"] = [{**{k: r[k] for k in PUBLIC_ROBOT if k in r}, "task": _task_name(r.get("task"))}
                      for r in snap.get("robots") or []]
-    out["finds"] = [{k: f[k] for k in PUBLIC_FIND if k in f} for f in snap.get("finds") or []]
+    out["finds"] = [{**{k: f[k] for k in PUBLIC_FIND if k in f}, "state": find_state(f)}
+                    for f in snap.get("finds") or []]
     return out
+
+
+def find_state(f: dict[str, Any]) -> str:
+    """A find's state (``confirmed``, ``rejected``, ``duplicate``, ``reported``), from its
+    ``state`` or, in a snapshot's records, its verdict: the same in every view."""
+    if f.get("state"):
+        return str(f["state"])
+    v = f.get("verdict") or {}
+    return "confirmed" if v.get("valid") else ("duplicate" if v.get("duplicate") else ("rejected" if v else "reported"))
+
+
+def legend(model: WallModel) -> dict[str, Any]:
+    """What the page's legend explains, in the colours the map and the wall use: the find
+    states, the zone kinds on this map, start zones, walls and costly cells."""
+    from robo_comp.wall import render as R  # imports pygame: only where a map is drawn
+
+    hexa = lambda c: "#%02x%02x%02x" % tuple(int(v) for v in c)  # noqa: E731
+    zones = sorted({str(z.get("kind")) for z in (model.arena.zones if model.arena else [])})
+    return {"finds": {k: hexa(v) for k, v in R.FIND_COLOURS.items()},
+            "zones": {k: hexa(R.ZONE_COLOURS.get(k, R.ZONE_DEFAULT)) for k in zones},
+            "wall": hexa(R.WALL), "floor": hexa(R.FLOOR), "costly": hexa(R.NEAR_WALL),
+            "discovery": hexa(R.DISCOVERY), "lost": hexa(R.LOST_MARK)}
 
 
 def _task_name(task: Any) -> dict[str, Any] | None:
@@ -97,12 +127,14 @@ def state_json(model: WallModel, now: float, *, map_url: str | None = None,
                  "zones": a.zones, "objects": a.objects, "map": map_url if map_url is not None else map_png(model)}
     tasks = tasks or {}
     robots = [[r.tag, r.team, round(r.x, 3), round(r.y, 3), round(r.heading, 1), r.status, r.moving,
-               tasks.get(r.tag)] for r in model.robots.values()]
+               tasks.get(r.tag), [round(v, 1) for p in list(r.trail)[-TRAIL_SENT:] for v in p]]
+              for r in model.robots.values()]
     things = [{"kind": t.kind, "id": t.id, "x": t.x, "y": t.y, "team": t.team, "state": t.state, "info": t.info}
               for t in model.things.values() if t.kind != "object"]
     m = model.match
     elapsed, remaining = m.now(now)
     return jsonable({"arena": arena, "robots": robots, "things": things, "score": model.score,
+                     "legend": legend(model) if a is not None else None,
                      "match": {"phase": m.phase, "elapsed": elapsed, "remaining": remaining},
                      "messages": [{"text": x.text, "level": x.level} for x in model.visible_messages(now)]})
 

@@ -1,6 +1,6 @@
 """A fork bomb via os."""
 # expect: upload
-# match: module: .*import of 'os' is not allowed
+# match: policy: import of 'os' is not allowed
 MANIFEST = {
     "name": "hostile",
     "version": "1.0",

@@ -1,6 +1,6 @@
 """import ctypes at module level."""
 # expect: upload
-# match: module: .*import of 'ctypes' is not allowed
+# match: policy: import of 'ctypes' is not allowed
 MANIFEST = {
     "name": "hostile",
     "version": "1.0",

@@ -1,6 +1,6 @@
 """import importlib at module level."""
 # expect: upload
-# match: module: .*import of 'importlib' is not allowed
+# match: policy: import of 'importlib' is not allowed
 MANIFEST = {
     "name": "hostile",
     "version": "1.0",

@@ -1,6 +1,7 @@
-"""from os import system inside a task."""
-# expect: run
-# match: import of 'os' is not allowed
+"""from os import system inside a task: refused at upload (every import is read, not only those
+that run when the module loads)."""
+# expect: upload
+# match: policy: import of 'os' is not allowed
 MANIFEST = {
     "name": "hostile",
     "version": "1.0",

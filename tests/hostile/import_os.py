@@ -1,6 +1,6 @@
 """import os at module level."""
 # expect: upload
-# match: module: .*import of 'os' is not allowed
+# match: policy: import of 'os' is not allowed
 MANIFEST = {
     "name": "hostile",
     "version": "1.0",

@@ -1,6 +1,6 @@
 """import socket at module level."""
 # expect: upload
-# match: module: .*import of 'socket' is not allowed
+# match: policy: import of 'socket' is not allowed
 MANIFEST = {
     "name": "hostile",
     "version": "1.0",

@@ -1,6 +1,6 @@
 """import subprocess at module level."""
 # expect: upload
-# match: module: .*import of 'subprocess' is not allowed
+# match: policy: import of 'subprocess' is not allowed
 MANIFEST = {
     "name": "hostile",
     "version": "1.0",

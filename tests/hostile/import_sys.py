@@ -1,6 +1,6 @@
 """import sys at module level."""
 # expect: upload
-# match: module: .*import of 'sys' is not allowed
+# match: policy: import of 'sys' is not allowed
 MANIFEST = {
     "name": "hostile",
     "version": "1.0",

@@ -14,6 +14,14 @@ LINK_STYLE = {"connected": ("● online", "green"), "connecting": ("… connecti
               "reconnecting": ("⟳ reconnecting…", "bold red"), "closed": ("✗ offline", "bold red")}
 
 
+
+def clock_text(phase: str, elapsed: float, remaining: float | None) -> str:
+    """The status bar's clock: time left while the match can still run; once it is finished,
+    how long it ran (a finished match has no time "left")."""
+    if phase == "finished":
+        return f"{fmt_clock(elapsed)} played"
+    return f"{fmt_clock(remaining)} left" if remaining is not None else f"{fmt_clock(elapsed)} elapsed"
+
 class MatchBar(Widget):
     """One line at the top: console name, match phase and clock, the team's score, the link state."""
 
@@ -36,7 +44,7 @@ class MatchBar(Widget):
         width = self.size.width
         elapsed, remaining = m.match.now(m.clock())
         label, link_style = LINK_STYLE.get(self.link, (self.link, ""))
-        clock = f"{fmt_clock(remaining)} left" if remaining is not None else f"{fmt_clock(elapsed)} elapsed"
+        clock = clock_text(m.match.phase, elapsed, remaining)
         mine = m.my_score()
         score = ""
         if mine is not None:
@@ -52,7 +60,7 @@ class MatchBar(Widget):
             if attempt == 0:
                 title = title.replace("robo_comp · ", "")
             elif attempt == 1:
-                clock = clock.replace(" elapsed", "").replace(" left", "")
+                clock = clock.replace(" elapsed", "").replace(" left", "").replace(" played", "")
         t = Text(no_wrap=True, overflow="ellipsis")
         t.append(f" {title} ", style="bold")
         t.append(f" {m.match.phase.upper()} ", style=PHASE_STYLE.get(m.match.phase, "reverse"))

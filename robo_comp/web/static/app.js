@@ -2,7 +2,7 @@
 // Hash parameters: #t=SECONDS (replay position), speed=S, play=1, view=NAME&key=K (a view the server
 // offers, with the key from the link the gateway printed).
 import { Model } from "./model.js";
-import { Renderer } from "./view.js";
+import { Renderer, VICTIM_FOUND, VICTIM_MISSED } from "./view.js";
 
 const $ = id => document.getElementById(id);
 const perf = () => performance.now() / 1000;
@@ -64,9 +64,9 @@ function receive(msg) {
       if (S.mode === "replay") {
         $("replay").classList.remove("hidden");
         S.replay.duration = msg.duration;
-        if (params.get("t") != null) S.replay.t = +params.get("t") || 0;
         if (params.get("speed")) S.replay.speed = +params.get("speed") || 1;
-        S.replay.playing = params.get("play") === "1";
+        if (params.get("t") != null) { S.replay.t = +params.get("t") || 0; S.replay.playing = params.get("play") === "1"; }
+        else { S.replay.t = msg.start || 0; S.replay.playing = params.get("play") !== "0"; }  // opens where the match starts, playing
         $("speed").value = String(S.replay.speed);
       }
       S.offered = msg.views || [];
@@ -76,7 +76,7 @@ function receive(msg) {
       S.view = msg.view || S.view;
       if (msg.live === false) { S.replay.t = msg.t; S.replay.at = perf(); S.replay.duration = msg.duration; }
       const t = matchNow();
-      model.load(msg.state, msg.live === false ? msg.t : t);
+      model.load(msg.state, msg.live === false ? msg.t : t, msg.live !== false);
       for (const [topic, d, te] of msg.after || []) model.apply(topic, d, te, false);
       if (renderer.camera.fitted) renderer.fit();
       S.stats.states++; S.stats.lastState = perf();
@@ -88,8 +88,15 @@ function receive(msg) {
       const t = matchNow();
       for (const [topic, d, te] of msg.e) model.apply(topic, d, te ?? t);
       S.stats.evs += msg.e.length;
+      for (const it of msg.s || []) model.storyItem(it);
+      if (msg.k) { model.story.scores.push(msg.k); model.story.version++; }
+      if (msg.v) { model.story.victims = msg.v; model.story.version++; }
       break;
     }
+    case "story":
+      model.setStory(msg.story);
+      hud(true);
+      break;
     case "clock":
       Object.assign(S.replay, { t: msg.t, at: perf(), playing: msg.playing, speed: msg.speed, duration: msg.duration });
       $("btn-play").textContent = msg.playing ? "❚❚" : "▶";
@@ -133,30 +140,193 @@ function viewLabel() {
   $("arena-name").textContent = model.arena ? model.arena.name : "";
 }
 
-// ------------------------------------------------------------------ HUD: clock, scoreboard, messages
+// ------------------------------------------------------------------ HUD: clock, scoreboard, story
+// One match clock everywhere: the header, the replay bar's two ends and every ticker line show
+// the core's match clock (the recording's time only where the match has no phases).
+function clockText(t) {
+  const [el] = model.clock(t);
+  return fmt(!model.match.phase && S.mode === "replay" ? t : el);
+}
+// The story's timeline now: the replay's position, or the live gateway's clock.
+function storyNow() {
+  if (S.mode === "replay") return matchNow();
+  const st = model.story;
+  return st.now != null ? st.now + (perf() - st.heard) : Infinity;
+}
 function hud(force = false) {
   const t = matchNow();
-  const [el, rem] = model.clock(t);
-  $("phase").textContent = model.match.phase || (S.mode === "replay" ? "replay" : "live");
-  $("elapsed").textContent = fmt(!model.match.phase && S.mode === "replay" ? t : el);  // no phases: the recording's time
-  $("remaining").textContent = rem != null ? `(${fmt(rem)} left)` : "";
+  const [, rem] = model.clock(t);
+  const phase = model.match.phase;
+  $("phase").textContent = phase || (S.mode === "replay" ? "replay" : "live");
+  $("elapsed").textContent = clockText(t);
+  $("remaining").textContent = rem != null && phase !== "finished" ? `(${fmt(rem)} left)` : "";
   if (S.mode === "replay") {
-    $("t-now").textContent = fmt(t); $("t-end").textContent = fmt(S.replay.duration);
+    $("t-now").textContent = clockText(t);
+    $("t-now").title = `match clock (recording ${fmt(t)})`;
+    const end = model.story.endClock;
+    $("t-end").textContent = end != null ? fmt(end) : fmt(S.replay.duration);
     const tl = $("timeline");
     tl.max = String(Math.max(0.1, S.replay.duration));
     if (!S.dragging) tl.value = String(t);
+    if (S.markersFor !== `${model.story.version}|${S.replay.duration}`) markers();
   }
+  story(force);
   if (!force && model.version === S.hudVersion) return;
   S.hudVersion = model.version;
+  banner();
+  legend();
   const rows = (model.score.length ? model.score : (model.arena ? model.arena.teams.map(x => ({ team: x.name, score: 0, victims: 0 })) : []));
   $("score-table").tBodies[0].innerHTML = rows.map((r, i) => {
     const c = model.colour(r.team);
     return `<tr class="${r.disqualified ? "dq" : ""}"><td>${r.rank ?? i + 1}</td><td><span class="swatch" data-colour="${esc(c)}"></span>${esc(r.team)}</td><td class="num">${esc(fmtNum(r.score))}</td><td class="num">${esc(r.victims ?? 0)}</td></tr>`;
   }).join("");
   // colours set through the DOM: the page's Content-Security-Policy allows no inline style attributes
-  for (const s of $("score-table").querySelectorAll(".swatch")) s.style.background = s.dataset.colour;
-  $("messages").innerHTML = model.messages.filter(x => t - x.t < 12 || S.mode === "replay" && Math.abs(t - x.t) < 12)
+  paint($("score-table"));
+  // referee broadcasts and penalties are in the ticker: the message bar keeps the rest (storage faults, refusals)
+  $("messages").innerHTML = model.messages.filter(x => x.level !== "broadcast" && !/^(penalty|disqualified) /.test(x.text))
+    .filter(x => t - x.t < 12 || S.mode === "replay" && Math.abs(t - x.t) < 12)
     .map(x => `<div class="${esc(x.level)}">${esc(x.text)}</div>`).join("");
+}
+// ------------------------------------------------------------------ the story: ticker, markers, chart, banner, legend
+const KIND_COLOUR = { find: "#28be46", penalty: "#ff5646", bump: "#ff9f1a", lost: "#ffd200", phase: "#ffb020",
+                      broadcast: "#7ab8ff", disqualified: "#ff2d55", score: "#c0c0d0" };
+const TICKER_LINES = 40;
+function visibleItems(now) {
+  const items = model.story.items;
+  let hi = items.length;
+  if (S.mode === "replay") { let lo = 0; while (lo < hi) { const mid = (lo + hi) >> 1; if (items[mid].t <= now + 1e-6) lo = mid + 1; else hi = mid; } }
+  return items.slice(Math.max(0, hi - TICKER_LINES), hi).reverse();
+}
+function itemColour(it) {
+  if (it.kind === "find") return model.findColour(it.state);
+  return it.team ? model.colour(it.team) : KIND_COLOUR[it.kind] || "#c0c0d0";
+}
+function story(force) {
+  const now = storyNow(), st = model.story;
+  const shown = visibleItems(now);
+  const key = `${st.version}|${shown.length ? shown[0].id : 0}|${shown.length}`;
+  if (force || key !== S.tickerKey) {
+    S.tickerKey = key;
+    $("ticker").innerHTML = shown.map(it => {
+      const pts = it.points ? `<span class="pts ${it.points < 0 ? "neg" : "pos"}">${it.points > 0 ? "+" : "−"}${esc(fmtNum(Math.abs(it.points)))}</span>` : "<span></span>";
+      return `<li class="k-${esc(it.kind)}${S.mode === "replay" ? " seekable" : ""}" data-t="${it.t}" title="${esc(it.kind)}">` +
+        `<span class="tt">${esc(fmt(it.c ?? it.t))}</span><span class="tx"><span class="swatch" data-colour="${esc(itemColour(it))}"></span>${esc(it.text)}</span>${pts}</li>`;
+    }).join("");
+    paint($("ticker"));
+  }
+  chart(now);
+}
+$("ticker").addEventListener("click", e => {
+  const li = e.target.closest("li");
+  if (li && S.mode === "replay") seek(+li.dataset.t);
+});
+function seek(t) { send({ op: "seek", t: Math.max(0, t) }); }
+function markers() {
+  const st = model.story, d = Math.max(0.1, S.replay.duration);
+  S.markersFor = `${st.version}|${S.replay.duration}`;
+  const box = $("markers");
+  box.innerHTML = "";
+  for (const it of st.items) {
+    if (it.kind === "score") continue;
+    const b = document.createElement("button");
+    b.type = "button";
+    b.className = `mk k-${it.kind}`;
+    b.style.left = `${Math.min(100, 100 * it.t / d)}%`;  // (CSSOM, which the page's CSP allows)
+    b.style.background = itemColour(it);
+    b.title = `${fmt(it.c ?? it.t)} ${it.text}`;
+    b.setAttribute("aria-label", b.title);
+    b.onclick = () => seek(it.t);
+    box.appendChild(b);
+  }
+}
+// The score over time: one line per team, up to now (a replay never shows the future).
+function chart(now) {
+  const cv = $("chart"), st = model.story;
+  const dpr = window.devicePixelRatio || 1, w = cv.clientWidth, h = cv.clientHeight;
+  if (!w || !h) return;
+  const samples = st.scores;
+  const key = `${st.version}|${samples.length}|${w}|${h}|${S.mode === "replay" ? Math.floor(now * 4) : 0}`;
+  if (key === S.chartKey) return;
+  S.chartKey = key;
+  if (cv.width !== Math.round(w * dpr)) { cv.width = Math.round(w * dpr); cv.height = Math.round(h * dpr); }
+  const ctx = cv.getContext("2d");
+  ctx.setTransform(dpr, 0, 0, dpr, 0, 0);
+  ctx.clearRect(0, 0, w, h);
+  const upto = samples.filter(s => s[0] <= now + 1e-6);
+  const end = S.mode === "replay" ? Math.max(0.1, S.replay.duration) : Math.max(1, samples.length ? samples[samples.length - 1][0] : 1, Number.isFinite(now) ? now : 0);
+  const start = S.mode === "replay" ? 0 : (samples.length ? samples[0][0] : 0);
+  let lo = 0, hi = 0;
+  for (const [, , b] of upto) for (const v of Object.values(b)) { lo = Math.min(lo, v); hi = Math.max(hi, v); }
+  if (hi - lo < 1) hi = lo + 1;
+  const X = t => 4 + (w - 8) * (t - start) / Math.max(0.1, end - start), Y = v => h - 14 - (h - 22) * (v - lo) / (hi - lo);
+  ctx.strokeStyle = "#3a3c4c"; ctx.lineWidth = 1;
+  ctx.beginPath(); ctx.moveTo(4, Y(0) + 0.5); ctx.lineTo(w - 4, Y(0) + 0.5); ctx.stroke();
+  ctx.fillStyle = "#a0a2b0"; ctx.font = "10px system-ui, sans-serif"; ctx.textBaseline = "top";
+  ctx.fillText(`${fmtNum(hi)}`, 4, 2); ctx.textBaseline = "bottom"; ctx.fillText(`${fmtNum(lo)}`, 4, h - 1);
+  ctx.textAlign = "right"; ctx.fillText("score over time", w - 4, h - 1); ctx.textAlign = "left";
+  const teams = new Set(); for (const [, , b] of upto) for (const k of Object.keys(b)) teams.add(k);
+  for (const team of teams) {
+    ctx.strokeStyle = model.colour(team); ctx.lineWidth = 2; ctx.beginPath();
+    let prev = 0, first = true;
+    for (const [t, , b] of upto) {
+      const v = b[team] ?? prev;
+      if (first) { ctx.moveTo(X(start), Y(0)); first = false; }
+      ctx.lineTo(X(t), Y(prev)); ctx.lineTo(X(t), Y(v)); prev = v;
+    }
+    if (Number.isFinite(now)) ctx.lineTo(X(Math.min(end, now)), Y(prev));
+    ctx.stroke();
+  }
+  if (S.mode === "replay") { ctx.strokeStyle = "#ffb020"; ctx.beginPath(); ctx.moveTo(X(now) + 0.5, 0); ctx.lineTo(X(now) + 0.5, h - 12); ctx.stroke(); }
+}
+// The winner banner when the match is over (the victims are revealed on the map then).
+function banner() {
+  const done = model.match.phase === "finished";
+  $("banner").classList.toggle("hidden", !done);
+  if (!done) return;
+  const rows = [...model.score].filter(r => !r.disqualified).sort((a, b) => (a.rank ?? 99) - (b.rank ?? 99));
+  let title = "Match over";
+  if (rows.length && (rows.length < 2 || rows[0].score !== rows[1].score || rows[0].victims !== rows[1].victims)) title = `${rows[0].team} wins`;
+  else if (rows.length >= 2) title = "A draw";
+  const vs = model.story.victims;
+  const found = vs.filter(v => (v.found_by || []).length).length;
+  $("banner-title").textContent = title;
+  $("banner-title").style.color = rows.length ? model.colour(rows[0].team) : "";
+  $("banner-detail").textContent = rows.map(r => `${r.team} ${fmtNum(r.score)}`).join(" · ") +
+    (vs.length ? ` — ${found} of ${vs.length} victims found (shown on the map)` : "");
+}
+// What the symbols and colours mean, in the colours the map uses.
+function legend() {
+  const L = model.legend, a = model.arena;
+  const key = JSON.stringify([L, a && a.teams]);
+  if (key === S.legendKey) return;
+  S.legendKey = key;
+  // [symbol class, colour, text]; colours go on through the DOM (the page's CSP allows no inline styles)
+  const li = (sym, colour, text) => `<li><span class="sym ${sym}" data-colour="${esc(colour)}"></span>${esc(text)}</li>`;
+  const out = [];
+  for (const t of (a && a.teams) || []) out.push(li("dot", model.colour(t.name), `robot of ${t.name} (line: heading)`));
+  if (L) {
+    out.push(li("ring", L.lost, "lost robot"));
+    out.push(li("dot", "#5a5a64", "robot that left"));
+    for (const [state, c] of Object.entries(L.finds)) out.push(li("diamond", c, `find, ${state}`));
+    out.push(li("square", "#7ab8ff", "picture taken"));
+    out.push(li("dot", L.discovery, "discovery (team view)"));
+    out.push(li("cross", VICTIM_FOUND, "victim found (at the end)"));
+    out.push(li("cross", VICTIM_MISSED, "victim missed (at the end)"));
+    out.push(li("square", L.wall, "wall"));
+    out.push(li("square", L.costly, "costly cell (near a wall)"));
+    for (const t of (a && a.teams) || []) if (t.start) out.push(li("square faint", model.colour(t.name), `start zone of ${t.name}`));
+    for (const [kind, c] of Object.entries(L.zones)) out.push(li("square", c, `zone: ${kind}`));
+  }
+  $("legend-list").innerHTML = out.join("");
+  paint($("legend-list"));
+}
+
+// Colours from data-colour attributes (a ring or a cross takes it as its border).
+function paint(root) {
+  for (const el of root.querySelectorAll("[data-colour]")) {
+    if (el.classList.contains("ring") || el.classList.contains("cross")) el.style.borderColor = el.dataset.colour;
+    else el.style.background = el.dataset.colour;
+  }
 }
 const fmtNum = v => typeof v === "number" ? (Number.isInteger(v) ? v : v.toFixed(1)) : (v ?? "");
 const esc = v => String(v ?? "").replace(/[&<>"']/g, c => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;", "'": "&#39;" })[c]);
@@ -352,6 +522,7 @@ function frame() {
     st.drawn++;
   }
   if (t - S.lastHud > 0.25) { S.lastHud = t; hud(); }
+  else if (model.story.version !== S.storyVersion) { S.storyVersion = model.story.version; story(false); }
   requestAnimationFrame(frame);
 }
 requestAnimationFrame(frame);

@@ -65,6 +65,32 @@ export class Model {
     this.version = 0;
     this.events = 0;
     this.animUntil = 0;  // robots glide until then (the page draws every frame until then)
+    this.legend = null;
+    if (!this.story) this.setStory(null);
+  }
+
+  // The story (ticker lines, timeline markers, score samples, revealed victims): from a
+  // `state` (live) or a `story` message (a replay's whole story, sent once per view).
+  setStory(st) {
+    this.story = { items: [], byId: new Map(), scores: [], victims: [], endClock: null, version: (this.story?.version || 0) + 1 };
+    if (!st) return;
+    for (const it of st.items || []) this.storyItem(it);
+    this.story.scores = st.scores || [];
+    this.story.victims = st.victims || [];
+    this.story.endClock = st.end_clock ?? null;
+  }
+  // One ticker item, new or changed (a score line folded into it, a repeated bump).
+  storyItem(it) {
+    const st = this.story, old = st.byId.get(it.id);
+    if (old) Object.assign(old, it);
+    else { st.byId.set(it.id, it); st.items.push(it); if (st.items.length > 5000) st.byId.delete(st.items.shift().id); }
+    st.version++;
+  }
+
+  // A find's colour by state: the legend's (the server's, the wall's), the same in every view.
+  findColour(state) {
+    const f = (this.legend && this.legend.finds) || {};
+    return f[state] || f.reported || "#fac828";
   }
 
   colour(team) {
@@ -72,15 +98,23 @@ export class Model {
     return (t && t.colour) || "#808080";
   }
 
-  // A `state` message's body; `t` is the match-clock time it was true at.
-  load(s, t) {
+  // A `state` message's body; `t` is the match-clock time it was true at. `keepTrails`: a live
+  // state (a view switch, a resync) keeps the longer trail the page already drew; a replay's
+  // seek takes the state's trails (they are of that moment).
+  load(s, t, keepTrails = false) {
     const keepArena = this.arena && s.arena && this.arena.map === s.arena.map ? this.arena : null;
     const version = this.version;
+    const old = this.robots;
     this.reset();
     this.version = version;  // never goes back: the page redraws on every change of it
     this.arena = keepArena || s.arena;
-    for (const [tag, team, x, y, h, status, moving, task] of s.robots || []) {
+    this.legend = s.legend || null;
+    if (s.story) { this.setStory(s.story); this.story.now = s.now; this.story.heard = performance.now() / 1000; }
+    for (const [tag, team, x, y, h, status, moving, task, trail] of s.robots || []) {
       const r = this.robot(tag, team);
+      const was = old.get(tag);
+      if (keepTrails && was && was.trail.length > (trail || []).length) r.trail = was.trail;
+      else if (trail && trail.length) r.trail = trail.slice(-TRAIL_LEN * 2);
       r.moveTo(x, y, h, false);
       r.status = status; r.moving = !!moving; r.task = task || null;
     }
@@ -184,7 +218,7 @@ const HANDLERS = {
     y: +d.y || 0, team: d.team ?? null, state: d.state || "discovered", info: { ...d } }),
   "picture": (m, d) => m.things.set(`picture:${d.id}`, { kind: "picture", id: d.id, x: +d.x || 0, y: +d.y || 0,
     team: d.team ?? null, state: "", info: { ...d } }),
-  "broadcast": (m, d, t) => m.note(String(d.message ?? ""), "broadcast", t),
+  "broadcast": (m, d, t) => m.note(String(d.message ?? d.text ?? ""), "broadcast", t),
   "penalty": (m, d, t) => m.note(`penalty ${d.team}: ${d.points} (${d.reason || ""})`, "error", t),
   "task.started": (m, d) => { if (d.tag != null) m.robot(d.tag, d.team).task = d.name || null; },
   "task.done": (m, d) => { const r = m.robots.get(d.tag); if (r) r.task = null; },

@@ -2,8 +2,8 @@
 // zoom, pan, fit the window and follow a robot. Robots are drawn in one path per team colour,
 // so a thousand robots cost a handful of canvas calls.
 
-const FIND_COLOURS = { reported: "#fac828", confirmed: "#28be46", rejected: "#dc2828", duplicate: "#969696" };
 const BG = "#0c0c10";
+export const VICTIM_FOUND = "#28be46", VICTIM_MISSED = "#ff3b30";
 
 export class Camera {
   constructor() { this.scale = 10; this.ox = 0; this.oy = 0; this.fitted = true; }
@@ -98,9 +98,32 @@ export class Renderer {
       ctx.fillRect(x, y, Math.max(2, 0.6 * s), Math.max(2, 0.6 * s));
     }
     const robots = [...m.robots.values()];
-    if (this.trails && robots.length <= 400) this.drawTrails(robots);
+    if (this.trails) this.drawTrails(robots);
     this.drawThings();
+    if (m.match.phase === "finished" && m.story.victims.length) this.drawVictims(m.story.victims);
     this.drawRobots(robots, t);
+  }
+
+  // The hidden victims, revealed when the match is over: a ring and a cross, green when a team
+  // found the victim, red when no one did, with its id.
+  drawVictims(victims) {
+    const ctx = this.ctx, cam = this.camera, s = cam.scale;
+    const r = Math.max(6, s * 0.5);
+    ctx.lineWidth = Math.max(2, r * 0.28);
+    ctx.font = `700 ${Math.round(Math.max(10, Math.min(14, r)))}px system-ui, sans-serif`;
+    ctx.textAlign = "left"; ctx.textBaseline = "middle";
+    for (const v of victims) {
+      const cx = cam.ox + (+v.x + 0.5) * s, cy = cam.oy + (+v.y + 0.5) * s;
+      const col = (v.found_by || []).length ? VICTIM_FOUND : VICTIM_MISSED;
+      ctx.beginPath(); ctx.arc(cx, cy, r, 0, Math.PI * 2);
+      ctx.moveTo(cx - r * 0.6, cy); ctx.lineTo(cx + r * 0.6, cy); ctx.moveTo(cx, cy - r * 0.6); ctx.lineTo(cx, cy + r * 0.6);
+      ctx.strokeStyle = "#ffffff"; ctx.lineWidth = Math.max(4, r * 0.45); ctx.stroke();
+      ctx.strokeStyle = col; ctx.lineWidth = Math.max(2, r * 0.28); ctx.stroke();
+      const label = String(v.id);
+      const w = ctx.measureText(label).width;
+      ctx.fillStyle = "rgba(12,12,16,0.8)"; ctx.fillRect(cx + r + 2, cy - 8, w + 6, 16);
+      ctx.fillStyle = col; ctx.fillText(label, cx + r + 5, cy);
+    }
   }
 
   grid(a) {
@@ -147,7 +170,7 @@ export class Renderer {
       ctx.beginPath();
       if (th.kind === "find") {
         ctx.moveTo(cx, cy - r); ctx.lineTo(cx + r, cy); ctx.lineTo(cx, cy + r); ctx.lineTo(cx - r, cy); ctx.closePath();
-        ctx.fillStyle = FIND_COLOURS[th.state] || FIND_COLOURS.reported;
+        ctx.fillStyle = this.model.findColour(th.state);
       } else if (th.kind === "picture") {
         const q = r * 0.6;
         ctx.rect(cx - q, cy - q * 0.75, 2 * q, 1.5 * q);
@@ -224,18 +247,45 @@ export class Renderer {
       for (const r of dq) { const [cx, cy] = poses.get(r.tag); ctx.moveTo(cx - rad, cy - rad); ctx.lineTo(cx + rad, cy + rad); ctx.moveTo(cx + rad, cy - rad); ctx.lineTo(cx - rad, cy + rad); }
       ctx.lineWidth = Math.max(2, rad * 0.4); ctx.strokeStyle = "#141414"; ctx.stroke();
     }
-    // tags when there is room
-    if (rad >= 9 && poses.size <= 300) {
-      ctx.font = `600 ${Math.round(Math.min(13, rad * 0.9))}px system-ui, sans-serif`;
-      ctx.textAlign = "center"; ctx.textBaseline = "top";
-      ctx.fillStyle = "#141418";
-      for (const [tag, [cx, cy]] of poses) ctx.fillText(String(tag), cx, cy + rad + 2);
-    }
+    // tags when there is room, each where it overlaps no other tag (below, above, right, left)
+    if (rad >= 6 && poses.size <= 300) this.drawLabels(poses, rad);
     if (this.selected != null && poses.has(this.selected)) {
       const [cx, cy] = poses.get(this.selected);
       ctx.beginPath(); ctx.arc(cx, cy, rad + 4, 0, Math.PI * 2);
       ctx.lineWidth = 3; ctx.strokeStyle = "#ffffff"; ctx.stroke();
     }
+  }
+
+  // Robot tags on a dark box, placed greedily: the first of four places beside the robot that
+  // overlaps no tag already placed and no robot; a tag with no free place is left out.
+  drawLabels(poses, rad) {
+    const ctx = this.ctx;
+    const fs = Math.round(Math.max(10, Math.min(13, rad * 0.9)));
+    ctx.font = `600 ${fs}px system-ui, sans-serif`;
+    ctx.textAlign = "left"; ctx.textBaseline = "middle";
+    const placed = [], bodies = [];
+    for (const [, [cx, cy]] of poses) bodies.push([cx - rad, cy - rad, cx + rad, cy + rad]);
+    const hits = (b, list) => list.some(o => b[0] < o[2] && b[2] > o[0] && b[1] < o[3] && b[3] > o[1]);
+    const boxes = [];
+    // the selected robot and robots nearer the top-left first, so the layout is stable
+    const order = [...poses.entries()].sort((a, b) => (a[0] === this.selected ? -1 : b[0] === this.selected ? 1 : a[1][1] - b[1][1] || a[1][0] - b[1][0]));
+    for (const [tag, [cx, cy]] of order) {
+      const text = String(tag), w = ctx.measureText(text).width + 6, h = fs + 4;
+      const spots = [[cx - w / 2, cy + rad + 2], [cx - w / 2, cy - rad - 2 - h], [cx + rad + 3, cy - h / 2], [cx - rad - 3 - w, cy - h / 2]];
+      for (const [x, y] of spots) {
+        const b = [x, y, x + w, y + h];
+        if (hits(b, placed)) continue;
+        const own = [cx - rad, cy - rad, cx + rad, cy + rad];
+        if (hits(b, bodies.filter(o => o[0] !== own[0] || o[1] !== own[1]))) continue;
+        placed.push(b); boxes.push([text, x, y, w, h]);
+        break;
+      }
+    }
+    ctx.fillStyle = "rgba(12,12,16,0.72)";
+    for (const [, x, y, w, h] of boxes) ctx.fillRect(x, y, w, h);
+    ctx.fillStyle = "#ffffff";
+    for (const [text, x, y, , h] of boxes) ctx.fillText(text, x + 3, y + h / 2 + 0.5);
+    this.labels = boxes.map(([text, x, y, w, h]) => ({ text, x, y, w, h }));
   }
 
   // What is under screen point (sx, sy): {robot: tag} or {thing: key} or null.
