@@ -103,8 +103,9 @@ class Limits:
     the team's modules; doubled each time it happens again, up to ``max_cooldown``."""
     max_cooldown: float = 600.0
     test_policy_hole: bool = False
-    """TESTS ONLY: team code may ``import os`` and ``import socket`` (the real modules), a planted
-    hole in the policy through which tests check what the OS layer still stops (sandbox/oswall.py)."""
+    """TESTS ONLY: team code finds the real ``os`` and ``socket`` modules among its builtins, a
+    planted hole in the policy through which tests check what the OS layer still stops
+    (sandbox/oswall.py)."""
 
     def wire(self, seed: int) -> dict[str, Any]:
         """The subset the child needs."""
