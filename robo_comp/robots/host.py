@@ -263,7 +263,7 @@ class RobotHost:
             self.poller.unregister(self.sock)
             self.sock.close(0)
         self.session = None  # a new connection opens a new session
-        self.sock = open_dealer(self.ctx, self.url, self.curve, SNDHWM=100_000, RCVHWM=100_000)
+        self.sock = open_dealer(self.ctx, self.url, self.curve, self.token, SNDHWM=100_000, RCVHWM=100_000)
         self.poller.register(self.sock, zmq.POLLIN)
         self.replies.clear()
         self._set_state("hello")
@@ -429,6 +429,15 @@ class RobotHost:
         self._waiting -= 1
         if self._waiting <= 0:
             self._set_state("up")
+            self._say_up()
+
+    def _say_up(self) -> None:
+        """One line on stdout when the robots are registered (again, after a reconnect), so the
+        person who started the host sees it work."""
+        tags = ", ".join(str(r.tag) for r in self.robots.values() if r.tag)
+        again = f" again (reconnect {self.reconnects}: the core is back)" if self.reconnects else ""
+        print(f"robots: team {self.team}: {len(self.robots)} robot(s) registered{again} with the core at "
+              f"{self.url}; tags {tags or '-'}", flush=True)
 
     def _lost_core(self, now: float) -> None:
         """Halt every robot and start reconnecting."""
