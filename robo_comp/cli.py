@@ -169,7 +169,9 @@ def _robots(args: argparse.Namespace) -> int:
     if args.scenario:  # an organiser-run host knows the truth, so its camera shows victims
         from robo_comp.world.scenario import load_scenario
 
-        truth = load_scenario(args.scenario)
+        from robo_comp.testing.match import resolve_scenario
+
+        truth = load_scenario(resolve_scenario(args.scenario))  # a file or a bundled scenario's name
     token = read_token(args.token, args.token_file)
     options = {}
     if args.driver == "er1":

@@ -429,6 +429,15 @@ class RobotHost:
         self._waiting -= 1
         if self._waiting <= 0:
             self._set_state("up")
+            self._say_up()
+
+    def _say_up(self) -> None:
+        """One line on stdout when the robots are registered (again, after a reconnect), so the
+        person who started the host sees it work."""
+        tags = ", ".join(str(r.tag) for r in self.robots.values() if r.tag)
+        again = f" again (reconnect {self.reconnects}: the core is back)" if self.reconnects else ""
+        print(f"robots: team {self.team}: {len(self.robots)} robot(s) registered{again} with the core at "
+              f"{self.url}; tags {tags or '-'}", flush=True)
 
     def _lost_core(self, now: float) -> None:
         """Halt every robot and start reconnecting."""
