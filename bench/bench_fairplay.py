@@ -38,7 +38,13 @@ sys.path.insert(0, str(ROOT))
 from robo_comp import protocol as P  # noqa: E402
 from robo_comp.launch import start_core, stop_all  # noqa: E402
 from robo_comp.match.plausibility import LAG, SLACK  # noqa: E402
-from robo_comp.protocol.curve import ClientKeys, client_keys, create_keys, secure_client  # noqa: E402
+from robo_comp.protocol.curve import (  # noqa: E402
+    ClientKeys,
+    client_keys,
+    create_keys,
+    secure_client,
+    secure_plain_client,
+)
 from robo_comp.world.scenario import default_scenario  # noqa: E402
 
 PNG = b"\x89PNG\r\n\x1a\n" + b"\x00" * 32
@@ -51,11 +57,14 @@ TOLERANCE = SPEED * 0.05
 class Raw:
     """A raw DEALER with its session secret."""
 
-    def __init__(self, url: str, keys: ClientKeys | None) -> None:
+    def __init__(self, url: str, keys: ClientKeys | None, token: str) -> None:
         self.sock = zmq.Context.instance().socket(zmq.DEALER)
         self.sock.setsockopt(zmq.LINGER, 0)
         self.sock.setsockopt(zmq.ROUTING_ID, P.new_routing_id())
-        secure_client(self.sock, keys)
+        if keys is not None:
+            secure_client(self.sock, keys)
+        else:  # a plain core lets a connection in only with a valid token (PLAIN)
+            secure_plain_client(self.sock, token)
         self.sock.connect(url)
         self.session: str | None = None
         self.n = 0
@@ -94,9 +103,9 @@ def run(curve: bool, attacks: int, rng: random.Random) -> dict[str, int]:
             team_tok = (state / "teams/red.token").read_text().strip()
             host_tok = (state / "hosts/red.token").read_text().strip()
             referee_tok = (state / "referee.token").read_text().strip()
-            host = Raw(url, client_keys(str(state), host_tok) if curve else None)
-            team = Raw(url, client_keys(str(state), team_tok) if curve else None)
-            ref = Raw(url, client_keys(str(state), referee_tok) if curve else None)
+            host = Raw(url, client_keys(str(state), host_tok) if curve else None, host_tok)
+            team = Raw(url, client_keys(str(state), team_tok) if curve else None, team_tok)
+            ref = Raw(url, client_keys(str(state), referee_tok) if curve else None, referee_tok)
             assert _ok(host.ask("hello", {"token": host_tok})) and _ok(team.ask("hello", {"token": team_tok}))
             assert _ok(ref.ask("hello", {"token": referee_tok}))
             tag = host.ask("register", {"token": host_tok, "robot_id": "red-1", "x": 2.0, "y": 2.0})["body"]["tag"]

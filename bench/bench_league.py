@@ -16,7 +16,15 @@
    frontier team with handicap 0..15), ranked rounds (8 two-team matches each, short matches on
    demo_room): random scrimmage pairs, or with ``--quality-format swiss`` neighbours in the
    standing; after each round Kendall's τ between the leaderboard and the true order. Printed:
-   the matches after which τ first reaches 0.9 and after which it stays there.
+   the matches after which τ first reaches 0.9 and after which it stays there, whether it held
+   over the last quarter, and τ of the order-free re-rating (Bradley–Terry) at the end.
+   ``--quality-seconds`` and ``--quality-late`` set the match length and the handicap step.
+4. **Fair play** (issue 26, ``--fair``): a hostile entrant that steers by every entropy source
+   (tests/league_entrants/entropy.py) played 10 times in one process, 10 times on one worker,
+   on two workers and on a local two-node Ray cluster: the digests of the 10 x 4 event logs;
+   then the flooding entrant (tests/league_entrants/flood.py, 499 pictures between two moves)
+   against a normal match, each in a fresh process: wall time and the worker's peak memory;
+   then a round robin with the flooding entrant in it (the season goes on).
 """
 from __future__ import annotations
 
@@ -59,16 +67,130 @@ def throughput(root: pathlib.Path, runner, matches: int, label: str) -> dict:
     return fig
 
 
-def quality(root: pathlib.Path, rounds: int, workers: int, fmt: str = "scrimmage") -> list[tuple[int, float]]:
+ENTRANTS = ROOT / "tests" / "league_entrants"
+
+
+def hostile_spec(i: int, root: pathlib.Path) -> dict:
+    """The hostile-entropy match (the same spec every time; only where its log goes differs)."""
+    from robo_comp.league import reference
+
+    return {"id": i, "scenario": "demo_room", "seed": 5, "seconds": 60, "robots": 2,
+            "entrants": [{"team": "entropy", "version": "e", "files": {"play.py": (ENTRANTS / "entropy.py").read_text()}},
+                         {"team": "frontier", "version": "f", "files": {"play.py": reference.source("frontier")}}],
+            "log": str(root / f"hostile-{i}.log")}
+
+
+def replays(runner, root: pathlib.Path, label: str, n: int = 10) -> list[str]:
+    """``n`` plays of the hostile match on ``runner``; the digests of their logs."""
+    got: dict[int, str] = {}
+    errors: list[str] = []
+    specs = [hostile_spec(i, root / label) for i in range(n)]
+    (root / label).mkdir(parents=True, exist_ok=True)
+    runner.run(specs, lambda sp, r: got.__setitem__(sp["id"], r["digest"]), lambda sp, e: errors.append(e))
+    if errors:
+        raise RuntimeError(errors[0])
+    return [got[i] for i in range(n)]
+
+
+ONE_MATCH = """
+import json, resource, sys, time
+sys.path.insert(0, {root!r})
+from robo_comp.league import reference
+from robo_comp.league.engine import play_match
+files = {files!r}
+t0 = time.perf_counter()
+res = play_match({{"id": 1, "scenario": "office", "seed": 3, "seconds": 300, "robots": 4, "log": {log!r},
+                  "entrants": [{{"team": t, "version": t, "files": {{"play.py": files[t]}}}} for t in files]}})
+print(json.dumps({{"wall": time.perf_counter() - t0, "rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+                  "scores": res["scores"], "forfeit": res["forfeit"], "limits": res["limits"],
+                  "log_mib": __import__("os").path.getsize({log!r}) / 2**20}}))
+"""
+
+
+def one_match(root: pathlib.Path, label: str, a: str, b: str) -> dict:
+    """A full match (office, 4 robots a team, 300 s) in a fresh process: its wall time, the
+    process's peak memory, the log's size."""
+    import json
+    import subprocess
+
+    from robo_comp.league import reference
+
+    def src(name: str) -> str:
+        path = ENTRANTS / f"{name}.py"
+        return path.read_text() if path.exists() else reference.source(name)
+
+    code = ONE_MATCH.format(root=str(ROOT), files={a: src(a), b: src(b)}, log=str(root / f"{label}.log"))
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=1800)
+    if out.returncode != 0:
+        raise RuntimeError(out.stderr[-2000:])
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def fair_figures(root: pathlib.Path, args: argparse.Namespace) -> None:
+    """Issue 26's figures: replays of a hostile match everywhere, a flooding entrant's cost."""
+    from robo_comp.league.engine import play_match
+
+    print("== fair play: the hostile-entropy match (demo_room, 60 s, 2 robots a team), 10 plays each way")
+    here = []
+    for i in range(10):
+        spec = hostile_spec(i, root)
+        here.append(play_match(spec)["digest"])
+    ways = {"in one process": here, "1 worker": replays(LocalRunner(1), root, "one"),
+            "2 workers": replays(LocalRunner(2), root, "two")}
+    if not args.skip_ray:
+        from ray.cluster_utils import Cluster
+
+        cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1, "include_dashboard": False})
+        cluster.add_node(num_cpus=1)
+        cluster.wait_for_nodes()
+        runner = RayRunner(cluster.address)
+        try:
+            ways["Ray, 2 nodes"] = replays(runner, root, "ray")
+        finally:
+            runner.close()
+            cluster.shutdown()
+    every = {d for v in ways.values() for d in v}
+    for way, digests in ways.items():
+        print(f"{way:>15}: {len(set(digests))} distinct log(s) in {len(digests)} plays ({digests[0][:12]})")
+    print(f"all {sum(len(v) for v in ways.values())} logs byte-identical: {len(every) == 1}")
+    print("== fair play: a flooding entrant (499 pictures between two moves) against a normal match "
+          "(office, 300 s, 4 robots a team, a fresh process each)")
+    normal = one_match(root, "normal", "frontier", "explorer")
+    flood = one_match(root, "flood", "flood", "explorer")
+    for label, f in (("normal (frontier v explorer)", normal), ("flood v explorer", flood)):
+        print(f"{label:>30}: {f['wall']:.1f} s, worker peak {f['rss_mib']:.0f} MiB, log {f['log_mib']:.2f} MiB, "
+              f"scores {f['scores']}, forfeit {f['forfeit']}")
+    print(f"flood / normal: wall {flood['wall'] / normal['wall']:.2f}x, memory {flood['rss_mib'] / normal['rss_mib']:.2f}x "
+          f"(target < 2x); calls held by the call budget: {flood['limits']['flood']['held_calls']}")
+    with LeagueStore(root / "season-flood", create=True) as store:
+        store.configure(**SHORT)
+        season.submit_reference(store, 3)
+        store.add_submission("flood", {"play.py": (ENTRANTS / "flood.py").read_text()}, "bench")
+        fig = season.run_format(store, LocalRunner(2), "round-robin", stream=open("/dev/null", "w"))
+        done = sum(1 for m in store.matches() if m.status == "done")
+        print(f"round robin with the flooding entrant: {done} of {int(fig['matches'])} matches played, "
+              f"{int(fig['failed'])} failed; table: {' > '.join(season.standing(store))}")
+
+
+def quality(root: pathlib.Path, rounds: int, workers: int, fmt: str = "scrimmage", seconds: float = 60,
+            late: float = 4) -> tuple[list[tuple[int, float]], float]:
     """τ of the leaderboard against the true order after each round of 16 entrants: scrimmage
     rounds, or (``fmt="swiss"``) one scrimmage round and then rounds of the league's own Swiss
     format (``league run --format swiss --rounds 1``: neighbours in the standing who have not
     met; rematches once no pairing avoids them)."""
+    import re
+
+    from robo_comp.league import reference
+    from robo_comp.league.ratings import bradley_terry
+
     curve = []
     with LeagueStore(root / f"quality-{fmt}", create=True) as store:
-        store.configure(**SHORT)
-        subs = season.submit_reference(store, 16)
-        truth = [s.team for s in subs]  # ref-00 (no handicap) is the strongest
+        store.configure(**dict(SHORT, seconds=seconds))
+        base = re.sub(r"^LATE = \d+(\.\d+)?", f"LATE = {late:g}", reference.source("frontier"), count=1, flags=re.M)
+        truth = []
+        for k in range(16):  # ref-00 (no handicap) is the strongest
+            store.add_submission(f"ref-{k:02d}", {"play.py": reference.handicapped(base, k)}, "bench")
+            truth.append(f"ref-{k:02d}")
         runner = LocalRunner(workers)
         played = 0
         for i in range(rounds):
@@ -76,7 +198,9 @@ def quality(root: pathlib.Path, rounds: int, workers: int, fmt: str = "scrimmage
             fig = season.run_format(store, runner, chosen, rounds=1, stream=open("/dev/null", "w"))
             played += int(fig["matches"])
             curve.append((played, kendall_tau(season.standing(store), truth)))
-    return curve
+        bt = bradley_terry([m.result["ranks"] for m in store.matches() if m.result])
+        bt_tau = kendall_tau(sorted(bt, key=lambda t: -bt[t][0]), truth)
+    return curve, bt_tau
 
 
 def throughput_figures(root: pathlib.Path, args: argparse.Namespace) -> None:
@@ -125,18 +249,30 @@ def main() -> int:
     ap.add_argument("--quality-rounds", type=int, default=30, help="rounds of the rating-quality run")
     ap.add_argument("--quality-format", choices=("scrimmage", "swiss"), default="scrimmage",
                     help="random pairs every round, or neighbours in the standing after a first random round")
+    ap.add_argument("--quality-seconds", type=float, default=60, help="match length of the rating-quality run")
+    ap.add_argument("--quality-late", type=float, default=4, help="handicap step (seconds of late start)")
+    ap.add_argument("--fair", action="store_true", help="the fair-play figures of issue 26 (then stop)")
     args = ap.parse_args()
     root = pathlib.Path(tempfile.mkdtemp(prefix="bench-league-"))
     try:
+        if args.fair:
+            fair_figures(root, args)
+            return 0
         if not args.skip_throughput:
             throughput_figures(root, args)
-        print(f"== rating quality: 16 entrants of known order, {args.quality_rounds} {args.quality_format} rounds "
-              "(60 s matches, demo_room)")
-        curve = quality(root, args.quality_rounds, 2, args.quality_format)
+        if args.quality_rounds <= 0:
+            return 0
+        print(f"== rating quality: 16 entrants of known order ({args.quality_late:g} s handicap steps), "
+              f"{args.quality_rounds} {args.quality_format} rounds ({args.quality_seconds:g} s matches, demo_room)")
+        curve, bt_tau = quality(root, args.quality_rounds, 2, args.quality_format, args.quality_seconds,
+                                args.quality_late)
         first = next((n for n, tau in curve if tau >= 0.9), None)
         stays = next((n for i, (n, _) in enumerate(curve) if all(t >= 0.9 for _, t in curve[i:])), None)
+        last_quarter = curve[len(curve) - max(1, len(curve) // 4):]
         print("tau after  " + "  ".join(f"{n}:{tau:.2f}" for n, tau in curve))
-        print(f"tau >= 0.9 first after {first} matches, for good after {stays} matches")
+        print(f"tau >= 0.9 first after {first} matches, for good after {stays} matches; held over the last "
+              f"quarter: {all(t >= 0.9 for _, t in last_quarter)}")
+        print(f"season end: openskill (in match order) tau {curve[-1][1]:.2f}, order-free Bradley-Terry tau {bt_tau:.2f}")
     finally:
         shutil.rmtree(root, ignore_errors=True)
     return 0

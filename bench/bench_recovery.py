@@ -43,6 +43,10 @@ def synth_log(state: Path, minutes: float, robots: int) -> int:
     current: dict[int, int] = {}
     for sec in range(int(minutes * 60)):
         t = t0 + sec
+        for q in range(4):  # the running clock, recorded every 0.25 s (issue 32)
+            log.append("match.clock", None, {"phase": "running", "elapsed": sec + q / 4, "remaining": None,
+                                             "duration": minutes * 60 + 600, "outage": "pause",
+                                             "boot": 1000.0 + sec + q / 4, "boot_id": "bench"}, t=t + q / 4)
         log.append("robot.positions", None, {"tags": list(range(101, 101 + robots)),
                                              "x": [rng.random() * 20 for _ in range(robots)],
                                              "y": [rng.random() * 15 for _ in range(robots)],

@@ -35,7 +35,7 @@ VICTIMS = [(v.x, v.y) for v in default_scenario().victims]  # the built-in arena
 
 def _host(core: CoreHandle, team: str = "red", keys: Any = None) -> Peer:
     """A raw robot host that said hello with the organiser's host token of ``team``."""
-    h = Peer(router(core), P.new_routing_id(), keys)
+    h = Peer(router(core), P.new_routing_id(), keys, token=core.host_token(team))
     assert h.own("hello", {"token": core.host_token(team), "client": "robots"})["ok"]
     return h
 
@@ -56,7 +56,7 @@ def _team_token_attack(core: CoreHandle, keys: Any = None) -> None:
     """A team's own token, raw: every host message refused, no robot registered, nothing scored."""
     red_host = _host(core, "red", _organiser_keys(core) if keys is not None else None)
     tag = _register(red_host, core, "red-1", 2.0, 2.0)  # red's real robot, far from every victim
-    team = Peer(router(core), P.new_routing_id(), keys)
+    team = Peer(router(core), P.new_routing_id(), keys, token=core.token("red"))
     assert team.own("hello", {"token": core.token("red"), "client": "attacker"})["ok"]
     for type_ in sorted(P.HOST_ONLY):
         body = dict(sample_body(type_), tag=tag) if "tag" in P.REQUESTS[type_] else sample_body(type_)
@@ -67,7 +67,7 @@ def _team_token_attack(core: CoreHandle, keys: Any = None) -> None:
         assert "host" in reply["error"]["message"]
     # a fresh connection that opens with register, the team's token and then the referee's
     for token in (core.token("red"), core.token("referee")):
-        fresh = Peer(router(core), P.new_routing_id(), keys)
+        fresh = Peer(router(core), P.new_routing_id(), keys, token=token)
         # (under CurveZMQ the referee's token with red's key is refused even before: E_AUTH)
         assert code(fresh.ask("register", {"token": token, "robot_id": "ghost", "x": 11.0, "y": 9.0})) in (
             ("E_FORBIDDEN",) if keys is None or token == core.token("red") else ("E_FORBIDDEN", "E_AUTH"))
@@ -109,7 +109,7 @@ def test_the_same_attack_under_curve_with_the_teams_own_key(curve_core: CoreHand
     assert red_keys is not None
     _team_token_attack(curve_core, red_keys)
     # the host token with the team's key (not the organiser's): refused before any robot is registered
-    h = Peer(router(curve_core), P.new_routing_id(), red_keys)
+    h = Peer(router(curve_core), P.new_routing_id(), red_keys, token=curve_core.host_token("red"))
     reply = h.ask("register", {"token": curve_core.host_token("red"), "robot_id": "ghost", "x": 2.0, "y": 2.0})
     assert code(reply) == "E_AUTH" and "organiser" in reply["error"]["message"]
     h.close()

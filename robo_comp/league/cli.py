@@ -73,6 +73,8 @@ def add_parser(sub: Any) -> None:
     t = lsub.add_parser("table", help="the leaderboard (μ − 3σ)")
     t.add_argument("league", metavar="LEAGUE")
     t.add_argument("--json", action="store_true", help="print the league as JSON (standings, history, matches)")
+    t.add_argument("--order-free", action="store_true", help="also re-rate the season without regard to match "
+                   "order (Bradley-Terry over every ranked result; for finals)")
     t.set_defaults(func=_table)
 
     o = lsub.add_parser("report", help="write one static HTML page: table, rating plots, score plots, matches")
@@ -86,7 +88,39 @@ def add_parser(sub: Any) -> None:
     c.add_argument("--why", default="cancelled by the organiser", help="the reason, kept with the match")
     c.set_defaults(func=_cancel)
 
+    f = lsub.add_parser("repair", help="recover a damaged league.db: keep what can be read, play damaged matches again")
+    f.add_argument("league", metavar="LEAGUE")
+    f.set_defaults(func=_repair)
+
+    for sp in (i, s, r, t, o, c):
+        sp.set_defaults(func=_guarded(sp.get_default("func")))
     p.set_defaults(func=lambda args: p.print_help() or 2)
+
+
+def _guarded(func: Any) -> Any:
+    """``func`` with SQLite's own errors about a damaged ``league.db`` turned into a sentence
+    with the way out (instead of a traceback)."""
+    import functools
+    import sqlite3
+
+    @functools.wraps(func)
+    def run(args: argparse.Namespace) -> int:
+        try:
+            return int(func(args) or 0)
+        except sqlite3.DatabaseError as e:
+            from robo_comp.league.store import LeagueDamaged
+
+            raise LeagueDamaged(Path(args.league), f"SQLite says {e}") from None
+
+    return run
+
+
+def _repair(args: argparse.Namespace) -> int:
+    from robo_comp.league.store import repair
+
+    for line in repair(args.league):
+        print(line)
+    return 0
 
 
 def _store(args: argparse.Namespace, create: bool = False) -> Any:
@@ -174,7 +208,10 @@ def _run(args: argparse.Namespace) -> int:
     if not args.format and (args.teams or args.rounds is not None or args.unranked):
         raise FieldError("--teams, --rounds and --unranked choose what a --format schedules; without "
                          "--format, 'league run' plays the matches already scheduled")
+    from robo_comp.league.runner import Stopped
+
     with _store(args) as store:
+        store.lock()  # one run per league; the kernel drops it however this process ends
         runner = runner_for(args)
         try:
             if args.format:
@@ -183,8 +220,17 @@ def _run(args: argparse.Namespace) -> int:
                                         teams=teams)
             else:
                 fig = season.play(store, runner)
+        except (Stopped, KeyboardInterrupt) as e:
+            running, waiting = (e.running, e.waiting) if isinstance(e, Stopped) else (0, 0)
+            print(f"stopped: {running} match{'es' if running != 1 else ''} stopped while playing, {waiting} not "
+                  f"started; 'robo-comp league run {args.league}' plays them (the same matches, the same results)",
+                  file=sys.stderr)
+            return 130
         finally:
-            runner.close()
+            try:
+                runner.close()
+            except KeyboardInterrupt:
+                pass
         n = int(fig["matches"])
         print(f"played {n} match{'es' if n != 1 else ''} in {fig['wall_seconds']:.1f} s"
               + (f", {int(fig['failed'])} failed (run again to retry)" if fig.get("failed") else ""))
@@ -212,12 +258,22 @@ def _text(store: Any) -> str:
 def _table(args: argparse.Namespace) -> int:
     from robo_comp.league.season import league_view
 
+    from robo_comp.league.season import order_free
+
     with _store(args) as store:
         if args.json:
-            json.dump(league_view(store), sys.stdout, indent=1)
+            view = league_view(store)
+            if args.order_free:
+                view["order_free"] = order_free(store)
+            json.dump(view, sys.stdout, indent=1)
             print()
         else:
             print(_text(store))
+            if args.order_free:
+                rows = order_free(store)
+                print("\nOrder-free re-rating (Bradley-Terry over every ranked result; strength ± standard error):")
+                for r in rows:
+                    print(f"{r['rank']:>3}  {r['team']:<24} {r['strength']:+.2f} ± {r['se']:.2f}  ({r['matches']} matches)")
     return 0
 
 

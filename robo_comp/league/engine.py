@@ -64,6 +64,29 @@ def match_scenario(scenario: Any, teams: list[str], robots: int, seconds: float)
     return dataclasses.replace(scenario, teams=placed, duration=float(seconds))
 
 
+#: A league match's limits per entrant (see :class:`robo_comp.testing.bench.Budget`): events
+#: and log bytes per robot per simulated second, real seconds of computing and growth of the
+#: worker's memory per match. A normal entrant uses a fifth of them or less (the reference
+#: frontier team: 6 events and 1 KiB per robot-second); going over ends the match as the
+#: entrant's forfeit.
+EVENTS_PER_ROBOT_SECOND = 25
+LOG_BYTES_PER_ROBOT_SECOND = 4096
+WALL_SECONDS = 120.0
+MEMORY_MIB = 512.0
+
+
+def league_budget(robots: int, seconds: float, spec: dict[str, Any] | None = None) -> Any:
+    """The budget of a league match of ``robots`` robots a team and ``seconds`` simulated
+    seconds; ``spec["limits"]`` may override any field (for tests and organisers)."""
+    from robo_comp.testing.bench import Budget
+
+    scale = max(1, robots) * max(1.0, seconds)
+    fields: dict[str, Any] = {"events": int(EVENTS_PER_ROBOT_SECOND * scale), "log_bytes": int(LOG_BYTES_PER_ROBOT_SECOND * scale),
+              "wall_seconds": WALL_SECONDS, "memory_mib": MEMORY_MIB}
+    fields.update((spec or {}).get("limits") or {})
+    return Budget(**fields)
+
+
 def play_match(spec: dict[str, Any]) -> dict[str, Any]:
     """Play one match and write its event log; return its result (plain data).
 
@@ -73,7 +96,11 @@ def play_match(spec: dict[str, Any]) -> dict[str, Any]:
 
     The result: ``id``, ``scores`` (team → score), ``ranks`` (team → 1 for the best; equal
     scores share a rank), ``victims`` (team → victims confirmed), ``bumps`` (team → count),
-    ``sim_seconds``, ``wall_seconds``, ``events``, ``log`` and ``digest`` (SHA-256 of the log).
+    ``sim_seconds``, ``wall_seconds``, ``events``, ``log`` and ``digest`` (SHA-256 of the log),
+    ``forfeit`` (None, or ``{"team", "limit", "message"}``: the entrant that went over a
+    match limit; it ranks last whatever its score, the others rank by score) and ``limits``
+    (team → what its code ran into: sandbox limits that stopped a robot, calls the call
+    budget held back, and its use of the match limits), for the student's match report.
     """
     from robo_comp.testing.bench import Bench
 
@@ -84,8 +111,9 @@ def play_match(spec: dict[str, Any]) -> dict[str, Any]:
     robots = int(spec.get("robots", 4))
     scenario = match_scenario(load_match_scenario(str(spec["scenario"])), teams, robots,
                               float(spec.get("seconds", 300)))
+    budget = league_budget(robots, scenario.duration, spec)
     with Bench(scenario, teams={t: robots for t in teams}, seed=int(spec.get("seed", 0)),
-               max_sim_seconds=scenario.duration) as bench:
+               max_sim_seconds=scenario.duration, budget=budget) as bench:
         for entrant in spec["entrants"]:
             for name, source in sorted(entrant["files"].items()):
                 bench.load(name, source, team=entrant["team"])
@@ -117,15 +145,41 @@ def play_match(spec: dict[str, Any]) -> dict[str, Any]:
         victims = {t: sorted(bench.board.found.get(t, set())) for t in teams}
         bumps = {t: sum(1 for e in out.events if e["topic"] == "robot.bump" and e["team"] == t) for t in teams}
         scores = {t: float(s) for t, s in out.scores.items()}
-    return {"id": spec.get("id"), "scores": scores, "ranks": ranks_of(scores), "victims": victims,
-            "bumps": bumps, "sim_seconds": out.sim_seconds, "wall_seconds": round(time.perf_counter() - t0, 4),
-            "events": len(out.events), "log": str(log) if log else None, "digest": digest}
+        forfeit: dict[str, Any] | None = None if bench.forfeit is None else {"team": bench.forfeit.team, "limit": bench.forfeit.limit,
+                                                      "message": bench.forfeit.message, "t": bench.forfeit.t}
+        limits = {t: limits_hit(out.events, t, bench.used.get(t, {}), budget) for t in teams}
+    return {"id": spec.get("id"), "scores": scores, "ranks": ranks_of(scores, forfeit["team"] if forfeit else None),
+            "victims": victims, "bumps": bumps, "sim_seconds": out.sim_seconds,
+            "wall_seconds": round(time.perf_counter() - t0, 4), "events": len(out.events),
+            "log": str(log) if log else None, "digest": digest, "forfeit": forfeit, "limits": limits}
 
 
-def ranks_of(scores: dict[str, float]) -> dict[str, int]:
-    """Competition ranks from scores: 1 for the best, equal scores share a rank (1, 1, 3)."""
-    ordered = sorted(scores.values(), reverse=True)
-    return {t: 1 + ordered.index(s) for t, s in scores.items()}
+def limits_hit(events: list[dict[str, Any]], team: str, used: dict[str, float], budget: Any) -> dict[str, Any]:
+    """What ``team``'s code ran into in a match: ``sandbox`` (the messages of the sandbox
+    limits that stopped one of its robots' ``play``: time, memory, output), ``held_calls``
+    (calls the call budget answered later) and ``use`` (its share of each match limit, 0..1;
+    the wall-clock share is not deterministic and so not in the result)."""
+    stopped = sorted({str(e.get("status")) for e in events
+                      if e["topic"] == "task.done" and e["team"] == team and e.get("reason") == "limit"})
+    use = {}
+    for name in ("events", "log_bytes"):
+        cap = getattr(budget, name)
+        if cap:
+            use[name] = round(used.get(name, 0.0) / cap, 3)
+    return {"sandbox": stopped, "held_calls": int(used.get("held_calls", 0)), "use": use}
 
 
-__all__ = ["COLOURS", "PLAY", "RESTARTS", "RETRIES", "load_match_scenario", "match_scenario", "play_match", "ranks_of"]
+def ranks_of(scores: dict[str, float], forfeit: str | None = None) -> dict[str, int]:
+    """Competition ranks from scores: 1 for the best, equal scores share a rank (1, 1, 3).
+    A team that forfeited ranks last, alone, whatever its score; the others rank by score."""
+    rest = {t: s for t, s in scores.items() if t != forfeit}
+    ordered = sorted(rest.values(), reverse=True)
+    ranks = {t: 1 + ordered.index(s) for t, s in rest.items()}
+    if forfeit is not None and forfeit in scores:
+        ranks[forfeit] = len(scores)
+    return ranks
+
+
+__all__ = ["COLOURS", "EVENTS_PER_ROBOT_SECOND", "LOG_BYTES_PER_ROBOT_SECOND", "MEMORY_MIB", "PLAY", "RESTARTS",
+           "RETRIES", "WALL_SECONDS", "league_budget", "limits_hit", "load_match_scenario", "match_scenario",
+           "play_match", "ranks_of"]

@@ -19,6 +19,8 @@ HEADINGS = ("#", "team", "version", "rating (μ−3σ)", "μ", "σ", "matches", 
 
 def _cell(row: dict[str, Any], key: str) -> str:
     v = row.get(key)
+    if key == "rating" and v is not None and row.get("provisional"):
+        return f"{v:.2f} ?"  # provisional: σ still above ratings.SURE_SIGMA
     if v is None:
         return "–"
     if isinstance(v, float):
@@ -41,8 +43,18 @@ def standings_text(view: dict[str, Any], width: int = 120) -> str:
     console = Console(file=io.StringIO(), width=width, record=True, color_system=None)
     console.print(table)
     text = console.export_text().rstrip()
-    note = held_text(view)
-    return f"{text}\n{note}" if note else text
+    notes = [n for n in (provisional_text(view), held_text(view)) if n]
+    return "\n".join([text, *notes])
+
+
+def provisional_text(view: dict[str, Any]) -> str:
+    """The sentence under a table with provisional ratings."""
+    from robo_comp.league.ratings import SURE_SIGMA
+
+    if not any(r.get("provisional") for r in view["standings"]):
+        return ""
+    return (f"? provisional: σ ≥ {SURE_SIGMA:g}, too few matches to trust the rank "
+            "(μ: the rating, σ: how unsure it is; the table orders by μ − 3σ).")
 
 
 def held_text(view: dict[str, Any]) -> str:
@@ -70,12 +82,16 @@ def rating_plot(view: dict[str, Any]) -> str:
     matplotlib.use("Agg")
     from matplotlib.figure import Figure
 
+    from robo_comp.scoring.results import team_colours
+
     fig = Figure(figsize=(8, 4))
     ax = fig.subplots()
-    for row in view["standings"]:
+    colours = team_colours([row["team"] for row in view["standings"]])  # one each: no repeats past 10 teams
+    for i, row in enumerate(view["standings"]):
         points = view["history"].get(row["team"], [])
         if points:
-            ax.plot([p[0] for p in points], [p[1] for p in points], marker=".", linewidth=1, label=row["team"])
+            ax.plot([p[0] for p in points], [p[1] for p in points], marker=".", linewidth=1, label=row["team"],
+                    color="#%02x%02x%02x" % colours[row["team"]], linestyle=("-", "--", ":")[i // 10 % 3])
     ax.set_xlabel("ranked match")
     ax.set_ylabel("rating (μ − 3σ)")
     ax.grid(alpha=0.3)
@@ -128,6 +144,8 @@ def render_report(view: dict[str, Any]) -> str:
             f"<td class='{'name' if k in ('team', 'version') else ''}'>{e(_cell(row, k))}</td>" for k in COLUMNS)
             + "</tr>")
     parts.append("</table>")
+    if provisional_text(view):
+        parts.append(f"<p class='hint'>{e(provisional_text(view))}</p>")
     if view.get("held"):
         parts.append(f"<p class='hint'>{e(held_text(view))}</p>")
     played = [m for m in view["matches"] if m.get("status") == "done"]
@@ -139,17 +157,20 @@ def render_report(view: dict[str, Any]) -> str:
     for scenario in sorted(view["scores"]):
         parts.append(f"<div>{score_plot(scenario, view['scores'][scenario], order)}</div>")
     parts.append("</div>")
-    parts.append("<h2>Matches</h2><p class='hint'>Replay a match: <code>robo-comp replay LOG</code> "
-                 "(the wall and the consoles connect to the replay as to a live core).</p><table><tr>"
+    parts.append("<h2>Matches</h2><p class='hint'>Watch a match again in a browser with the command in its "
+                 "row (<code>robo-comp web --replay LOG</code>, run in this page's folder), or feed the wall and the consoles with "
+                 "<code>robo-comp replay LOG</code>. A log is a binary event log, not a page.</p><table><tr>"
                  "<th>match</th><th class='name'>format</th><th>round</th><th class='name'>scenario</th>"
-                 "<th>seed</th><th class='name'>ranked</th><th class='name'>teams (score)</th><th>log</th></tr>")
+                 "<th>seed</th><th class='name'>ranked</th><th class='name'>teams (score)</th><th>log</th>"
+                 "<th class='name'>limits</th></tr>")
     for m in view["matches"]:
         teams = ", ".join(f"{e(t)} ({m['scores'][t]:g})" if t in m.get("scores", {}) else e(t) for t in m["teams"])
-        link = f"<a href='{e(m['log'], quote=True)}'>events.log</a>" if m.get("status") == "done" else e(m["status"])
+        link = (f"<code>robo-comp web --replay {e(m['log'])}</code>" if m.get("status") == "done"
+                else e(m["status"]))
         parts.append(f"<tr><td>{m['id']}</td><td class='name'>{e(m['format'])}</td><td>{m['round']}</td>"
                      f"<td class='name'>{e(m['scenario'])}</td><td>{m['seed']}</td>"
                      f"<td class='name'>{'yes' if m['ranked'] else 'test'}</td><td class='name'>{teams}</td>"
-                     f"<td>{link}</td></tr>")
+                     f"<td>{link}</td><td class='name'>{'<br>'.join(e(n) for n in m.get('notes', []))}</td></tr>")
     parts.append("</table></body></html>")
     return "".join(parts)
 
@@ -161,4 +182,4 @@ def write_report(path: str | Path, view: dict[str, Any]) -> Path:
     return write_private(p, render_report(view))  # 0600: the organiser publishes it, not the umask
 
 
-__all__ = ["held_text", "render_report", "standings_text", "write_report"]
+__all__ = ["held_text", "provisional_text", "render_report", "standings_text", "write_report"]

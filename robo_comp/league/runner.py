@@ -4,10 +4,10 @@ Every runner takes match specs (plain data, see :func:`robo_comp.league.engine.p
 and calls ``on_result(spec, result)`` or ``on_error(spec, message)`` as matches end, in the
 order they end. A match is deterministic, so where it ran does not change its result.
 
-* :class:`LocalRunner` — ``workers`` processes of a :class:`~concurrent.futures.ProcessPoolExecutor`
-  (one worker: played in this process, no pool). The workers are started with ``spawn`` (no
-  inherited threads or sockets), so a script that uses more than one needs the usual
-  ``if __name__ == "__main__":`` guard;
+* :class:`LocalRunner` — ``workers`` processes of the run's own (one worker: played in this
+  process). The workers are started with ``spawn`` (no inherited threads or sockets), so a
+  script that uses more than one needs the usual ``if __name__ == "__main__":`` guard; a
+  worker that dies costs only its own match, which is played again;
 * :class:`RayRunner` — each match a Ray task of 1 CPU on a Ray cluster (``ray.init(address)``:
   ``"auto"`` joins the cluster this machine belongs to, ``"local"`` starts one here). A task
   whose worker dies mid-match (a node lost, a ``kill -9``) is run again by Ray
@@ -21,7 +21,6 @@ import multiprocessing
 import tempfile
 import traceback
 from collections.abc import Callable
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from pathlib import Path
 from typing import Any
 
@@ -34,11 +33,87 @@ OnError = Callable[[dict[str, Any], str], None]
 RAY_RETRIES = 3
 
 
+#: How often a local match whose worker died is played again (like Ray's retries).
+LOCAL_RETRIES = 3
+
+
+class Stopped(Exception):
+    """The run was stopped (Ctrl-C): ``running`` matches were stopped mid-way, ``waiting``
+    had not started; both are to be played again by the next ``league run``."""
+
+    def __init__(self, running: int, waiting: int) -> None:
+        super().__init__(f"stopped: {running} running, {waiting} waiting")
+        self.running = running
+        self.waiting = waiting
+
+
+def _worker_main(conn: Any) -> None:
+    """A local worker: plays the specs it is sent, one at a time, and sends back
+    ``("ok", result)`` or ``("error", traceback)``. It dies with the run (PR_SET_PDEATHSIG) and
+    leaves Ctrl-C to the run, which stops it."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        import ctypes
+
+        ctypes.CDLL(None).prctl(1, signal.SIGKILL, 0, 0, 0)  # PR_SET_PDEATHSIG: no orphan after a kill -9 of the run
+    except Exception:
+        pass
+    while True:
+        try:
+            spec = conn.recv()
+        except EOFError:
+            return
+        if spec is None:
+            return
+        try:
+            conn.send(("ok", play_match(spec)))
+        except Exception:
+            conn.send(("error", traceback.format_exc(limit=5)))
+
+
+class _Worker:
+    """One local worker process and the match it plays."""
+
+    def __init__(self, ctx: Any) -> None:
+        self.conn, child = ctx.Pipe()
+        self.proc = ctx.Process(target=_worker_main, args=(child,), daemon=True, name="robo-comp-league-worker")
+        import signal
+
+        try:  # started with Ctrl-C ignored (inherited through exec): a press while it starts up is the run's
+            old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        except ValueError:  # not the main thread: the worker ignores it once it runs
+            old = None
+        try:
+            self.proc.start()
+        finally:
+            if old is not None:
+                signal.signal(signal.SIGINT, old)
+        child.close()
+        self.spec: dict[str, Any] | None = None
+
+    def stop(self) -> None:
+        """Kill the process at once (its sandbox children die with it)."""
+        if self.proc.is_alive():
+            self.proc.kill()
+        self.proc.join(5)
+        self.conn.close()
+
+
 class LocalRunner:
-    """Matches on ``workers`` local processes (1: in this process)."""
+    """Matches on ``workers`` local processes (1: in this process).
+
+    The workers are the run's own processes (not a process pool): a worker that dies (a
+    ``kill -9``, the OOM killer) costs only the match it played, which is played again on a
+    fresh worker, up to :data:`LOCAL_RETRIES` times, with the same result; the other matches
+    go on. Workers die with the run (no orphans after any kill of ``league run``), ignore
+    Ctrl-C, and are killed at once when the run is stopped (:class:`Stopped`)."""
 
     def __init__(self, workers: int = 1) -> None:
         self.workers = max(1, int(workers))
+        #: Matches played again after their worker died (match id → times).
+        self.replayed: dict[Any, int] = {}
 
     @property
     def slots(self) -> int:
@@ -46,34 +121,79 @@ class LocalRunner:
         return self.workers
 
     def run(self, specs: list[dict[str, Any]], on_result: OnResult, on_error: OnError) -> None:
-        """Play every spec; report each as it ends."""
+        """Play every spec; report each as it ends. Ctrl-C raises :class:`Stopped`."""
         if self.workers == 1:
-            for spec in specs:
+            for k, spec in enumerate(specs):
                 try:
                     result = play_match(spec)
+                except KeyboardInterrupt:
+                    raise Stopped(1, len(specs) - k - 1) from None
                 except Exception:
                     on_error(spec, traceback.format_exc(limit=5))
                     continue
                 on_result(spec, result)
             return
+        from multiprocessing.connection import wait as wait_any
+
         ctx = multiprocessing.get_context("spawn")  # a clean interpreter: no inherited threads or sockets
-        with ProcessPoolExecutor(self.workers, mp_context=ctx) as pool:
-            running: dict[Future[dict[str, Any]], dict[str, Any]] = {pool.submit(play_match, s): s for s in specs}
-            while running:
-                done, _ = wait(running, return_when=FIRST_COMPLETED)
-                for fut in done:
-                    spec = running.pop(fut)
-                    try:
-                        result = fut.result()
-                    except Exception as e:
-                        # the worker's traceback, as the in-process path gives (the pool keeps it as the cause)
-                        remote = str(e.__cause__).strip().strip('"').strip() if e.__cause__ is not None else ""
-                        on_error(spec, remote or f"{type(e).__name__}: {e}")
+        todo = list(specs)
+        pool: list[_Worker] = []
+        try:
+            pool = [_Worker(ctx) for _ in range(min(self.workers, len(todo)))]
+            while todo or any(w.spec is not None for w in pool):
+                for k, w in enumerate(pool):
+                    if w.spec is None and todo:
+                        if not w.proc.is_alive():  # died while idle: nothing of ours was lost
+                            w.stop()
+                            pool[k] = w = _Worker(ctx)
+                        w.spec = todo.pop(0)
+                        try:
+                            w.conn.send(w.spec)
+                        except OSError:  # it died just now: the next wait sees it and plays the match again
+                            pass
+                busy = [w for w in pool if w.spec is not None]
+                ready = wait_any([w.conn for w in busy] + [w.proc.sentinel for w in busy])
+                for w in list(busy):
+                    played = w.spec
+                    assert played is not None
+                    if w.conn in ready:
+                        try:
+                            kind, value = w.conn.recv()
+                        except Exception:  # EOF, or a result cut off by the worker's death
+                            kind, value = "died", None
+                    elif w.proc.sentinel in ready:
+                        kind, value = "died", None
+                    else:
                         continue
-                    on_result(spec, result)
+                    if kind == "died":  # only this match is lost: a fresh worker plays it again
+                        code = w.proc.exitcode
+                        w.stop()
+                        pool[pool.index(w)] = fresh = _Worker(ctx)
+                        n = self.replayed.get(played.get("id"), 0)
+                        if n < LOCAL_RETRIES:
+                            self.replayed[played.get("id")] = n + 1
+                            fresh.spec = played
+                            try:
+                                fresh.conn.send(played)
+                            except OSError:
+                                pass  # seen dead at the next wait
+                        else:
+                            on_error(played, f"the worker playing this match died {n + 1} times (last exit code {code})")
+                        continue
+                    w.spec = None
+                    if kind == "ok":
+                        on_result(played, value)
+                    else:
+                        on_error(played, str(value))
+        except KeyboardInterrupt:
+            running = sum(1 for w in pool if w.spec is not None)
+            raise Stopped(running, len(todo)) from None
+        finally:
+            for w in pool:
+                w.stop()
 
     def close(self) -> None:
-        """Nothing to release."""
+        """Nothing to release (the workers end with each run)."""
 
 
 def play_match_returning_log(spec: dict[str, Any]) -> tuple[dict[str, Any], bytes | None]:
@@ -112,6 +232,18 @@ class RayRunner:
         """Play every spec on the cluster; report each as it ends."""
         ray = self.ray
         refs = {self._remote.remote(s): s for s in specs}
+        try:
+            self._collect(refs, on_result, on_error)
+        except KeyboardInterrupt:
+            for ref in refs:
+                try:
+                    ray.cancel(ref, force=True)
+                except Exception:
+                    pass
+            raise Stopped(min(len(refs), self.slots), max(0, len(refs) - self.slots)) from None
+
+    def _collect(self, refs: dict[Any, dict[str, Any]], on_result: OnResult, on_error: OnError) -> None:
+        ray = self.ray
         while refs:
             ready, _ = ray.wait(list(refs), num_returns=1)
             for ref in ready:
@@ -132,4 +264,4 @@ class RayRunner:
             self.ray.shutdown()
 
 
-__all__ = ["LocalRunner", "RAY_RETRIES", "RayRunner", "play_match_returning_log"]
+__all__ = ["LOCAL_RETRIES", "LocalRunner", "RAY_RETRIES", "RayRunner", "Stopped", "play_match_returning_log"]

@@ -18,6 +18,7 @@ import itertools
 import random
 from collections import Counter
 from collections.abc import Iterable
+from typing import Any
 
 #: The formats ``robo-comp league run --format`` knows.
 FORMATS = ("scrimmage", "round-robin", "swiss", "double-elimination")
@@ -92,6 +93,143 @@ def swiss_round(standing: list[str], played: Iterable[frozenset[str]],
     return pairs
 
 
+def balance(groups: list[list[str]], scenarios: int, *, prior: dict[str, list[int]] | None = None,
+            prior_sides: dict[str, list[int]] | None = None,
+            prior_use: list[int] | None = None, scenario: int | None = None) -> list[tuple[list[str], int]]:
+    """Give every group (a match) a scenario (0 .. ``scenarios`` − 1) and an order of its teams
+    (the order is the start side: the first team takes the scenario's first start zone), so
+    that every team plays every scenario, and every side, as evenly as the numbers allow, and
+    the scenarios are used evenly overall. ``prior``/``prior_sides``/``prior_use`` are the
+    counts of matches already in the league (team → per scenario, team → per side, per
+    scenario), so a format scheduled round by round (Swiss) balances across its rounds.
+
+    Greedy first (each match takes the scenario its teams have played least), then a local
+    search that moves one match to another scenario, swaps the scenarios of two matches or
+    turns a match's sides round, while the sum of squared counts falls (for fixed totals that
+    sum is smallest when the counts are as even as they can be). Deterministic.
+
+    ``scenario`` puts every match on that scenario (a Swiss round: one scenario a round, in
+    turn, gives every team the same scenarios whoever it is paired with) and balances sides only."""
+    S = max(1, int(scenarios))
+    teams = sorted({t for g in groups for t in g} | set(prior or {}) | set(prior_sides or {}))
+    width = max([len(g) for g in groups] + [max((len(v) for v in (prior_sides or {}).values()), default=0), 2])
+    c = {t: list((prior or {}).get(t, [0] * S))[:S] + [0] * max(0, S - len((prior or {}).get(t, []))) for t in teams}
+    d = {t: list((prior_sides or {}).get(t, []))[:width] + [0] * max(0, width - len((prior_sides or {}).get(t, [])))
+         for t in teams}
+    use = list(prior_use or [0] * S)[:S] + [0] * max(0, S - len(prior_use or []))
+    plan: list[list[Any]] = []  # [teams in side order, scenario]
+    for g in groups:  # greedy: the scenario these teams played least, then the least used; sides by need
+        k = scenario % S if scenario is not None else min(range(S), key=lambda s: (sum(c[t][s] for t in g), use[s], s))
+        order = min((list(p) for p in itertools.permutations(g)) if len(g) <= 4 else [list(g)],
+                    key=lambda p: (sum(d[t][i] for i, t in enumerate(p)), p != list(g)))
+        for i, t in enumerate(order):
+            c[t][k] += 1
+            d[t][i] += 1
+        use[k] += 1
+        plan.append([order, k])
+
+    def move(j: int, k: int) -> int:
+        """Change of the squared sums if match j moved to scenario k."""
+        g, s0 = plan[j]
+        if k == s0:
+            return 0
+        delta = sum(2 * (c[t][k] - c[t][s0]) + 2 for t in g)
+        return delta * 4 + 2 * (use[k] - use[s0]) + 2  # team balance first, overall use second
+
+    def apply(j: int, k: int) -> None:
+        g, s0 = plan[j]
+        for t in g:
+            c[t][s0] -= 1
+            c[t][k] += 1
+        use[s0] -= 1
+        use[k] += 1
+        plan[j][1] = k
+
+    improved = True
+    while improved:
+        improved = False
+        for j in range(len(plan)):
+            best = min(range(S), key=lambda k: (move(j, k), k))
+            if scenario is None and move(j, best) < 0:
+                apply(j, best)
+                improved = True
+            g = plan[j][0]
+            if len(g) == 2:
+                a, b = g
+                turn = 2 * (d[a][1] - d[a][0]) + 2 + 2 * (d[b][0] - d[b][1]) + 2
+                if turn < 0:
+                    d[a][0] -= 1
+                    d[a][1] += 1
+                    d[b][1] -= 1
+                    d[b][0] += 1
+                    plan[j][0] = [b, a]
+                    improved = True
+        if not improved and S > 1 and scenario is None:  # stuck: swap the scenarios of two matches
+            for i in range(len(plan)):
+                s_i = plan[i][1]
+                wanted = {k for t in plan[i][0] for k in range(S) if c[t][k] < c[t][s_i] - 1}
+                if not wanted:
+                    continue  # only a match with a team over-served on its scenario can gain
+                for j in range(len(plan)):
+                    si, sj = plan[i][1], plan[j][1]
+                    if sj not in wanted or si == sj:
+                        continue
+                    step: dict[tuple[str, int], int] = {}
+                    for t in plan[i][0]:
+                        step[(t, si)] = step.get((t, si), 0) - 1
+                        step[(t, sj)] = step.get((t, sj), 0) + 1
+                    for t in plan[j][0]:
+                        step[(t, sj)] = step.get((t, sj), 0) - 1
+                        step[(t, si)] = step.get((t, si), 0) + 1
+                    if sum(2 * c[t][k] * x + x * x for (t, k), x in step.items() if x) < 0:
+                        apply(i, sj)
+                        apply(j, si)
+                        improved = True
+    _even_sides(plan, d)
+    return [(list(g), int(k)) for g, k in plan]
+
+
+def _even_sides(plan: list[list[Any]], d: dict[str, list[int]]) -> None:
+    """Two-team matches: turn round whole chains of matches (first side → second side) from a
+    team that starts first too often to one that starts second too often, until no team's
+    sides differ by more than one (an Euler orientation: always possible)."""
+    while True:
+        over = sorted(t for t, v in d.items() if len(v) >= 2 and v[0] - v[1] >= 2)
+        if not over:
+            return
+        start = over[0]
+        out: dict[str, list[int]] = {}
+        for j, (g, _) in enumerate(plan):
+            if len(g) == 2:
+                out.setdefault(g[0], []).append(j)
+        seen, queue, back = {start}, [start], {}
+        end = None
+        while queue and end is None:
+            t = queue.pop(0)
+            for j in out.get(t, []):
+                u = plan[j][0][1]
+                if u in seen:
+                    continue
+                seen.add(u)
+                back[u] = j
+                if d[u][1] - d[u][0] >= 1 and u != start:
+                    end = u
+                    break
+                queue.append(u)
+        if end is None:
+            return  # nothing reachable to even out
+        u = end
+        while u != start:
+            j = back[u]
+            a, b = plan[j][0]
+            plan[j][0] = [b, a]
+            d[a][0] -= 1
+            d[a][1] += 1
+            d[b][1] -= 1
+            d[b][0] += 1
+            u = a
+
+
 def elimination_round(seeds: list[str], losses: dict[str, int]) -> list[list[str]]:
     """Pairs for the next double-elimination round. ``seeds`` is the seeding (best first),
     ``losses`` the losses so far. Empty when a champion is known (:func:`champion`)."""
@@ -116,4 +254,4 @@ def champion(seeds: list[str], losses: dict[str, int]) -> str | None:
     return alive[0] if len(alive) == 1 else None
 
 
-__all__ = ["FORMATS", "champion", "elimination_round", "round_robin", "scrimmage", "swiss_round"]
+__all__ = ["FORMATS", "balance", "champion", "elimination_round", "round_robin", "scrimmage", "swiss_round"]

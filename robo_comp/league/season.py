@@ -198,7 +198,7 @@ def play(store: LeagueStore, runner: Any, ids: list[int] | None = None, *, strea
         runner.run(specs, on_result, on_error)
     finally:
         progress.close()
-        store.interrupted(todo)
+        store.interrupted(todo)  # a stopped run's matches are played again by the next run
     figures["wall_seconds"] = time.perf_counter() - t0
     return figures
 
@@ -279,7 +279,7 @@ def run_format(store: LeagueStore, runner: Any, fmt: str, *, rounds: int | None 
     if fmt in ("scrimmage", "round-robin"):
         plan = (schedule.scrimmage(names, rounds or 1, size, rng) if fmt == "scrimmage"
                 else schedule.round_robin(names, size))
-        ids = [mid for i, groups in enumerate(plan) for mid in store.schedule(fmt, base + i, groups, ranked=ranked)]
+        ids = store.schedule_rounds(fmt, [(base + i, groups) for i, groups in enumerate(plan)], ranked=ranked)
         add(play(store, runner, ids, stream=stream))
         return totals
     if fmt == "swiss":
@@ -291,7 +291,7 @@ def run_format(store: LeagueStore, runner: Any, fmt: str, *, rounds: int | None 
             pairs = schedule.swiss_round(standing(store, names), played, byes)
             played += [frozenset(p) for p in pairs]
             byes |= set(names) - {t for p in pairs for t in p}
-            add(play(store, runner, store.schedule(fmt, base + i, pairs, ranked=ranked), stream=stream))
+            add(play(store, runner, store.schedule(fmt, base + i, pairs, ranked=ranked, per_round=True), stream=stream))
         return totals
     seeds = standing(store, names)  # double elimination, seeded by rating
     losses: dict[str, int] = {}
@@ -335,7 +335,8 @@ def league_view(store: LeagueStore) -> dict[str, Any]:
         scores = played.get(team, [])
         rows.append({"rank": rank, "team": team, "version": newest[team].version, "mu": round(mu, 3),
                      "sigma": round(sigma, 3), "rating": round(ratings.ordinal(mu, sigma), 3), "matches": n,
-                     "wins": wins, "mean_score": round(sum(scores) / len(scores), 2) if scores else None})
+                     "wins": wins, "mean_score": round(sum(scores) / len(scores), 2) if scores else None,
+                     "provisional": ratings.provisional(sigma)})
     order = {m.id: i + 1 for i, m in enumerate(m for m in matches if m.ranked and m.result is not None)}
     history = {team: [[order.get(mid, 0), round(ratings.ordinal(mu, sigma), 3)] for mid, mu, sigma in h]
                for team, h in store.history().items()}
@@ -344,9 +345,48 @@ def league_view(store: LeagueStore) -> dict[str, Any]:
             "matches": [{"id": m.id, "format": m.format, "round": m.round, "scenario": m.scenario, "seed": m.seed,
                          "ranked": m.ranked, "status": m.status, "teams": m.teams,
                          "scores": (m.result or {}).get("scores", {}),
+                         "forfeit": (m.result or {}).get("forfeit"), "notes": match_notes(m.result),
                          "log": str(store.log_path(m.id).relative_to(store.root)),
                          "seconds": (m.result or {}).get("wall_seconds")} for m in matches]}
 
 
-__all__ = ["PLAY_ARGS", "Progress", "check_submission", "league_view", "play", "rate_played", "rating_hold",
+def order_free(store: LeagueStore) -> list[dict[str, Any]]:
+    """The season re-rated without regard to match order (Bradley–Terry over every ranked
+    match played, :func:`robo_comp.league.ratings.bradley_terry`), best first: ``rank``,
+    ``team``, ``strength`` (log-strength), ``se`` (its standard error), ``matches``. For finals
+    and for checking the table; the table itself stays openskill's, rated in match order."""
+    played = [m.result["ranks"] for m in store.matches() if m.ranked and m.status == "done" and m.result]
+    bt = ratings.bradley_terry([{t: int(r) for t, r in ranks.items()} for ranks in played])
+    counts: dict[str, int] = {}
+    for ranks in played:
+        for t in ranks:
+            counts[t] = counts.get(t, 0) + 1
+    order = sorted(bt, key=lambda t: (-bt[t][0], t))
+    return [{"rank": i + 1, "team": t, "strength": round(bt[t][0], 3), "se": round(bt[t][1], 3),
+             "matches": counts.get(t, 0)} for i, t in enumerate(order)]
+
+
+def match_notes(result: dict[str, Any] | None) -> list[str]:
+    """What a match's report says about the limits its entrants ran into: the forfeit, the
+    sandbox limits that stopped a robot, calls the call budget held back, and a match limit
+    an entrant used more than half of (see docs/league.md, "Limits")."""
+    if not result:
+        return []
+    notes = []
+    forfeit = result.get("forfeit")
+    if forfeit:
+        notes.append(f"{forfeit['message']} (at {forfeit.get('t', 0):g} s)")
+    names = {"events": "events", "log_bytes": "log bytes"}
+    for team, hit in sorted((result.get("limits") or {}).items()):
+        for message in hit.get("sandbox", []):
+            notes.append(f"{team}: a robot stopped: {message}")
+        if hit.get("held_calls"):
+            notes.append(f"{team}: {hit['held_calls']} robot call(s) waited for the call budget")
+        for name, share in sorted((hit.get("use") or {}).items()):
+            if share >= 0.5:
+                notes.append(f"{team}: used {share:.0%} of its {names.get(name, name)} limit")
+    return notes
+
+
+__all__ = ["PLAY_ARGS", "Progress", "check_submission", "league_view", "match_notes", "order_free", "play", "rate_played", "rating_hold",
            "read_submission", "run_format", "standing", "submit", "submit_reference"]

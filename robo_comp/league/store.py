@@ -115,12 +115,18 @@ class LeagueStore:
             if "last" not in columns:  # a league made before submissions kept their last time
                 self.db.execute("ALTER TABLE submissions ADD COLUMN last REAL")
         except sqlite3.DatabaseError as e:
-            raise FieldError(f"{db} cannot be read as a league database ({e}); restore it from a "
-                             "backup or start a new league") from None
+            raise LeagueDamaged(self.root, f"it cannot be read as a league database (SQLite says {e})") from None
         if create:
             with self.transaction():
                 for k, v in DEFAULTS.items():
                     self.db.execute("INSERT OR IGNORE INTO settings VALUES (?, ?)", (k, json.dumps(v)))
+
+    def _json(self, text: Any, what: str) -> Any:
+        """A JSON column's value; :class:`LeagueDamaged` when the bytes stored are not JSON."""
+        try:
+            return json.loads(text)
+        except (TypeError, ValueError) as e:
+            raise LeagueDamaged(self.root, f"{what} cannot be read ({e})") from None
 
     @contextmanager
     def transaction(self) -> Iterator[sqlite3.Connection]:
@@ -135,8 +141,39 @@ class LeagueStore:
         self.db.execute("COMMIT")
 
     def close(self) -> None:
-        """Close the database."""
+        """Close the database (and give up the run lock, if this store holds it)."""
+        self.unlock()
         self.db.close()
+
+    # ------------------------------------------------------------------ one run at a time
+    def lock(self) -> None:
+        """Take the league's run lock (``LEAGUE/run.lock``): one ``league run`` per league at a
+        time. The lock is an ``flock`` the kernel drops when the process ends however it ends,
+        so a killed run never leaves it behind. Raises :class:`FieldError` naming the run that
+        holds it."""
+        import fcntl
+
+        if getattr(self, "_lock", None) is not None:
+            return
+        path = self.root / "run.lock"
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.pread(fd, 200, 0).decode("utf-8", "replace").strip() or "another process"
+            os.close(fd)
+            raise FieldError(f"another 'league run' is playing {self.root} ({holder}); one run per league at a "
+                             "time: wait for it to end, or stop it (Ctrl-C) and run again") from None
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"pid {os.getpid()}, since {time.strftime('%H:%M:%S')}".encode(), 0)
+        self._lock: int | None = fd
+
+    def unlock(self) -> None:
+        """Give up the run lock (nothing if not held)."""
+        fd = getattr(self, "_lock", None)
+        if fd is not None:
+            self._lock = None
+            os.close(fd)  # closing the descriptor drops the flock
 
     def __enter__(self) -> LeagueStore:
         return self
@@ -148,7 +185,7 @@ class LeagueStore:
     def settings(self) -> dict[str, Any]:
         """The league's settings (name, scenario pool, robots, seconds, teams per match, seed)."""
         out = dict(DEFAULTS)
-        out.update({k: json.loads(v) for k, v in self.db.execute("SELECT key, value FROM settings")})
+        out.update({k: self._json(v, f"setting {k!r}") for k, v in self.db.execute("SELECT key, value FROM settings")})
         return out
 
     def configure(self, **values: Any) -> None:
@@ -184,7 +221,7 @@ class LeagueStore:
                               (sid,)).fetchone()
         if row is None:
             raise FieldError(f"there is no submission {sid}")
-        return Submission(row[0], row[1], row[2], row[3], row[4], json.loads(row[5]))
+        return Submission(row[0], row[1], row[2], row[3], row[4], self._json(row[5], f"submission {row[0]}'s files"))
 
     def submissions(self, team: str | None = None) -> list[Submission]:
         """Every submission (of ``team``), oldest first."""
@@ -200,31 +237,80 @@ class LeagueStore:
         return dict(sorted(out.items()))
 
     # ------------------------------------------------------------------ matches
-    def schedule(self, fmt: str, rnd: int, groups: Iterable[list[str]], *, ranked: bool = True) -> list[int]:
-        """Schedule one match per group of team names (each team's newest version), with the
-        scenario taken in turn from the pool and a seed from the league's seed and the match id.
+    def schedule(self, fmt: str, rnd: int, groups: Iterable[list[str]], *, ranked: bool = True,
+                 per_round: bool = False) -> list[int]:
+        """Schedule one match per group of team names (each team's newest version) in round
+        ``rnd``; see :meth:`schedule_rounds`."""
+        return self.schedule_rounds(fmt, [(rnd, list(groups))], ranked=ranked, per_round=per_round)
+
+    def schedule_rounds(self, fmt: str, rounds: Iterable[tuple[int, list[list[str]]]], *,
+                        ranked: bool = True, per_round: bool = False) -> list[int]:
+        """Schedule rounds of matches, ``[(round, [group of team names, ...]), ...]``: each
+        match gets a scenario of the pool and an order of its teams (their start sides) so that
+        every team plays every scenario and side as evenly as the numbers allow, counting the
+        league's earlier matches (:func:`robo_comp.league.schedule.balance`), and a seed from
+        the league's seed and the match id. ``per_round``: every match of round ``r`` on the
+        pool's scenario ``(r − 1) mod len(pool)`` (Swiss rounds, scheduled one at a time).
         One transaction: a bad group schedules nothing."""
+        from robo_comp.league.schedule import balance
+
         cfg = self.settings()
         newest = self.newest()
         pool = list(cfg["scenarios"])
+        rounds = [(int(r), [list(g) for g in groups]) for r, groups in rounds]
+        prior: dict[str, list[int]] = {}
+        sides: dict[str, list[int]] = {}
+        use = [0] * len(pool)
+        for m in self.matches():
+            if m.status == "cancelled" or m.scenario not in pool:
+                continue
+            k = pool.index(m.scenario)
+            use[k] += 1
+            for i, team in enumerate(m.teams):
+                prior.setdefault(team, [0] * len(pool))[k] += 1
+                row = sides.setdefault(team, [0] * max(2, len(m.teams)))
+                row.extend([0] * (i + 1 - len(row)))
+                row[i] += 1
+        flat = [g for _, groups in rounds for g in groups]
+        for teams in flat:
+            missing = [t for t in teams if t not in newest]
+            if missing:
+                raise FieldError(f"team(s) {', '.join(missing)} have no submission")
+            if len(set(teams)) != len(teams):
+                raise FieldError(f"a match cannot have a team twice ({', '.join(teams)})")
+        if per_round:
+            placed_list: list[tuple[list[str], int]] = []
+            for rnd, groups in rounds:
+                got = balance(groups, len(pool), prior=prior, prior_sides=sides, prior_use=use,
+                              scenario=(rnd - 1) % len(pool))
+                for g, k in got:
+                    use[k] += 1
+                    for i, team in enumerate(g):
+                        prior.setdefault(team, [0] * len(pool))[k] += 1
+                        row = sides.setdefault(team, [0] * max(2, len(g)))
+                        row[i] += 1
+                placed_list += got
+            placed = iter(placed_list)
+        else:
+            placed = iter(balance(flat, len(pool), prior=prior, prior_sides=sides, prior_use=use))
         ids = []
         with self.transaction():
-            for teams in groups:
-                missing = [t for t in teams if t not in newest]
-                if missing:
-                    raise FieldError(f"team(s) {', '.join(missing)} have no submission")
-                if len(set(teams)) != len(teams):
-                    raise FieldError(f"a match cannot have a team twice ({', '.join(teams)})")
-                n = self.db.execute("SELECT COUNT(*) FROM matches").fetchone()[0]
-                entrants = [[t, newest[t].id] for t in teams]
-                cur = self.db.execute(
-                    "INSERT INTO matches (format, round, scenario, seed, ranked, status, entrants, scheduled) "
-                    "VALUES (?, ?, ?, ?, ?, 'scheduled', ?, ?)",
-                    (fmt, rnd, pool[n % len(pool)], 0, int(ranked), json.dumps(entrants), time.time()))
-                mid = int(cur.lastrowid or 0)
-                self.db.execute("UPDATE matches SET seed = ? WHERE id = ?", (match_seed(int(cfg["seed"]), mid), mid))
-                ids.append(mid)
+            for rnd, groups in rounds:
+                for _ in groups:
+                    ids.append(self._insert(fmt, rnd, *next(placed), pool, newest, cfg, ranked))
         return ids
+
+    def _insert(self, fmt: str, rnd: int, teams: list[str], scenario: int, pool: list[str],
+                newest: dict[str, Submission], cfg: dict[str, Any], ranked: bool) -> int:
+        """One scheduled match (inside a transaction); returns its id."""
+        entrants = [[t, newest[t].id] for t in teams]
+        cur = self.db.execute(
+            "INSERT INTO matches (format, round, scenario, seed, ranked, status, entrants, scheduled) "
+            "VALUES (?, ?, ?, ?, ?, 'scheduled', ?, ?)",
+            (fmt, rnd, pool[scenario], 0, int(ranked), json.dumps(entrants), time.time()))
+        mid = int(cur.lastrowid or 0)
+        self.db.execute("UPDATE matches SET seed = ? WHERE id = ?", (match_seed(int(cfg["seed"]), mid), mid))
+        return mid
 
     def match(self, mid: int) -> MatchRow:
         """Match ``mid``."""
@@ -233,7 +319,8 @@ class LeagueStore:
         if row is None:
             raise FieldError(f"there is no match {mid}")
         return MatchRow(row[0], row[1], row[2], row[3], row[4], bool(row[5]), row[6],
-                        [(t, s) for t, s in json.loads(row[7])], json.loads(row[8]) if row[8] else None,
+                        [(t, s) for t, s in self._json(row[7], f"match {mid}'s entrants")],
+                        self._json(row[8], f"match {mid}'s result") if row[8] else None,
                         row[9], row[10])
 
     def matches(self, status: str | None = None, fmt: str | None = None) -> list[MatchRow]:
@@ -326,9 +413,103 @@ class LeagueStore:
         return out
 
 
+class LeagueDamaged(FieldError):
+    """``league.db`` holds bytes that are not what the league wrote (a damaged disk, an edit)."""
+
+    def __init__(self, root: Path, what: str) -> None:
+        super().__init__(f"{root / 'league.db'} is damaged: {what}. 'robo-comp league repair {root}' keeps "
+                         "everything that can still be read (a copy of the damaged file stays beside it) and "
+                         "puts damaged matches back to be played again")
+
+
+def repair(root: str | Path) -> list[str]:
+    """Recover the league at ``root`` from a damaged ``league.db``; returns what was done, one
+    sentence each.
+
+    The damaged file is kept as ``league.db.damaged-TIME``. Rows are copied table by table
+    into a fresh database, row by row where a table cannot be read whole (rows on damaged
+    pages are lost and said so). Then every JSON value is checked: a match whose result is
+    damaged goes back to ``failed`` and is played again by the next ``league run`` (a match is
+    deterministic: it gives the same result); a match whose entrants are damaged is cancelled;
+    a damaged setting goes back to its default; a damaged submission is dropped."""
+    import shutil
+
+    root = Path(root)
+    db = root / "league.db"
+    if not db.is_file():
+        raise FieldError(f"{root} is not a league (no league.db)")
+    done: list[str] = []
+    kept = root / f"league.db.damaged-{time.strftime('%Y%m%d-%H%M%S')}"
+    for suffix in ("", "-wal", "-shm"):
+        if (root / f"league.db{suffix}").exists():
+            shutil.copyfile(root / f"league.db{suffix}", Path(f"{kept}{suffix}"))
+    done.append(f"the damaged file is kept as {kept.name}")
+    fresh = root / "league.db.repairing"
+    fresh.unlink(missing_ok=True)
+    new = sqlite3.connect(fresh, isolation_level=None)
+    new.executescript(SCHEMA)
+    try:
+        old = sqlite3.connect(f"file:{db}?mode=ro", uri=True)
+    except sqlite3.DatabaseError as e:
+        raise FieldError(f"{db} cannot be opened at all ({e}); restore it from a backup") from None
+    tables = ("settings", "submissions", "matches", "ratings", "rating_history")
+    for table in tables:
+        try:
+            rows = old.execute(f"SELECT * FROM {table}").fetchall()
+        except sqlite3.DatabaseError:
+            rows = []
+            try:
+                ids = [r[0] for r in old.execute(f"SELECT rowid FROM {table}")]
+            except sqlite3.DatabaseError:
+                ids = []
+            for rid in ids:
+                try:
+                    rows.extend(old.execute(f"SELECT * FROM {table} WHERE rowid = ?", (rid,)).fetchall())
+                except sqlite3.DatabaseError:
+                    done.append(f"{table}: row {rid} was on a damaged page and is lost")
+            done.append(f"{table}: {len(rows)} row(s) read one by one")
+        for row in rows:
+            marks = ",".join("?" * len(row))
+            new.execute(f"INSERT OR REPLACE INTO {table} VALUES ({marks})", row)
+    old.close()
+
+    def bad(text: Any) -> bool:
+        try:
+            json.loads(text)
+            return False
+        except (TypeError, ValueError):
+            return True
+
+    for key, value in new.execute("SELECT key, value FROM settings").fetchall():
+        if bad(value):
+            new.execute("DELETE FROM settings WHERE key = ?", (key,))
+            done.append(f"setting {key!r} was damaged: back to its default {DEFAULTS.get(key)!r}")
+    for sid, team, files in new.execute("SELECT id, team, files FROM submissions").fetchall():
+        if bad(files):
+            new.execute("DELETE FROM submissions WHERE id = ?", (sid,))
+            done.append(f"submission {sid} of team {team} was damaged and is dropped: submit it again")
+    for mid, entrants, result, status in new.execute("SELECT id, entrants, result, status FROM matches").fetchall():
+        if bad(entrants):
+            new.execute("UPDATE matches SET status = 'cancelled', error = ? WHERE id = ?",
+                        ("its entrants were damaged in league.db", mid))
+            done.append(f"match {mid}: its entrants were damaged; it is cancelled")
+        elif result is not None and bad(result):
+            new.execute("UPDATE matches SET status = 'failed', result = NULL, error = ? WHERE id = ?",
+                        ("its stored result was damaged; it is played again (same match, same result)", mid))
+            done.append(f"match {mid}: its result was damaged; 'league run' plays it again")
+    new.close()
+    for suffix in ("-wal", "-shm"):
+        (root / f"league.db{suffix}").unlink(missing_ok=True)
+    os.replace(fresh, db)
+    if len(done) == 1:
+        done.append("nothing in it was damaged")
+    return done
+
+
 def match_seed(league_seed: int, mid: int) -> int:
     """A match's seed: fixed by the league's seed and the match id (so a re-run is identical)."""
     return int.from_bytes(hashlib.sha256(f"{league_seed}:{mid}".encode()).digest()[:4], "big")
 
 
-__all__ = ["DEFAULTS", "LeagueStore", "MatchRow", "Submission", "match_seed", "version_of"]
+__all__ = ["DEFAULTS", "LeagueDamaged", "LeagueStore", "MatchRow", "Submission", "match_seed", "repair",
+           "version_of"]

@@ -246,7 +246,24 @@ class LogReader:
                     obj = unpack(view[off + RECORD_HEAD.size:end], raw=False)
                 except Exception:
                     reason = "record is not valid msgpack (written so)"
-            rec = None if reason is not None else self._record(obj, off)
+            rec = None
+            if reason is not None:
+                pass
+            elif bad is None and self.version is not None and type(obj) is dict and "seq" in obj:
+                # the common case, inline: an event record after a header, no damage pending
+                try:
+                    rec = LogRecord(obj["seq"], obj["t"], obj["topic"], obj.get("team"), obj["data"])
+                except (KeyError, TypeError):
+                    rec = "record lacks seq/t/topic/data"
+                else:
+                    if rec.seq > self.last_seq:
+                        self.last_seq = rec.seq
+                    yield rec
+                    off = end
+                    self.good_end = off
+                    continue
+            else:
+                rec = self._record(obj, off)
             if isinstance(rec, str):
                 reason, rec = rec, None
             if reason is not None:

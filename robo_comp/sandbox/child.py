@@ -2,8 +2,12 @@
 
 Started by :class:`robo_comp.sandbox.parent.Sandbox` as::
 
-    python -I -B -c "...; from robo_comp.sandbox.child import main; main()" \
+    python -s -P -B -c "...; from robo_comp.sandbox.child import main; main()" \
         --fd N --limits <msgpack hex>
+
+(``-I`` but for ``-E``: the parent gives the whole environment, and ``PYTHONHASHSEED`` in it
+fixes ``hash()`` per match; a ``deterministic`` child starts itself again once with address
+randomisation off, see :func:`_without_aslr`.)
 
 Order of start-up (everything that needs files or new threads happens *before* the limits):
 import all we need → die-with-parent → drop root to ``nobody`` (if root) → start the worker
@@ -198,6 +202,7 @@ class Child:
             return
         if type(text) is not str:
             text = str(text)
+        text = self.restricted._determinism.scrub(text)  # no memory addresses in the log
         cap = self.limits["output_bytes"]
         left = cap - run.output
         if left <= 0 or len(text) > left:
@@ -755,6 +760,43 @@ def _set_limits(limits: dict, keep_fds: int) -> None:
         resource.RLIM_INFINITY)
 
 
+#: personality(2) flag: no address-space layout randomisation.
+ADDR_NO_RANDOMIZE = 0x0040000
+
+
+def _without_aslr() -> None:
+    """Start this process again with address randomisation off (a replayable child: the
+    addresses that reach team code through ``repr()`` of functions and plain objects, default
+    ``hash()`` and the order of their sets then follow the code, not the kernel's dice).
+    Returns only when it is already off or the kernel does not let us turn it off."""
+    try:
+        import ctypes
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.personality.restype = ctypes.c_int
+        libc.personality.argtypes = [ctypes.c_ulong]
+        now = libc.personality(0xFFFFFFFF)
+        if now < 0 or now & ADDR_NO_RANDOMIZE:
+            return
+        if libc.personality(now | ADDR_NO_RANDOMIZE) < 0 or not libc.personality(0xFFFFFFFF) & ADDR_NO_RANDOMIZE:
+            return
+    except Exception:
+        return
+    os.execv(sys.executable, list(sys.orig_argv))
+
+
+def _plant_hole(child: "Child") -> None:
+    """Tests only: every team module's builtins get the real ``os`` and ``socket`` modules (a
+    hole in the policy, to show what the OS layer still stops)."""
+    make = child.policy.make_globals
+
+    def holed(module_name: str) -> dict[str, Any]:
+        glb = make(module_name)
+        glb["__builtins__"].update(os=os, socket=socket)
+        return glb
+
+    child.policy.make_globals = holed  # type: ignore[method-assign]
+
+
 def main(argv: list[str] | None = None) -> None:
     """Child entry point (``python -m robo_comp.sandbox.child``)."""
     ap = argparse.ArgumentParser()
@@ -762,6 +804,8 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--limits", required=True)
     opts = ap.parse_args(argv)
     limits = msgpack.unpackb(bytes.fromhex(opts.limits), raw=False)
+    if limits.get("deterministic") and argv is None:
+        _without_aslr()
     fd = opts.fd
     low = os.dup(fd)  # the lowest free descriptor: keeps RLIMIT_NOFILE small whatever the parent had open
     if low < fd:
@@ -779,7 +823,7 @@ def main(argv: list[str] | None = None) -> None:
     _install_async_exc()
     child = Child(sock, limits)  # imports the policy and starts the workers
     if limits.get("test_policy_hole"):  # tests only (Limits.test_policy_hole): the real modules
-        child.policy.modules.update(os=os, socket=socket)  # type: ignore[call-overload]
+        _plant_hole(child)
     _warm_up(child)
     sys.stdout = _CappedStream(child, "stdout")
     sys.stderr = _CappedStream(child, "stderr")

@@ -20,6 +20,7 @@ for tests, tools and simple hosts.
 from __future__ import annotations
 
 import collections
+import contextlib
 import math
 import os
 import select
@@ -102,8 +103,9 @@ class Limits:
     the team's modules; doubled each time it happens again, up to ``max_cooldown``."""
     max_cooldown: float = 600.0
     test_policy_hole: bool = False
-    """TESTS ONLY: team code may ``import os`` and ``import socket`` (the real modules), a planted
-    hole in the policy through which tests check what the OS layer still stops (sandbox/oswall.py)."""
+    """TESTS ONLY: team code finds the real ``os`` and ``socket`` modules among its builtins, a
+    planted hole in the policy through which tests check what the OS layer still stops
+    (sandbox/oswall.py)."""
 
     def wire(self, seed: int) -> dict[str, Any]:
         """The subset the child needs."""
@@ -247,8 +249,12 @@ class Sandbox:
     def __init__(self, team: str, tags: Iterable[int] = (),
                  handler: Callable[[int, str, list], Any] | None = None,
                  limits: Limits | None = None, *, seed: int = 0,
-                 builtin_tasks: Iterable[str] = BUILTIN_TASKS, start: bool = True) -> None:
+                 builtin_tasks: Iterable[str] = BUILTIN_TASKS, start: bool = True,
+                 deterministic: bool = False) -> None:
         self.team = team
+        #: Replayable child (league, bench): hash seed from ``seed`` and no address randomisation
+        #: (see docs/sandbox.md, "Determinism"); the hash seed is fixed in every child.
+        self.deterministic = deterministic
         self.tags: list[int] = list(tags)
         self.handler = handler
         self.limits = limits or Limits()
@@ -287,16 +293,20 @@ class Sandbox:
     def start(self) -> None:
         """Spawn the child (returns at once; a :class:`Ready` record follows)."""
         parent, child = socket.socketpair(socket.AF_UNIX, socket.SOCK_STREAM)
+        # the whole environment is ours (so -E is not needed, and PYTHONHASHSEED is read): hash()
+        # of str/bytes and the order of their sets follow the seed, not per-process entropy
         env = {"MALLOC_ARENA_MAX": "1", "PYTHONDONTWRITEBYTECODE": "1",
+               "PYTHONHASHSEED": str(1 + self.seed % 4_294_967_295),
                "PATH": os.environ.get("PATH", "/usr/bin:/bin")}
         debug = os.environ.get("ROBO_COMP_SANDBOX_DEBUG") == "1"
         import robo_comp
         pkg_root = os.path.dirname(os.path.dirname(os.path.abspath(robo_comp.__file__)))
-        cmd = [sys.executable, "-I", "-B", "-c",
+        cmd = [sys.executable, "-s", "-P", "-B", "-c",  # -I without -E: isolated, but the env above is read
                f"import sys; sys.path.insert(0, {pkg_root!r}); "
                "from robo_comp.sandbox.child import main; main()",
                "--fd", str(child.fileno()),
-               "--limits", msgpack.packb(self.limits.wire(self.seed)).hex()]
+               "--limits", msgpack.packb(dict(self.limits.wire(self.seed),
+                                              deterministic=self.deterministic)).hex()]
         wrapped = oswall.wrap(cmd, pkg_root)  # the OS layer (bubblewrap), or a clear refusal
         self.os_sandbox = wrapped is not cmd
         cmd = wrapped
@@ -867,6 +877,14 @@ class Sandbox:
         return False
 
     def _kill(self) -> None:
+        if self.proc is not None and self.proc.poll() is None:
+            if self.os_sandbox:  # the child first: bwrap's init reaps it and then bwrap ends
+                inner = self.pid
+                if inner is not None and inner != self.proc.pid:
+                    with contextlib.suppress(ProcessLookupError, PermissionError):
+                        os.kill(inner, signal.SIGKILL)
+                    with contextlib.suppress(subprocess.TimeoutExpired):
+                        self.proc.wait(timeout=2.0)
         if self.proc is not None and self.proc.poll() is None:
             try:
                 os.killpg(self.proc.pid, signal.SIGKILL)

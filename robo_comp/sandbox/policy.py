@@ -37,6 +37,7 @@ from RestrictedPython.Guards import (
 from RestrictedPython.transformer import INSPECT_ATTRIBUTES, RestrictingNodeTransformer
 
 from robo_comp.sandbox.explain import explain_compile_error
+from robo_comp.sandbox import determinism as _determinism
 
 __all__ = [
     "PolicyError", "TaskCancelled", "RobotError", "LimitExceeded", "Namespace",
@@ -200,10 +201,10 @@ def _random_namespace(start: int) -> Namespace:
         return rng.gauss(mu, sigma)
 
     def seed(value: int | float | str | None = None) -> None:
-        """Re-seed this sandbox's generator (it starts seeded per robot host)."""
+        """Re-seed this sandbox's generator (it starts seeded per robot host; no value: that seed)."""
         if value is not None and type(value) not in (int, float, str):
             raise TypeError("seed() needs an int, float or str")
-        rng.seed(value)
+        rng.seed(start if value is None else value)  # never os.urandom: a match replays
 
     fns: list[Callable[..., Any]] = [random, uniform, randint, randrange, choice, shuffle, gauss, seed]
     return Namespace("random", {f.__name__: f for f in fns})
@@ -242,7 +243,7 @@ def _team_metaclass(name: str, bases: tuple, namespace: dict, **kw: Any) -> type
         if not isinstance(base, type):
             raise TypeError("classes may only derive from classes; put a class in the brackets of "
                             "`class Name(Base):`")
-    cls = type(name, bases, namespace)
+    cls = _determinism.settle_class(_determinism.TeamType(name, bases, namespace))  # no addresses
     _TEAM_CLASSES.add(cls)
     return cls
 
@@ -447,6 +448,7 @@ def make_builtins(*, importer: Callable[..., Any], print_sink: Callable[[str], N
         "RobotError": RobotError,
         "LimitExceeded": LimitExceeded,
     })
+    b.update(_determinism.BUILTINS)  # id, hash, repr, ascii without per-process entropy
     return b
 
 

@@ -47,11 +47,49 @@ TaskStep = tuple[str, "list[Any] | tuple[Any, ...]"]
 MOVEMENT_CALLS = host_answers.MOVEMENT_CALLS
 #: Seconds of simulated time between two logged samples of every robot's true pose.
 POSE_SAMPLE = 0.5
-#: Calls that take no time one robot may make in a row; past them, each such call is answered a
-#: clock step later, until the robot moves again. On a host every call takes real time; without
-#: this, team code that never moves (a loop of ``plan`` or ``sense``) would hold the simulated
-#: clock, and the match, forever.
-CALL_BURST = 500
+#: Calls that take no time one robot may make at once (the call budget's burst; see :class:`Budget`).
+CALL_BURST = 100
+#: Robot calls that take a picture: each costs :attr:`Budget.picture_cost` calls of the budget.
+PICTURE_CALLS = frozenset({"take_picture", "upload_picture", "look"})
+
+
+@dataclass(frozen=True)
+class Budget:
+    """What one robot, and one entrant, may ask of a match.
+
+    Every robot call that takes no time draws on the robot's **call budget**, a bucket of
+    ``call_burst`` calls refilled at ``calls_per_second`` per *simulated* second (a picture
+    costs ``picture_cost`` calls); a call the bucket cannot pay is answered when the simulated
+    clock has refilled it, so code that never moves cannot hold up the clock, and code that
+    floods (pictures between every two moves) gets no more per simulated second than the
+    budget. On a host every call takes real time; this is its simulated price.
+
+    The other limits are per **entrant** (team) and per match; None: no limit. Going over one
+    ends the match as that entrant's forfeit (:attr:`Bench.forfeit`): ``events`` (events its
+    robots caused), ``log_bytes`` (their size, as JSON lines), ``wall_seconds`` (real time its
+    code computed) and ``memory_mib`` (growth of this process during the match, charged to
+    the entrant with the most logged bytes).
+    """
+
+    calls_per_second: float = 10.0
+    call_burst: float = CALL_BURST
+    picture_cost: float = 4.0
+    events: int | None = None
+    log_bytes: int | None = None
+    wall_seconds: float | None = None
+    memory_mib: float | None = None
+
+
+@dataclass(frozen=True)
+class Forfeit:
+    """Why a match ended early: ``team`` went over ``limit`` (``events``, ``log_bytes``,
+    ``wall_seconds``, ``memory_mib``); ``message`` says it to the student; ``t`` is the
+    simulated time."""
+
+    team: str
+    limit: str
+    message: str
+    t: float
 
 
 @dataclass
@@ -93,7 +131,8 @@ class _Motion:
     steps: Generator[Step, Any, Any]
     done: bool = False
     error: str | None = None  # the steps refused (a wall ahead, no path): reject at the end
-    answer: tuple[bool, Any] | None = None  # a call held back a clock step (CALL_BURST): its answer
+    answer: tuple[bool, Any] | None = None  # a call held back by the call budget: its answer
+    until: float = 0.0  # ... answered at this simulated time
 
 
 def _no_steps() -> Generator[Step, Any, Any]:
@@ -185,7 +224,7 @@ class Bench:
                  team: str | None = None, *, robots: int = 1, seed: int = 0,
                  limits: Limits | None = None, dt: float = 0.05, max_sim_seconds: float = 600.0,
                  speed: float | None = None, teams: Mapping[str, int] | None = None,
-                 pose_sample: float = POSE_SAMPLE) -> None:
+                 pose_sample: float = POSE_SAMPLE, budget: Budget | None = None) -> None:
         from robo_comp.plugins.manager import get_plugin_manager
         from robo_comp.sandbox.parent import Sandbox
         from robo_comp.scoring.board import Scoreboard
@@ -242,7 +281,7 @@ class Bench:
         #: event's data; see run_match).
         self.events: list[dict[str, Any]] = []
         self.sandboxes: dict[str, Sandbox] = {
-            name: Sandbox(name, self.tags_of[name], None, limits, seed=seed) for name in self.teams}
+            name: Sandbox(name, self.tags_of[name], None, limits, seed=seed, deterministic=True) for name in self.teams}
         self.sandbox: Sandbox = self.sandboxes[self.team]
         # the step-locked loop's state
         self._run_tag: dict[tuple[str, int], int] = {}  # (team, run id) -> tag
@@ -255,7 +294,16 @@ class Bench:
         self._on_done: Callable[[int, dict[str, Any]], Iterable[TaskStep] | None] | None = None
         self._outcomes: dict[int, list[dict[str, Any]]] = {}
         self._next_task = 1
-        self._streak: dict[int, int] = {}            # tag -> calls that took no time, in a row
+        self.budget = budget or Budget()
+        self._tokens: dict[int, tuple[float, float]] = {}  # tag -> (calls left, at simulated time)
+        #: Per team: events its robots caused, their bytes as JSON lines, real seconds its code computed.
+        self.used: dict[str, dict[str, float]] = {t: {"events": 0.0, "log_bytes": 0.0, "wall_seconds": 0.0}
+                                                  for t in self.teams}
+        #: Set when an entrant went over a match limit; the match then ends (see :class:`Budget`).
+        self.forfeit: Forfeit | None = None
+        self._rss0 = _rss_mib()
+        self._ending: str | None = None  # the entrant whose forfeit is ending the match
+        self._next_memory_check = 0
         self._next_sample = 0.0
         self._wall_end = math.inf
 
@@ -345,16 +393,25 @@ class Bench:
                 raise FieldError(f"robot {tag} is not on the bench; its robots are {self.tags}")
             self._queues.setdefault(tag, deque()).extend((str(n), list(a)) for n, a in steps)
         self._wall_end = t0 + timeout
+        self._rss0 = _rss_mib()  # the match's growth counts from here (modules loaded)
+        self._next_memory_check = 256
         self._drain_logs()
         self._sample_poses()
         ready = [t for t in self.tags if self._queues.get(t)]
-        while True:
-            for tag in ready:
-                self._serve(tag)
-            if not self._motions or self.arena.time >= t_end - 1e-9:
-                break
-            ready = self._advance(t_end)
-        self._finish("time is up")
+        try:
+            while self.forfeit is None:
+                for tag in ready:
+                    self._serve(tag)
+                    self._check_memory()
+                    if self.forfeit is not None:
+                        break
+                if self.forfeit is not None or not self._motions or self.arena.time >= t_end - 1e-9:
+                    break
+                ready = self._advance(t_end)
+        except _Ended:
+            pass
+        self._ending = self._ending or (self.forfeit.team if self.forfeit else None)
+        self._finish("time is up" if self.forfeit is None else self.forfeit.message)
         return MatchRun(score=self.score(), sim_seconds=round(self.arena.time - start_time, 6),
                         wall_seconds=time.monotonic() - t0, events=self.events[first_event:],
                         finds=self.finds[first_find:], outcomes=self._outcomes, scores=self.scores())
@@ -417,7 +474,60 @@ class Bench:
     def _event(self, topic: str, team: str | None, **data: Any) -> dict[str, Any]:
         ev = {"t": round(self.arena.time, 6), "topic": topic, "team": team, **data}
         self.events.append(ev)
+        b = self.budget
+        if team is not None and team in self.used and (b.events is not None or b.log_bytes is not None):
+            used = self.used[team]
+            used["events"] += 1
+            used["log_bytes"] += len(_json_line(ev)) + 1
+            self._check_memory()
+            if b.events is not None and used["events"] > b.events:
+                self._lose(team, "events", f"its robots caused more than {b.events} events in the match "
+                                           "(calls, pictures, printed lines)")
+            elif b.log_bytes is not None and used["log_bytes"] > b.log_bytes:
+                self._lose(team, "log_bytes", f"its robots filled more than {b.log_bytes // 1024} KiB of the "
+                                              "match's log (calls, pictures, printed lines)")
         return ev
+
+    def _lose(self, team: str, limit: str, why: str) -> None:
+        """``team`` went over a match limit: the match ends as its forfeit (the first one counts)."""
+        if self.forfeit is None:
+            self.forfeit = Forfeit(team, limit, f"team {team} forfeits the match: {why}", round(self.arena.time, 6))
+
+    def _check_memory(self) -> None:
+        """Charge growth of this process over :attr:`Budget.memory_mib` to the entrant that
+        logged the most."""
+        limit = self.budget.memory_mib
+        if limit is None or self.forfeit is not None:
+            return
+        self._next_memory_check -= 1
+        if self._next_memory_check > 0:
+            return
+        self._next_memory_check = 256
+        grown = _rss_mib() - self._rss0
+        if grown > limit:
+            team = max(self.teams, key=lambda t: (self.used[t]["log_bytes"], -self.teams.index(t)))
+            self._lose(team, "memory_mib", f"the match grew by {grown:.0f} MiB (limit {limit:g} MiB), most of it "
+                                           f"for what its robots logged ({self.used[team]['log_bytes'] / 2**20:.1f} MiB)")
+
+    def _pay(self, tag: int, name: str) -> float:
+        """Draw ``name``'s price from robot ``tag``'s call budget; returns the simulated time at
+        which it is paid (now, or when the bucket has refilled)."""
+        b = self.budget
+        cost = b.picture_cost if name in PICTURE_CALLS else 1.0
+        now = self.arena.time
+        left, at = self._tokens.get(tag, (float(b.call_burst), now))
+        if b.calls_per_second > 0:
+            left = min(float(b.call_burst), left + (now - at) * b.calls_per_second)
+        left -= cost
+        when = now
+        if left < 0:
+            if b.calls_per_second <= 0:
+                when = now + self.dt  # no rate: one clock step per call over the burst
+                left = 0.0
+            else:
+                when = now + (-left) / b.calls_per_second
+        self._tokens[tag] = (left, now) if when == now else (0.0, when)
+        return when
 
     def _sample_poses(self) -> None:
         """Log every robot's true pose every ``pose_sample`` simulated seconds (as the core logs
@@ -438,7 +548,7 @@ class Bench:
         has nothing left to do: answer its finished movement or start its next task, then answer
         its calls as they come."""
         m = self._motions.get(tag)
-        if m is not None and m.done and not self.arena.is_moving(str(tag)):
+        if m is not None and m.done and not self.arena.is_moving(str(tag)) and self.arena.time >= m.until - 1e-9:
             del self._motions[tag]
             if m.answer is not None:
                 ok, value = m.answer
@@ -459,8 +569,26 @@ class Bench:
         """Wait (a little) for what ``team``'s sandbox says and act on it."""
         from robo_comp.sandbox.parent import RpcCall
 
+        t0 = time.monotonic()
         recs = self.sandboxes[team].poll(0.05)
-        if time.monotonic() > self._wall_end:
+        now = time.monotonic()
+        used = self.used.setdefault(team, {"events": 0.0, "log_bytes": 0.0, "wall_seconds": 0.0})
+        used["wall_seconds"] += now - t0
+        limit = self.budget.wall_seconds
+        if limit is not None and used["wall_seconds"] > limit:
+            self._lose(team, "wall_seconds", f"its code computed for more than {limit:g} s of real time in "
+                                             "the match")
+        if self._ending is not None:
+            pass  # the match is ending: its runs are being cancelled
+        elif self.forfeit is not None and team == self.forfeit.team:
+            self._ending = team  # stop waiting for it: its runs are cancelled as the match ends
+            raise _Ended()
+        elif now > self._wall_end:
+            if self.budget.wall_seconds is not None:  # a league match: the slowest entrant forfeits
+                slow = max(self.teams, key=lambda t: (self.used[t]["wall_seconds"], -self.teams.index(t)))
+                self._lose(slow, "wall_seconds", "the match ran out of real time, and its code computed the longest")
+                self._ending = slow
+                raise _Ended()
             raise AssertionError("the bench ran out of real time (run_match timeout): team code "
                                  f"of robots {sorted(self._computing)} did not answer")
         for rec in recs:
@@ -536,7 +664,6 @@ class Bench:
         site = _BenchSite(self, tag)
         args = list(c.args)
         if c.name in MOVEMENT_CALLS:
-            self._streak[tag] = 0
             self._computing.discard(tag)
             m = _Motion(c.call_id, c.name, args, host_answers.movement_steps(site, c.name, args))
             self._motions[tag] = m
@@ -545,14 +672,16 @@ class Bench:
             except (TypeError, ValueError, IndexError) as e:
                 m.done, m.error = True, host_answers.call_failed(c.name, args, e)
             return
-        held = self._streak.get(tag, 0) >= CALL_BURST  # until the robot moves again
-        self._streak[tag] = self._streak.get(tag, 0) + 1
+        until = self._pay(tag, c.name)  # the call budget: answered now, or when it is paid
+        held = until > self.arena.time + 1e-9
+        if held:
+            self.used[team]["held_calls"] = self.used[team].get("held_calls", 0.0) + 1
 
         def settle(ok: bool, value: Any) -> None:
             message = "" if ok else (value if isinstance(value, str) else str((value or {}).get("message", "refused")))
-            if held:  # answered at the next clock step, as a busy host answers a little later
+            if held:  # answered when the budget has paid for it, as a busy host answers later
                 self._computing.discard(tag)
-                m = _Motion(c.call_id, c.name, args, _no_steps(), answer=(ok, value if ok else message))
+                m = _Motion(c.call_id, c.name, args, _no_steps(), answer=(ok, value if ok else message), until=until)
                 self._motions[tag] = m
             elif ok:
                 self._resolve(tag, c.call_id, c.name, args, value)
@@ -638,7 +767,7 @@ class Bench:
                 m = self._motions[tag]
                 if not m.done:
                     self._step(tag, m)
-                if not self.arena.is_moving(str(tag)) and m.done:
+                if not self.arena.is_moving(str(tag)) and m.done and self.arena.time >= m.until - 1e-9:
                     ready.append(tag)
             if ready:
                 return sorted(ready, key=self.tags.index)
@@ -668,9 +797,11 @@ class Bench:
             self._stop_run(tag, why)
         self._next_sample = 0.0
         self._sample_poses()
+        extra = {} if self.forfeit is None else {"forfeit": {"team": self.forfeit.team, "limit": self.forfeit.limit,
+                                                             "message": self.forfeit.message}}
         self._event("match.phase", EVERYONE, phase="finished", elapsed=round(self.arena.time, 3),
                     duration=float(self.scenario.duration), action="end", by="bench", scores=self.scores(),
-                    victims={name: sorted(self.board.found.get(name, set())) for name in self.teams})
+                    victims={name: sorted(self.board.found.get(name, set())) for name in self.teams}, **extra)
 
     def _drain_logs(self) -> None:
         from robo_comp.sandbox.parent import RpcCall
@@ -708,6 +839,19 @@ class Bench:
                     kind=record["kind"], state=state, evidence=record["evidence"], message=verdict["reason"])
         self._score({"kind": "find.judged", "team": team, "tag": tag, "verdict": verdict})
         return {"id": record["id"], "state": state, "message": verdict["reason"]}
+
+
+class _Ended(Exception):
+    """Internal: the match ends now (an entrant's forfeit); unwinds the step-locked loop."""
+
+
+def _rss_mib() -> float:
+    """This process's resident memory in MiB (0 where /proc is not there)."""
+    try:
+        with open("/proc/self/statm") as f:
+            return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
+    except (OSError, ValueError, IndexError):
+        return 0.0
 
 
 def _json_line(event: dict[str, Any]) -> str:
@@ -776,5 +920,5 @@ def report_seen(bench: Bench, task: str = "report_victim") -> Callable[[int, dic
     return on_done
 
 
-__all__ = ["Bench", "CALL_BURST", "MatchRun", "MOVEMENT_CALLS", "POSE_SAMPLE", "TaskError", "TaskStep", "report_seen",
+__all__ = ["Bench", "Budget", "CALL_BURST", "Forfeit", "MatchRun", "PICTURE_CALLS", "MOVEMENT_CALLS", "POSE_SAMPLE", "TaskError", "TaskStep", "report_seen",
            "sweep_plan"]

@@ -2,17 +2,89 @@
 
 The log starts with ``core.started`` (which carries the arena), so a replay needs nothing but
 the log; pictures are read from the ``pictures/`` folder beside it when it is there.
-Positions are logged once a second per robot, so replayed robots move in 1 s steps.
+Positions are logged once a second per robot, so replayed robots move in 1 s steps. Scores
+are folded from the log's ``score.change`` lines and final ``match.phase`` (:class:`ScoreFold`)
+where it has no score tables of its own (a league match's log).
 """
 from __future__ import annotations
 
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from robo_comp.protocol.logfile import LogRecord, read_log
 from robo_comp.errors import FieldError
 from robo_comp.wall.model import WallModel
+
+
+class ScoreFold:
+    """The score table a recorded match shows at each point, folded from its log: the one
+    reading of a log's scores for every viewer that replays it (the wall, the web page).
+
+    A league match's log (and any log without ``score`` tables) carries the score as
+    ``score.change`` lines and a final ``match.phase`` with ``scores``; :meth:`feed` turns
+    them into the ``score`` event a live core would have published (``{"teams": rows}``, rows
+    as :meth:`robo_comp.scoring.board.Scoreboard.table` makes them). A log that carries its own
+    ``score`` tables (a core's) is left to them: the fold stops at the first one.
+    """
+
+    def __init__(self) -> None:
+        self.teams: list[str] = []
+        self.totals: dict[str, list[float]] = {}  # team -> score, penalties, last change
+        self.victims: dict[str, set[Any]] = {}
+        self.disqualified: set[str] = set()
+        self.own_tables = False  # the log has ``score`` events of its own
+
+    def _row(self, team: str) -> list[float]:
+        if team not in self.totals:
+            self.totals[team] = [0.0, 0.0, 0.0]
+            self.victims[team] = set()
+            if team not in self.teams:
+                self.teams.append(team)
+        return self.totals[team]
+
+    def feed(self, topic: str, data: dict[str, Any]) -> dict[str, Any] | None:
+        """Take one record; returns the ``score`` event's data to show now, or None."""
+        if topic == "score":
+            self.own_tables = True
+            return None
+        if self.own_tables:
+            return None
+        if topic == "core.started":
+            for team in data.get("teams") or []:
+                self._row(str(team))
+            return self.table()
+        if topic == "score.change" and data.get("team") is not None:
+            row = self._row(str(data["team"]))
+            points = float(data.get("points") or 0.0)
+            row[0] += points
+            if points < 0:
+                row[1] -= points
+            row[2] = max(row[2], float(data.get("t") or 0.0))
+            if data.get("kind") == "victim" and data.get("victim"):
+                self.victims[str(data["team"])].add(data["victim"])
+            return self.table()
+        if topic == "disqualified" and data.get("team") is not None:
+            self.disqualified.add(str(data["team"]))
+            return self.table()
+        if topic == "match.phase" and isinstance(data.get("scores"), dict):
+            for team, score in data["scores"].items():  # the match's own final word
+                self._row(str(team))[0] = float(score)
+            for team, found in (data.get("victims") or {}).items():
+                self.victims[str(team)] = set(found)
+            return self.table()
+        return None
+
+    def table(self) -> dict[str, Any]:
+        """The ``score`` event's data now: ranked rows."""
+        rows: list[dict[str, Any]] = [{"team": t, "score": round(v[0], 3), "victims": len(self.victims.get(t, ())),
+                 "penalties": round(v[1], 3), "last_change": v[2], "disqualified": t in self.disqualified}
+                for t, v in self.totals.items()]
+        rows.sort(key=lambda r: (r["disqualified"], -r["score"], r["team"]))
+        for i, r in enumerate(rows):
+            r["rank"] = i + 1
+        return {"teams": rows}
 
 
 class ReplaySource:
@@ -34,6 +106,7 @@ class ReplaySource:
         self.next = 0
         self.started: float | None = None
         self.offset = 0.0
+        self.scores = ScoreFold()
 
     @property
     def duration(self) -> float:
@@ -69,6 +142,9 @@ class ReplaySource:
         while self.next < len(recs) and recs[self.next].t - self.t0 <= at:
             rec = recs[self.next]
             model.apply(rec.topic, rec.data)
+            table = self.scores.feed(rec.topic, rec.data)
+            if table is not None:
+                model.apply("score", table)
             self.next += 1
             n += 1
         if self.started is None:

@@ -24,6 +24,7 @@ from robo_comp import protocol as P
 from robo_comp.errors import AuthError, FieldError
 from robo_comp.protocol.logfile import read_recording
 from robo_comp.wall.model import WallModel
+from robo_comp.wall.replay import ScoreFold
 from robo_comp.web.state import TaskNames, jsonable, map_png, public_event, state_json
 from robo_comp.web.story import Story
 
@@ -125,6 +126,7 @@ class Recording:
         model = WallModel(clock=lambda: now[0])
         model.replay = True
         tasks = TaskNames()
+        fold = ScoreFold()  # the scores, read as the wall's replay reads them
         story = Story(limit=None)
         team_of: dict[int, str | None] = {}
         maps: dict[int, str] = {}
@@ -138,18 +140,22 @@ class Recording:
                 team_of[rec.data.get("tag")] = rec.data.get("team")
             if rec.topic == "picture" and isinstance(rec.data.get("id"), int):
                 v.pictures[rec.data["id"]] = rec.data.get("team") or rec.team
+            table = fold.feed(rec.topic, rec.data)  # every view: the core publishes its table to everyone
             data = self._filter(name, rec.topic, rec.team, rec.data, team_of)
-            if data is None:
-                continue
             now[0] = t
-            model.apply(rec.topic, data)
-            tasks.apply(rec.topic, data)
-            if rec.topic != "robot.positions":
-                story.apply(rec.topic, data, t, model.match.now(t)[0] if model.match.phase else None)
-            if rec.topic == "core.started":
-                continue  # the page gets the arena from a keyframe
-            v.times.append(t)
-            v.frags.append(_dump([rec.topic, data, round(t, 3)]))
+            if data is not None:
+                model.apply(rec.topic, data)
+                tasks.apply(rec.topic, data)
+                if rec.topic != "robot.positions":
+                    story.apply(rec.topic, data, t, model.match.now(t)[0] if model.match.phase else None)
+                if rec.topic != "core.started":  # the page gets the arena from a keyframe
+                    v.times.append(t)
+                    v.frags.append(_dump([rec.topic, data, round(t, 3)]))
+            if table is not None:
+                model.apply("score", table)
+                story.apply("score", table, t, model.match.now(t)[0] if model.match.phase else None)
+                v.times.append(t)
+                v.frags.append(_dump(["score", table, round(t, 3)]))
         while model.arena is not None and (not v.key_times or next_key <= self.duration):
             self._keyframe(v, model, tasks, maps, next_key, now)
             next_key += KEYFRAME_EVERY

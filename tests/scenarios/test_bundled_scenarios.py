@@ -99,16 +99,18 @@ def test_two_runs_give_identical_event_logs(tmp_path):
 
 
 def test_the_clock_moves_only_with_movements():
-    """Step-locked: calls that take no time leave the simulated clock where it is."""
+    """Step-locked: calls that take no time leave the simulated clock where it is (within the
+    robot's call budget, CALL_BURST calls at once; past it they are answered as the budget
+    refills, tests/test_league_fair.py)."""
     src = ('MANIFEST = {"name": "busy", "version": "1", "kind": "extension", "tasks": {"look": {"args": []}, '
            '"spin": {"args": []}}}\n\n'
-           'def look(robot):\n    n = 0\n    for i in range(200):\n        robot.sense()\n        n += 1\n'
+           'def look(robot):\n    n = 0\n    for i in range(99):\n        robot.sense()\n        n += 1\n'
            '    return [n, robot.position()]\n\n'
            'def spin(robot):\n    robot.turn(90)\n    robot.turn(90)\n    return robot.position()\n')
     with Bench("demo_room", "red", robots=2) as bench:
         bench.load("busy.py", src)
         out = bench.run_match({101: [("look", [])], 102: [("spin", [])]}, seconds=60)
-        assert out.outcomes[101][0]["result"][0] == 200 and out.outcomes[101][0]["t"] == 0.0
+        assert out.outcomes[101][0]["result"][0] == 99 and out.outcomes[101][0]["t"] == 0.0
         # two 90-degree turns at 90 degrees/s: 2 simulated seconds, not a tick more than a step
         assert 2.0 <= out.outcomes[102][0]["t"] <= 2.0 + 2 * bench.dt
         assert out.sim_seconds == out.outcomes[102][0]["t"]  # everyone idle: the run ends

@@ -48,12 +48,17 @@ class LeaderboardScreen(Screen[None]):
         table = self.query_one("#standings", DataTable)
         table.clear()
         for row in view["standings"]:
-            table.add_row(*(_cell(row.get(key)) for _, key in COLUMNS), key=row["team"])
+            cells = [_cell(row.get(key)) for _, key in COLUMNS]
+            if row.get("provisional"):  # σ still too large to trust the rank (ratings.SURE_SIGMA)
+                cells[3] += " ?"
+            table.add_row(*cells, key=row["team"])
         played = sum(1 for m in view["matches"] if m.get("status") == "done")
         waiting = sum(1 for m in view["matches"] if m.get("status") != "done")
         self.query_one("#league-title", Label).update(f"League: {view['name']}")
+        unsure = " · ?: provisional (σ too large to trust the rank)" if any(
+            r.get("provisional") for r in view["standings"]) else ""
         self.query_one("#league-footer", Label).update(
-            f"{played} matches played, {waiting} waiting · r: refresh · escape: back to the match")
+            f"{played} matches played, {waiting} waiting{unsure} · r: refresh · escape: back to the match")
 
     def action_refresh_view(self) -> None:
         """Ask the app for a fresh view."""
