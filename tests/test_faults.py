@@ -623,6 +623,8 @@ def test_task_done_is_idempotent_and_a_task_lost_on_the_way_is_handed_over_again
     assert [e["data"]["task_id"] for e in core.logged_events("task.done")].count(tid) == 1
     # the same result again with a registration (a reconnect whose answer was lost): taken once too
     second = red.give(tag, "goTo", [4, 4])["task_id"]
+    host.close()  # the old connection is gone (a host keeps its robots until then: E_HELD)
+    wait_for(lambda: red.monitor(tag)["status"] == "lost", 10, "the robot lost with its old connection")
     back = Peer(router(core), token=core.host_token("red"))
     assert back.own("hello", {"token": core.host_token("red"), "client": "robots"})["ok"]
     reg = back.own("register", {"token": core.host_token("red"), "robot_id": "r1", "fresh": False, "done": body,
@@ -632,14 +634,15 @@ def test_task_done_is_idempotent_and_a_task_lost_on_the_way_is_handed_over_again
     assert [e["data"]["task_id"] for e in core.logged_events("task.done")].count(tid) == 1
     assert red.tasks(tag)["current"]["task_id"] == second
     # a host that restarted (fresh) and runs nothing: the task is cancelled, saying why
+    back.close()
+    wait_for(lambda: red.monitor(tag)["status"] == "lost", 10, "the robot lost with its old connection")
     fresh = Peer(router(core), token=core.host_token("red"))
     assert fresh.own("hello", {"token": core.host_token("red"), "client": "robots"})["ok"]
     reg = fresh.own("register", {"token": core.host_token("red"), "robot_id": "r1", "tasks": []})
     assert reg["ok"] and reg["body"]["task"] is None, reg
     cancelled = next(t for t in red.tasks(tag)["done"] if t["task_id"] == second)
     assert cancelled["state"] == "cancelled" and "host restarted" in cancelled["status"], cancelled
-    for p in (host, back, fresh):
-        p.close()
+    fresh.close()
 
 
 # ---------------------------------------------------------------------------------------------

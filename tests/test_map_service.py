@@ -38,7 +38,7 @@ class RawHost:
         self.s = zmq.Context.instance().socket(zmq.DEALER)
         self.s.setsockopt(zmq.LINGER, 0)
         self.s.setsockopt(zmq.ROUTING_ID, P.new_routing_id())
-        secure_plain_client(self.s, core.token(team))  # the core lets in no connection without a token
+        secure_plain_client(self.s, core.host_token(team))  # the core lets in no connection without a token
         self.s.connect(url)
         self.n = 0
         self.sid = None  # the session secret, from the register reply
