@@ -188,9 +188,6 @@ def core_rate(state: Path, robots: int, seconds: float) -> tuple[float, int]:
     """Reports per second the core absorbs (ownership check + PUB event) from ``robots`` clients."""
     info = json.loads((state / "core.json").read_text())
     url = info["router"]
-    socks, tags = _register_raw(url, _host_token(state, "red"), robots)
-    for d in socks:
-        d.close(0)
     ctx = zmq.Context.instance()
     # Each robot's reports come from its own connection, as with real robots.
     senders = []
@@ -199,16 +196,18 @@ def core_rate(state: Path, robots: int, seconds: float) -> tuple[float, int]:
         d.setsockopt(zmq.LINGER, 0)
         d.setsockopt(zmq.SNDHWM, 1000)
         senders.append(d)
-    # re-register on the sending sockets so ownership checks pass (same robot ids keep their tags)
+    # register on the sending sockets, so that each robot's host connection is the one that reports
     tok = _host_token(state, "red")
     for i, d in enumerate(senders):
         secure_plain_client(d, tok)
         d.connect(url)
         d.send(_frame("register", 1, {"token": tok, "robot_id": f"bench-{i}", "x": 2.0, "y": 2.0}, None))
-    sessions = []
+    sessions, tags = [], []
     for d in senders:
-        d.poll(10_000)
-        sessions.append(P.unpack(d.recv())["body"].get("session"))  # None before protocol 2
+        assert d.poll(10_000), "no register reply"
+        body = P.unpack(d.recv())["body"]
+        sessions.append(body.get("session"))  # None before protocol 2
+        tags.append(body["tag"])
     frames = [_frame("report", 0, {"tag": t, "x": 1.5, "y": 2.5, "heading": 90.0, "moving": True}, sid)
               for t, sid in zip(tags, sessions)]
     ref = Client(str(state), (state / "referee.token").read_text().strip(), timeout=30)

@@ -191,11 +191,79 @@ def _near_free(walls: Any, x: float, y: float, reach: float = 0.3) -> bool:
     return False
 
 
+COST_CHILD = r"""
+import json, sys, tempfile, time
+from pathlib import Path
+from robo_comp import protocol as P
+from robo_comp.core.server import Core
+from robo_comp.world.scenario import default_scenario
+
+rows, calls = int(sys.argv[1]), int(sys.argv[2])
+with tempfile.TemporaryDirectory() as tmp:
+    extra = {"robots_per_team": rows} if "robots_per_team" in Core.__init__.__code__.co_varnames else {}
+    core = Core(Path(tmp), default_scenario(), ["red", "blue"], **extra)
+    core._check_key = lambda who: None  # no transport here: the report path alone
+    try:
+        tok = core.tokens.token_of("red", "host")
+    except TypeError:  # a tree before host tokens
+        tok = core.tokens.token_of("red")
+    ident = bytes(range(1, 17))
+    tags = []
+    for i in range(rows):
+        body = {"token": tok, "robot_id": f"r{i}", "x": 2.0, "y": 2.0}
+        tags.append(core._on_register(ident, P.Message("register", i + 1, body))["tag"])
+    best = float("inf")
+    for rep in range(7):
+        msgs = [P.Message("reports", 0, {"tags": tags, "x": [2.0 + 0.02 * ((k + rep) % 5)] * rows, "y": [2.0] * rows,
+                                          "heading": [90.0] * rows, "moving": [True] * rows})
+                for k in range(calls)]
+        t0 = time.perf_counter_ns()
+        for m in msgs:
+            core._on_reports(ident, m)
+        best = min(best, (time.perf_counter_ns() - t0) / (calls * rows))
+    print(json.dumps({"ns_per_row": best}))
+"""
+
+
+def report_cost(baseline: str, rows: int, calls: int, reps: int) -> None:
+    """ns per ``reports`` row through ``Core._on_reports`` (ownership, pose, plausibility), this
+    tree against ``baseline``'s, interleaved, each in a fresh process: the cost of the checks."""
+    import os
+    import subprocess
+
+    with tempfile.TemporaryDirectory() as tmp:
+        old = Path(tmp) / "baseline"
+        old.mkdir()
+        archive = subprocess.run(["git", "-C", str(ROOT), "archive", baseline, "robo_comp"], capture_output=True,
+                                 check=True).stdout
+        subprocess.run(["tar", "-x", "-C", str(old)], input=archive, check=True)
+        got: dict[str, list[float]] = {"before": [], "after": []}
+        for rep in range(reps):
+            order = [("before", old), ("after", ROOT)] if rep % 2 == 0 else [("after", ROOT), ("before", old)]
+            for name, tree in order:
+                out = subprocess.run([sys.executable, "-c", COST_CHILD, str(rows), str(calls)], capture_output=True,
+                                     text=True, env=dict(os.environ, PYTHONPATH=str(tree)), cwd=str(tree), timeout=600)
+                if out.returncode != 0:
+                    raise RuntimeError(f"{name}: {out.stderr[-1500:]}")
+                got[name].append(json.loads(out.stdout.strip().splitlines()[-1])["ns_per_row"])
+        b, n = min(got["before"]), min(got["after"])
+        print(f"report path, {rows} robots a reports message ({reps} interleaved runs each, best): "
+              f"{b:.0f} ns a row before ({baseline}) -> {n:.0f} ns after ({n / b - 1:+.1%}); "
+              f"every run: before {', '.join(f'{v:.0f}' for v in got['before'])}; after "
+              f"{', '.join(f'{v:.0f}' for v in got['after'])}")
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--attacks", type=int, default=300)
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--cost", metavar="REV", help="instead: the report path's cost against git revision REV")
+    ap.add_argument("--rows", type=int, default=100)
+    ap.add_argument("--reps", type=int, default=3)
     a = ap.parse_args()
+    if a.cost:
+        report_cost(a.cost, a.rows, 200, a.reps)
+        return 0
     for curve in (False, True):
         t0 = time.monotonic()
         got = run(curve, a.attacks, random.Random(a.seed))

@@ -61,6 +61,9 @@ class RobotRecord:
     gate_x: float = 0.0
     gate_y: float = 0.0
     gate_sigma: float = 0.0
+    #: (the hot path's copies: 3 sigma of the anchor, capped; the budget's capacity at this speed)
+    gate_noise: float = 0.0
+    gate_cap: float = 0.0
     #: Poses refused since the last integrity event about this robot (reported once a beat).
     refused_poses: int = 0
     refused_why: str = ""

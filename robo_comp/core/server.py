@@ -1178,6 +1178,7 @@ class Core:
         r.tasks = specs
         declared = b.get("speed")
         r.speed = min(self.max_speed, float(declared)) if declared and declared > 0 else self._default_speed
+        r.gate_cap = self.gate.capacity(r.speed)
         self._registered_pose(r, b, returning)
         was = r.status
         r.status = RobotStatus.DISQUALIFIED if r.tag in self.competition.disqualified_robots else RobotStatus.CONNECTED
@@ -1225,6 +1226,7 @@ class Core:
         if verdict.ok:
             r.x, r.y = x, y
             r.gate_x, r.gate_y, r.gate_sigma, r.gate_budget, r.gate_t = x, y, 0.0, budget, now
+            r.gate_noise = 0.0
         else:
             self._refuse_pose(r, verdict.reason)
 
@@ -1262,6 +1264,7 @@ class Core:
             budget = self.gate.refill(r.gate_budget, now - r.gate_t, r.speed)
             _, left = self.gate.step((r.gate_x, r.gate_y, r.gate_sigma), budget, r.x, r.y, r.sigma, r.speed)
             r.gate_x, r.gate_y, r.gate_sigma, r.gate_budget, r.gate_t = r.x, r.y, r.sigma, left, now
+            r.gate_noise = 3.0 * min(r.sigma, MAX_SIGMA)
         if r.gate_t:
             budget = self.gate.refill(r.gate_budget, now - r.gate_t, r.speed)
             verdict, budget = self.gate.step((r.gate_x, r.gate_y, r.gate_sigma), budget, x, y, sigma, r.speed)
@@ -1272,6 +1275,7 @@ class Core:
             return False
         if not r.gate_t or now - r.gate_t >= WINDOW:  # the anchor's window has passed: this pose is the next
             r.gate_x, r.gate_y, r.gate_sigma, r.gate_budget, r.gate_t = x, y, sigma, budget, now
+            r.gate_noise = 3.0 * min(sigma, MAX_SIGMA)
         return True
 
     def _on_reports(self, ident: bytes, msg: P.Message) -> None:
@@ -1298,7 +1302,6 @@ class Core:
         gate = self.gate
         walls, width = gate.wall_bytes, gate.width
         xmax, ymax = width - 0.5, gate.height - 0.5
-        lag, slack = gate.lag, gate.slack
         max_sigma = MAX_SIGMA
         window = WINDOW
         hypot, floor = math.hypot, math.floor
@@ -1309,21 +1312,22 @@ class Core:
                 continue
             if r.status is not connected:
                 self._mark_returned(r)
-            sp = r.speed
             since = mono - r.gate_t
-            budget = r.gate_budget + since * sp
-            cap = sp * lag + slack
-            if budget > cap:
-                budget = cap
-            g0 = r.gate_sigma
-            noise = 3.0 * ((sg if sg < max_sigma else max_sigma) + (g0 if g0 < max_sigma else max_sigma))
-            d = hypot(x - r.gate_x, y - r.gate_y)
-            if (r.gate_t and d <= budget + noise and -0.5 <= x < xmax and -0.5 <= y < ymax
+            budget = r.gate_budget + since * r.speed
+            if budget > r.gate_cap:
+                budget = r.gate_cap
+            lim = budget + r.gate_noise + (3.0 * sg if sg < max_sigma else 3.0 * max_sigma)
+            dx = x - r.gate_x
+            dy = y - r.gate_y
+            if (r.gate_t and dx * dx + dy * dy <= lim * lim and -0.5 <= x < xmax and -0.5 <= y < ymax
                     and not walls[floor(y + 0.5) * width + floor(x + 0.5)]):
                 if since >= window:  # the next anchor: the budget pays for the move, less the noise
+                    noise = lim - budget
+                    d = hypot(dx, dy)
                     d = d - noise if d > noise else 0.0
                     r.gate_budget = budget - d if budget > d else 0.0
                     r.gate_x, r.gate_y, r.gate_sigma, r.gate_t = x, y, sg, mono
+                    r.gate_noise = 3.0 * (sg if sg < max_sigma else max_sigma)
             elif not self._plausible(r, x, y, sg, mono):
                 refused.append(tag)
                 continue
