@@ -43,7 +43,7 @@ def test_an_advertised_core_is_found_by_name_by_robots_and_consoles(tmp_path, na
         assert found.url == resolve_core(str(state)) and found.curve is False and found.pub_port
         # a robot host and a console given only the name
         robots = subprocess.Popen([sys.executable, "-m", "robo_comp.cli", "robots", "--core", f"mdns:{name}",
-                                   "--token-file", str(match.token_file("red")), "--count", "1"],
+                                   "--token-file", str(match.host_token_file("red")), "--count", "1"],
                                   stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
         with Client(f"mdns:{name}", match.token("red"), client="test") as red:
             assert wait_robots(red, 1)[0]["team"] == "red"

@@ -66,7 +66,7 @@ def test_a_ros2_robot_and_a_simulated_robot_see_each_other(core, tmp_path, monke
     fixes, truth_blue, truth_red = (f"tcp://127.0.0.1:{_port()}" for _ in range(3))
     walls_shape = None
     procs: list[subprocess.Popen] = []
-    host = RobotHost(resolve_core(str(core.state)), core.token("red"), 1, driver="ros2", seed=2,
+    host = RobotHost(resolve_core(str(core.state)), core.host_token("red"), 1, driver="ros2", seed=2,
                      driver_options={"ros2_ns": ["tb1"], "ros2_domain": domain, "ros2_speed": 0.25},
                      positioning=fixes)
     th = threading.Thread(target=host.run, kwargs={"duration": 120}, daemon=True)

@@ -208,7 +208,7 @@ def test_a_host_drives_a_ros2_robot_for_a_real_core_and_stops_it_on_stop_and_on_
     bus = Bus.shared(domain)
     listen = CommandWatch(bus, "tb1")
     sim = None
-    host = RobotHost(resolve_core(str(core.state)), core.token("red"), 1, driver="ros2", seed=3,
+    host = RobotHost(resolve_core(str(core.state)), core.host_token("red"), 1, driver="ros2", seed=3,
                      driver_options={"ros2_ns": ["tb1"], "ros2_domain": domain, "ros2_speed": 0.25})
     th = threading.Thread(target=host.run, kwargs={"duration": 60}, daemon=True)
     th.start()

@@ -71,6 +71,9 @@ def every_topic() -> list[tuple[str, str | None, dict[str, Any]]]:
         "upload.unloaded": ("red", {"tags": [101], "name": SECRET}),
         "sandbox.reset": ("red", {"tags": [101], "by": "referee", "results": [{"tag": 101, "note": SECRET}]}),
         "robot.left": ("red", {"tag": 101, "x": 2, "y": 8}),
+        "integrity": (None, {"kind": "pose", "tag": 101, "team": "red", "count": 1, "x": 2, "y": 8,
+                             "message": SECRET}),
+        "robot.handover": ("red", {"tag": 101, "by": "referee", "from": SECRET}),
     }
     out = []
     for topic in P.TOPICS:
