@@ -35,8 +35,9 @@ def rate(current: dict[str, tuple[float, float]], ranks: dict[str, int]) -> dict
 
 
 #: A rating is provisional (marked ``?`` on the table, the report and the console) until its
-#: σ falls below this: 2σ then spans about one rank step of the leaderboard's μ − 3σ.
-SURE_SIGMA = 2.5
+#: σ falls below this: about 30 two-team matches (σ starts at 8.33), where the 16-entrant
+#: reference field's order first reached Kendall's τ 0.9 (docs/performance.md, "League").
+SURE_SIGMA = 4.5
 
 
 def provisional(sigma: float) -> bool:
