@@ -40,6 +40,11 @@ try:
 except ImportError:  # a --baseline tree from before the protocol package (child mode)
     from robo_comp.core import protocol as P  # type: ignore[no-redef]  # noqa: E402
 from robo_comp.launch import start_core, start_robots, stop_all  # noqa: E402
+try:  # the transport's credential (a token as PLAIN password); trees before it need none
+    from robo_comp.protocol.curve import secure_plain_client  # noqa: E402
+except ImportError:
+    def secure_plain_client(sock: zmq.Socket, token: str | None) -> None:  # type: ignore[misc]
+        """Nothing: a core from before the PLAIN handshake lets every connection in."""
 from robo_comp.robots.host import RobotHost  # noqa: E402
 
 
@@ -155,6 +160,7 @@ def _register_raw(url: str, token: str, robots: int) -> tuple[list[zmq.Socket], 
     for i in range(robots):
         d = ctx.socket(zmq.DEALER)
         d.setsockopt(zmq.LINGER, 0)
+        secure_plain_client(d, token)
         d.connect(url)
         d.send(_frame("register", 1, {"token": token, "robot_id": f"bench-{i}"}, None))
         socks.append(d)
@@ -182,6 +188,7 @@ def core_rate(state: Path, robots: int, seconds: float) -> tuple[float, int]:
     # re-register on the sending sockets so ownership checks pass (same robot ids keep their tags)
     tok = (state / "teams/red.token").read_text().strip()
     for i, d in enumerate(senders):
+        secure_plain_client(d, tok)
         d.connect(url)
         d.send(_frame("register", 1, {"token": tok, "robot_id": f"bench-{i}"}, None))
     sessions = []
@@ -298,6 +305,7 @@ def _light_host(url: str, token: str, name: str, count: int, hz: float, seconds:
     d.setsockopt(zmq.ROUTING_ID, P.new_routing_id())
     d.setsockopt(zmq.SNDHWM, 100_000)
     d.setsockopt(zmq.RCVHWM, 100_000)
+    secure_plain_client(d, token)
     d.connect(url)
     d.send(_frame("register", 1, {"token": token, "robot_id": f"{name}-0"}, None))
     assert d.poll(30_000), "no register reply"

@@ -13,6 +13,8 @@ What runs (real processes, TCP on loopback):
    ``--seconds`` (frames that drew; an idle page draws nothing, but robots glide between
    position batches so a moving match draws every frame), draw time p50/p99, the longest gap between two frames, robots on the page
    and the events it applied per second (the core sends 10 position batches per team per second).
+   Measured twice in one run: with trails off and no story (the baseline), then with trails on
+   and the referee feeding the ticker (a broadcast twice a second, a penalty every two seconds).
 2. **Fan-out** — the same match; this process reads the core's PUB feed directly on a SUB
    socket (the baseline) while a child process holds ``--browsers`` WebSocket clients on the
    gateway's public view. For the first position event of every WebSocket message, the added
@@ -26,7 +28,8 @@ What runs (real processes, TCP on loopback):
    :meth:`RecordingView.seek_text` at 300 random times (p50/p99/max), and in chromium the
    round trip from sending ``seek`` to the state applied and drawn, at 20 random times.
 
-Exit status 1 if a target is missed: ≥ 30 fps, added p99 < 50 ms, seek < 200 ms.
+Exit status 1 if a target is missed: ≥ 30 fps (with trails and the ticker), added p99 < 50 ms,
+seek < 200 ms. ``--skip-fanout`` measures only the drawing of the live part.
 """
 from __future__ import annotations
 

@@ -22,6 +22,17 @@ def _positive(text: str) -> float:
     return value
 
 
+def _positive_int(text: str) -> int:
+    """An argparse type: a whole number above zero."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"{text!r} must be above zero")
+    return value
+
+
 def _running_core(state: Path) -> int | None:
     """The pid of a live core serving ``state`` (from its core.json), else None."""
     import json
@@ -133,7 +144,8 @@ def _start_core(args: argparse.Namespace, state: Path) -> tuple[Any, bool]:
     core = Core(state, scenario, settings.get("teams"), host=args.host, port=settings.get("port", 5555),
                 heartbeat=settings.get("heartbeat", 1.0), fsync=args.fsync, plugins=pm,
                 practice=practice, approve_uploads=bool(settings.get("approve_uploads")),
-                curve=bool(settings.get("curve")), pose_hz=settings.get("pose_hz", 10.0))
+                curve=bool(settings.get("curve")), pose_hz=settings.get("pose_hz", 10.0),
+                max_connections=args.max_connections, max_per_address=args.max_per_address)
     try:
         core.bind()
         matchfile.write(state, {"teams": core.tokens.teams, "scenario": scenario_file,
@@ -157,7 +169,9 @@ def _robots(args: argparse.Namespace) -> int:
     if args.scenario:  # an organiser-run host knows the truth, so its camera shows victims
         from robo_comp.world.scenario import load_scenario
 
-        truth = load_scenario(args.scenario)
+        from robo_comp.testing.match import resolve_scenario
+
+        truth = load_scenario(resolve_scenario(args.scenario))  # a file or a bundled scenario's name
     token = read_token(args.token, args.token_file)
     options = {}
     if args.driver == "er1":
@@ -269,6 +283,11 @@ def build_parser() -> argparse.ArgumentParser:
                         "mDNS on the interface of --host (off by default; docs/organiser.md)")
     c.add_argument("--override", action="store_true",
                    help="on a restart, apply options that contradict the recovered match (and record them)")
+    c.add_argument("--max-connections", type=_positive_int, metavar="N",
+                   help="connections the core holds at most (default: what its open-file limit allows, "
+                        "raised to the hard limit; the last 64 are kept for the referee and hosts)")
+    c.add_argument("--max-per-address", type=_positive_int, metavar="N",
+                   help="connections from one peer address at most; more are cut at once (default 256)")
     c.add_argument("--on-full-disk", choices=("wait", "exit"), default="wait",
                    help="when the state folder's disk is too full to start: say so and wait until there is "
                         "room, then start (default), or say so and exit")

@@ -22,7 +22,13 @@ from urllib.parse import urlparse
 import zmq
 
 from robo_comp import protocol as P
-from robo_comp.protocol.curve import client_keys, secure_client
+from robo_comp.protocol.curve import (
+    HANDSHAKE_EVENTS,
+    client_keys,
+    handshake_error,
+    secure_client,
+    secure_plain_client,
+)
 from robo_comp.errors import ConnectionLostError, FieldError, TimeoutError_
 from robo_comp.protocol.replies import reply_body
 
@@ -68,17 +74,24 @@ def pub_url(router_url: str, pub_port: int) -> str:
 
 
 
-def open_dealer(ctx: zmq.Context, url: str, curve: Any = None, **options: int) -> zmq.Socket:
+def open_dealer(ctx: zmq.Context, url: str, curve: Any = None, token: str | None = None, *,
+                connect: bool = True, **options: int) -> zmq.Socket:
     """A DEALER socket connected to the core at ``url`` with a fresh random routing id (see
-    :func:`robo_comp.protocol.new_routing_id`), CurveZMQ keys when given, and ``options``
-    (socket option -> value); what every client of the project connects with."""
+    :func:`robo_comp.protocol.new_routing_id`), its credential for the transport (CurveZMQ keys
+    when given, else ``token`` as the PLAIN password: the core lets in no connection without
+    one), and ``options`` (socket option -> value); what every client of the project connects with.
+    With ``connect=False`` the caller connects it (after setting up a monitor, say)."""
     sock = ctx.socket(zmq.DEALER)
     sock.setsockopt(zmq.LINGER, 0)
     sock.setsockopt(zmq.ROUTING_ID, P.new_routing_id())
     for opt, value in options.items():
         sock.setsockopt(getattr(zmq, opt), value)
-    secure_client(sock, curve)  # plain TCP when there are no keys
-    sock.connect(url)
+    if curve is not None:
+        secure_client(sock, curve)
+    else:
+        secure_plain_client(sock, token)
+    if connect:
+        sock.connect(url)
     return sock
 
 
@@ -110,6 +123,8 @@ class Client:
         self.session: str | None = None
         self._last_sent = 0.0
         self._watching = False
+        #: Kept across reconnects: the core ends this client's old session when it says hello again.
+        self.instance = P.new_instance_id()
         self.connect()
 
     # ------------------------------------------------------------------ connection
@@ -119,9 +134,10 @@ class Client:
             self.sock.close(0)
         self._asked = {}  # what was asked on the old socket is not answered on the new one
         self.session = None  # a new connection opens a new session
-        self.sock = open_dealer(self.ctx, self.url, self.curve)
+        self.sock = open_dealer(self.ctx, self.url, self.curve, self.token, connect=False)
         try:
-            self.info = self.request("hello", token=self.token, client=self.client_name)
+            self._handshake()
+            self.info = self.request("hello", token=self.token, client=self.client_name, instance=self.instance)
             self.session = self.info.get("session")
         except TimeoutError_ as e:  # a refused CurveZMQ handshake looks the same: say so
             hint = ("If it runs with --curve, give --curve-cert and --core-key." if self.curve is None else
@@ -131,6 +147,28 @@ class Client:
         if self._watching:
             self.request("watch", on=True)
         return self.info
+
+    def _handshake(self) -> None:
+        """Connect the new socket and wait (up to the timeout) for the transport's handshake: a
+        refused token or key raises :class:`AuthError` at once instead of a silent timeout."""
+        assert self.sock is not None
+        mon = self.sock.get_monitor_socket(HANDSHAKE_EVENTS)
+        try:
+            self.sock.connect(self.url)
+            deadline = time.monotonic() + self.timeout
+            while (left := deadline - time.monotonic()) > 0 and mon.poll(left * 1000):
+                err = handshake_error(mon.recv_multipart(), self.curve is not None)
+                if err is not None:
+                    self.sock.close(0)
+                    self.sock = None
+                    raise err
+                return  # in: the hello follows
+            raise TimeoutError_(f"the core at {self.url} did not complete a connection within "
+                                f"{self.timeout:.1f} s; is it running?")
+        finally:
+            if self.sock is not None:
+                self.sock.disable_monitor()
+            mon.close(0)
 
     def close(self) -> None:
         """Say bye (best effort) and close the socket."""

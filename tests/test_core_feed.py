@@ -10,6 +10,7 @@ import zmq
 
 from robo_comp.client import recv_event
 from robo_comp import protocol as P
+from robo_comp.protocol.curve import secure_plain_client
 
 POSE_HZ = 5
 
@@ -21,6 +22,7 @@ class Host:
         self.s = zmq.Context.instance().socket(zmq.DEALER)
         self.s.setsockopt(zmq.LINGER, 0)
         self.s.setsockopt(zmq.ROUTING_ID, P.new_routing_id())
+        secure_plain_client(self.s, token)  # the core lets in no connection without a token
         self.s.connect(url)
         self.token = token
         self.sid = None  # the session secret, from the first register's reply

@@ -326,6 +326,19 @@ def _flip(path: Path, offset: int, bits: int = 0x09) -> None:
         f.write(bytes([b ^ bits]))
 
 
+def _kill9_between_writes(proc: subprocess.Popen[bytes]) -> None:
+    """``kill -9`` the core, but not in the middle of a write to its log: stopped first (a stop takes
+    effect between system calls), so that the test's own damage is the log's only one. (A record
+    torn by a kill is the case of ``tests/test_recovery.py``.)"""
+    os.kill(proc.pid, signal.SIGSTOP)
+    t_end = time.monotonic() + 10
+    while Path(f"/proc/{proc.pid}/stat").read_text().rsplit(")", 1)[1].split()[0] not in ("T", "t"):
+        assert time.monotonic() < t_end, "the core did not stop"
+        time.sleep(0.01)
+    proc.kill()
+    proc.wait()
+
+
 def test_one_damaged_byte_in_the_middle_of_the_log_costs_that_record_only(tmp_path: Path) -> None:
     """The core is killed, a penalty's score line in the middle of the log has its points changed
     (-1 would read as -1.25), the core restarts: that one record is reported lost (by seq and
@@ -341,8 +354,7 @@ def test_one_damaged_byte_in_the_middle_of_the_log_costs_that_record_only(tmp_pa
         ref = match.referee()
         for i in range(30):
             ref.request("penalty", team=("red", "blue")[i % 2], points=-1, reason=f"foul {i:02d}")
-        proc.kill()
-        proc.wait()
+        _kill9_between_writes(proc)
         raw = log.read_bytes()
         size = len(raw)
         lines = [r for r in read_log(log) if r.topic == "score.change"]
@@ -371,8 +383,7 @@ def test_one_damaged_byte_in_the_middle_of_the_log_costs_that_record_only(tmp_pa
         assert len(seqs) == len(set(seqs)), "a sequence number was used twice"
         assert [(s, t) for s, t in before] == [(r.seq, r.topic) for r in read_log(log, strict=False)][:len(before)]
         # now the last record: an unfinished write or a damaged byte at the very end
-        proc.kill()
-        proc.wait()
+        _kill9_between_writes(proc)
         last = list(read_log(log, strict=False))[-1]
         _flip(log, log.stat().st_size - 3)
         match.proc = proc = start_core(state)
@@ -451,8 +462,7 @@ def test_a_log_of_the_previous_format_is_read_and_said_so(tmp_path: Path) -> Non
         assert [ln["reason"] for ln in ref.score()["lines"]] == ["old foul"]
         assert "previous format" in match.log_tail()
         ref.request("penalty", team="red", points=-1, reason="new foul")
-        proc.kill()
-        proc.wait()
+        _kill9_between_writes(proc)
         reader = LogReader(state / "events.log")
         recs = list(reader)
         assert not reader.damages and reader.legacy == 3

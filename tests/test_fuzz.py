@@ -28,6 +28,7 @@ from hypothesis import strategies as st
 
 from robo_comp.client import Client
 from robo_comp import protocol as P
+from robo_comp.protocol.curve import secure_plain_client
 from robo_comp.errors import RoboCompError, ScenarioError
 from robo_comp.world.scenario import parse_scenario
 
@@ -245,10 +246,11 @@ def test_demo_room_parses() -> None:
 class Raw:
     """A raw DEALER socket on a core: send frames, collect replies until a marker reply."""
 
-    def __init__(self, url: str) -> None:
+    def __init__(self, url: str, token: str) -> None:
         self.sock = zmq.Context.instance().socket(zmq.DEALER)
         self.sock.setsockopt(zmq.LINGER, 0)
         self.sock.setsockopt(zmq.ROUTING_ID, P.new_routing_id())
+        secure_plain_client(self.sock, token)  # the core lets in no connection without a token
         self.sock.connect(url)
         self.marker = 1_000_000
         self.session: str | None = None  # learnt from the hello/register reply
@@ -344,7 +346,7 @@ def test_live_core_answers_every_fuzzed_frame(core: Any) -> None:
     """One core, many sessions' worth of generated frames: one error reply each (no reply for
     an accepted notification), never E_INTERNAL, and the core still serves a real client."""
     url = Client(str(core.state), core.token("referee")).url
-    anon, team = Raw(url), Raw(url)
+    anon, team = Raw(url, core.token("red")), Raw(url, core.token("red"))
     assert team.call("hello", {"token": core.token("red")})["ok"]
     reg = team.call("register", {"token": core.token("red"), "robot_id": "fz-1", "tasks": []}, 2)
     assert reg["ok"]
@@ -384,7 +386,7 @@ STOP_WAIT = 4.0  # the core's own stop timeout is 2 s
 def _host_with_robot(core: Any) -> tuple[Raw, int, str]:
     """A raw robot host of team red with one registered robot: (socket, tag, url)."""
     url = Client(str(core.state), core.token("referee")).url
-    host = Raw(url)
+    host = Raw(url, core.token("red"))
     assert host.call("hello", {"token": core.token("red")})["ok"]
     reg = host.call("register", {"token": core.token("red"), "robot_id": "h-1", "tasks": []}, 2)
     return host, reg["body"]["tag"], url
@@ -411,7 +413,7 @@ def test_malformed_stop_confirmation_still_answers_the_requester(core: Any, repl
     (``error`` a string, or ``body`` a list). The core must answer the host with E_FIELD (not
     E_INTERNAL) and still answer the referee who asked for the stop."""
     host, tag, url = _host_with_robot(core)
-    ref = Raw(url)
+    ref = Raw(url, core.token("referee"))
     try:
         assert ref.call("hello", {"token": core.token("referee")})["ok"]
         ref.sock.send(P.request("stop", 77, {"tag": tag}, ref.session))
@@ -433,7 +435,7 @@ def test_other_team_cannot_confirm_a_stop(core: Any) -> None:
     small sequential integers, easy to guess) with a made-up position: the core must ignore
     it, and the robot must not be moved to (-999, -999)."""
     host, tag, url = _host_with_robot(core)
-    blue, ref = Raw(url), Raw(url)
+    blue, ref = Raw(url, core.token("blue")), Raw(url, core.token("referee"))
     try:
         assert blue.call("hello", {"token": core.token("blue")})["ok"]
         assert ref.call("hello", {"token": core.token("referee")})["ok"]

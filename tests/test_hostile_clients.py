@@ -22,7 +22,7 @@ import zmq
 
 from conftest import CoreHandle, wait_for, wait_robots
 from robo_comp import protocol as P
-from robo_comp.protocol.curve import ClientKeys, load_public, load_secret, secure_client
+from robo_comp.protocol.curve import ClientKeys, load_public, load_secret, secure_client, secure_plain_client
 from robo_comp.launch import start_core
 
 #: libzmq's first made-up routing ids when nothing seeds C's rand(): 0x00 + 0x6b8b4567, +1, ...
@@ -33,13 +33,16 @@ class Peer:
     """A raw DEALER on the core: explicit routing id (or none), hand-made frames, and the session
     secret learnt from a hello/register reply (used only when asked to)."""
 
-    def __init__(self, url: str, routing_id: bytes | None = None, keys: ClientKeys | None = None) -> None:
+    def __init__(self, url: str, routing_id: bytes | None = None, keys: ClientKeys | None = None,
+                 token: str | None = None) -> None:
         self.ctx = zmq.Context.instance()
         self.sock = self.ctx.socket(zmq.DEALER)
         self.sock.setsockopt(zmq.LINGER, 0)
         if routing_id is not None:
             self.sock.setsockopt(zmq.ROUTING_ID, routing_id)
         secure_client(self.sock, keys)
+        if keys is None:  # the transport's credential: without one the core lets nothing in
+            secure_plain_client(self.sock, token)
         self.sock.connect(url)
         self.session: str | None = None
         self.n = 0
@@ -113,7 +116,7 @@ def blue_robot(core: CoreHandle) -> tuple[Any, dict[str, Any]]:
 
 def raw_host(core: CoreHandle, team: str, robot_id: str, routing_id: bytes | None = None) -> tuple[Peer, int]:
     """A raw robot host that said hello and registered one robot: (peer, tag)."""
-    host = Peer(router(core), routing_id or P.new_routing_id())
+    host = Peer(router(core), routing_id or P.new_routing_id(), token=core.token(team))
     assert host.own("hello", {"token": core.token(team), "client": "robots"})["ok"]
     reg = host.own("register", {"token": core.token(team), "robot_id": robot_id, "x": 2, "y": 2, "tasks": [
         {"name": "goTo", "args": [{"name": "x", "type": "int"}, {"name": "y", "type": "int"}]}]})
@@ -127,10 +130,11 @@ def test_made_up_routing_ids_cannot_be_claimed_ahead_or_crash_the_core(core: Cor
     connections that set no id the same ids (0x006b8b4567, ...); an attacker who takes the next
     one first makes libzmq abort the core when it hands that id out."""
     url = router(core)
-    claims = [Peer(url, b"\x00" + (UNSEEDED_FIRST + k).to_bytes(4, "big")) for k in range(16)]
+    claims = [Peer(url, b"\x00" + (UNSEEDED_FIRST + k).to_bytes(4, "big"), token=core.token("red"))
+              for k in range(16)]
     for p in claims:  # connected with the ids the next connections would get: no session for them
         assert code(p.ask("robots")) == "E_AUTH"
-    victims = [Peer(url) for _ in range(16)]  # no routing id of their own: libzmq makes one up
+    victims = [Peer(url, token=core.token("blue")) for _ in range(16)]  # no routing id of their own: libzmq makes one up
     for v in victims:
         assert v.own("hello", {"token": core.token("blue")})["ok"]
         assert v.own("robots")["ok"]
@@ -141,7 +145,7 @@ def test_made_up_routing_ids_cannot_be_claimed_ahead_or_crash_the_core(core: Cor
 
 def test_short_chosen_routing_ids_are_refused(core: CoreHandle) -> None:
     """Defence: a session opens only on a routing id that cannot be guessed."""
-    p = Peer(router(core), b"blue-host")
+    p = Peer(router(core), b"blue-host", token=core.token("blue"))
     reply = p.ask("hello", {"token": core.token("blue")})
     assert code(reply) == "E_AUTH" and "routing id" in reply["error"]["message"]
     p.close()
@@ -154,7 +158,7 @@ def test_a_live_connections_routing_id_cannot_be_taken_over(core: CoreHandle) ->
     blue = core.client("blue")
     host_id = P.new_routing_id()
     host, tag = raw_host(core, "blue", "b-raw", host_id)
-    thief = Peer(router(core), host_id)
+    thief = Peer(router(core), host_id, token=core.token("red"))
     thief.send("hello", {"token": core.token("red")})
     thief.send("give", {"tag": tag, "task": "goTo", "args": [3, 3]})
     # blue uploads code for its robot: the core forwards the source to the robot's host
@@ -179,13 +183,13 @@ def test_a_vanished_connections_routing_id_gets_nothing(core: CoreHandle) -> Non
     without blue's session secret."""
     _, row = blue_robot(core)
     console_id = P.new_routing_id()
-    console = Peer(router(core), console_id)
+    console = Peer(router(core), console_id, token=core.token("blue"))
     assert console.own("hello", {"token": core.token("blue")})["ok"]
     assert console.own("watch", {"on": True})["ok"]
     stolen_from_nowhere = P.new_session_secret()
     console.close()
     time.sleep(1.0)  # heartbeats to the watcher now find no connection: its route is unproven
-    thief = Peer(router(core), console_id)
+    thief = Peer(router(core), console_id, token=core.token("red"))
     ref = core.referee()
     for x in (3, 4, 5):
         ref.give(row["tag"], "goTo", [x, 3])
@@ -229,7 +233,7 @@ def sample_body(type_: str) -> dict[str, Any]:
 
 def test_nothing_but_hello_is_served_before_hello(core: CoreHandle) -> None:
     """Defence: every message needs a proved session (E_AUTH), whatever secret it makes up."""
-    p = Peer(router(core), P.new_routing_id())
+    p = Peer(router(core), P.new_routing_id(), token=core.token("red"))
     for type_ in sorted(set(P.REQUESTS) - {"hello", "register", "bye"}):
         body = sample_body(type_)
         assert code(p.ask(type_, body)) == "E_AUTH", type_
@@ -245,10 +249,10 @@ def test_a_secret_works_only_on_its_own_connection(core: CoreHandle) -> None:
     stolen = host.session
     assert stolen is not None and len(stolen) == 2 * P.SESSION_BYTES
     frame = P.request("give", 9, {"tag": tag, "task": "goTo", "args": [4, 4]}, stolen)
-    replay = Peer(router(core), P.new_routing_id())
+    replay = Peer(router(core), P.new_routing_id(), token=core.token("red"))  # even with red's credential
     replay.sock.send(frame)  # the very bytes red's connection would send
     assert code(replay.reply(9)) == "E_AUTH"
-    blue = Peer(router(core), P.new_routing_id())
+    blue = Peer(router(core), P.new_routing_id(), token=core.token("blue"))
     assert blue.own("hello", {"token": core.token("blue")})["ok"]
     assert code(blue.ask("give", {"tag": tag, "task": "goTo", "args": [4, 4]}, secret=stolen)) == "E_AUTH"
     forged = stolen[:-1] + ("0" if stolen[-1] != "0" else "1")
@@ -291,7 +295,7 @@ def test_another_teams_tag_in_every_message_kind(core: CoreHandle) -> None:
     blue, row = blue_robot(core)
     tag = row["tag"]
     before = core.referee().monitor(tag)
-    console = Peer(router(core), P.new_routing_id())
+    console = Peer(router(core), P.new_routing_id(), token=core.token("red"))
     assert console.own("hello", {"token": core.token("red")})["ok"]
     host, own_tag = raw_host(core, "red", "r-raw")
     as_console = {
@@ -329,7 +333,7 @@ def test_host_messages_from_a_console_and_console_messages_from_a_host(core: Cor
     powers need the referee's token. Red's console speaks for red's hosted robot, red's host
     for the referee: refused, and red's robot keeps reporting."""
     host, tag = raw_host(core, "red", "r-raw")
-    console = Peer(router(core), P.new_routing_id())
+    console = Peer(router(core), P.new_routing_id(), token=core.token("red"))
     assert console.own("hello", {"token": core.token("red")})["ok"]
     for type_ in ("report", "task.next", "task.done", "leave", "picture", "bump", "advertise"):
         body = dict(SAMPLE_BODIES[type_], tag=tag)
@@ -348,7 +352,8 @@ def test_a_flood_of_bad_hellos_is_refused_and_logged_in_bulk(core: CoreHandle) -
     """Defence: a bad hello changes nothing; refusals without a session are logged once a beat
     with their count, so a flood neither stops the core nor floods its log or the referee."""
     blue = core.client("blue")
-    flood = [Peer(router(core), P.new_routing_id()) for _ in range(20)]
+    # a credential at the transport (blue's: a teammate), then hellos with tokens made up
+    flood = [Peer(router(core), P.new_routing_id(), token=core.token("blue")) for _ in range(20)]
     for i in range(100):
         for p in flood:
             p.send("hello", {"token": f"guess-{i}-{os.urandom(8).hex()}"})
@@ -375,21 +380,21 @@ def test_a_flood_of_bad_hellos_is_refused_and_logged_in_bulk(core: CoreHandle) -
 
 
 def test_oversized_and_deeply_nested_frames_leave_the_session_working(core: CoreHandle) -> None:
-    """Defence: frame limits (E_TOO_LARGE over 1 MiB; libzmq drops a peer over 16 MiB) and a
-    decoder that refuses deep nesting (E_MALFORMED), before any handler runs."""
+    """Defence: frame limits (E_TOO_LARGE over 1 MiB; libzmq drops a peer over
+    SOCKET_MAX_FRAME) and a decoder that refuses deep nesting (E_TOO_LARGE), before any handler runs."""
     host, tag = raw_host(core, "red", "r-raw")
-    big = P.request("report", 7, {"tag": tag, "x": 1, "y": 1, "heading": 0, "sensors": {"x": "y" * (2 << 20)}},
-                    host.session)
+    big = P.request("report", 7, {"tag": tag, "x": 1, "y": 1, "heading": 0,
+                                  "sensors": {"x": "y" * (P.MAX_FRAME + 100)}}, host.session)
     host.sock.send(big)
     assert code(host.reply(0)) == "E_TOO_LARGE"  # refused before its id is read
     head = msgpack.packb({"v": 2, "type": "report", "id": 8, "s": host.session})  # a map of 4 ...
     nested = b"\x85" + head[1:] + msgpack.packb("body") + b"\x91" * 3000 + b"\xc0"  # ... made 5: a deep body
     host.sock.send(nested)
-    assert code(host.reply(0)) == "E_MALFORMED"
+    assert code(host.reply(0)) == "E_TOO_LARGE"
     host.sock.send(b"\x91" * 100_000 + b"\xc0")
-    assert code(host.reply(0)) == "E_MALFORMED"
+    assert code(host.reply(0)) == "E_TOO_LARGE"
     assert host.own("task.next", {"tag": tag})["ok"]  # the session survived all three
-    huge = Peer(router(core), P.new_routing_id())
+    huge = Peer(router(core), P.new_routing_id(), token=core.token("red"))
     huge.sock.send(b"\x00" * (P.SOCKET_MAX_FRAME + 10))  # libzmq cuts this peer off
     assert host.own("task.next", {"tag": tag})["ok"]
     assert core.proc.poll() is None
@@ -399,7 +404,7 @@ def test_oversized_and_deeply_nested_frames_leave_the_session_working(core: Core
 
 def test_an_old_client_gets_a_clear_error_not_silence(core: CoreHandle) -> None:
     """Protocol 1 (no session secret) is answered with E_VERSION and what to do."""
-    p = Peer(router(core), P.new_routing_id())
+    p = Peer(router(core), P.new_routing_id(), token=core.token("red"))
     p.sock.send(msgpack.packb({"v": 1, "type": "hello", "id": 1, "body": {"token": core.token("red")}}))
     reply = p.reply(1)
     assert code(reply) == "E_VERSION"

@@ -443,7 +443,13 @@ def test_a_season_from_the_command_line(tmp_path):
     r = robo("league", "report", "season", "out/report.html", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     page = (tmp_path / "out" / "report.html").read_text()
-    assert page.count("<svg") == 2 and "href='../season/matches/1/events.log'" in page
+    # a match's log is given as the command that replays it, not as a link to a binary file
+    assert page.count("<svg") == 2 and "<code>robo-comp web --replay ../season/matches/1/events.log</code>" in page
+    assert "events.log'>" not in page and "<a href" not in page
+    # sixteen teams, sixteen colours (matplotlib's cycle has ten)
+    from robo_comp.scoring.results import team_colours
+
+    assert len(set(team_colours([f"t{i}" for i in range(16)]).values())) == 16
     assert (tmp_path / "out" / "../season/matches/1/events.log").is_file()
     r = robo("league", "table", "season", cwd=tmp_path)
     assert r.returncode == 0 and view["standings"][0]["team"] in r.stdout.splitlines()[4]

@@ -13,6 +13,7 @@ import zmq
 import robo_comp.world.scenario as scen
 from conftest import CoreHandle, wait_for
 from robo_comp import protocol as P
+from robo_comp.protocol.curve import secure_plain_client
 from robo_comp.errors import FieldError, NotYoursError
 from robo_comp.launch import start_core
 from robo_comp.world.mapservice import MapView
@@ -37,6 +38,7 @@ class RawHost:
         self.s = zmq.Context.instance().socket(zmq.DEALER)
         self.s.setsockopt(zmq.LINGER, 0)
         self.s.setsockopt(zmq.ROUTING_ID, P.new_routing_id())
+        secure_plain_client(self.s, core.token(team))  # the core lets in no connection without a token
         self.s.connect(url)
         self.n = 0
         self.sid = None  # the session secret, from the register reply

@@ -1,7 +1,7 @@
 """The sandbox's second wall (robo_comp/sandbox/oswall.py; docs/security.md, "Hostile uploads").
 
 Team code gets past the policy through a planted hole (``Limits(test_policy_hole=True)``: the
-real ``os`` and ``socket`` modules) and goes around the rlimits (it closes its standard
+real ``os`` and ``socket`` modules among its builtins) and goes around the rlimits (it closes its standard
 descriptors to open new ones). Inside the OS layer it still cannot reach the host's network, read
 or write a file outside, or see another team's sandbox process; with the layer turned off the
 same code does all of that (so the test can fail).
@@ -27,9 +27,8 @@ HOLE = '''
 MANIFEST = {"name": "hole", "version": "1.0", "kind": "extension",
             "tasks": {"attack": {"description": "through a planted hole",
                                  "args": [{"name": "port", "type": "int"}, {"name": "pid", "type": "int"}]}}}
-import os
-import socket
 
+# no import: the hole puts the real os and socket modules among the builtins
 def attack(robot, port, pid):
     for fd in (0, 1, 2):  # around RLIMIT_NOFILE: free descriptors to open new ones with
         try:

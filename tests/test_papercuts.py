@@ -178,3 +178,55 @@ def test_an_import_inside_a_function_is_refused_at_upload(match, tmp_path: Path)
                   "    return math.sqrt(4)\n")
     p = ctl(m, "upload", str(tag), str(ok), timeout=120)
     assert p.returncode == 0 and "ok" in p.stdout, p.stdout + p.stderr
+
+
+def test_scores_png_draws_each_team_in_its_own_colour(tmp_path: Path) -> None:
+    """The plot coloured teams by rank (blue, leading, drawn red) and had no title or axes."""
+    import os
+
+    os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
+    import pygame
+
+    from robo_comp.scoring.results import write_results
+
+    scores = {"phase": "finished", "elapsed": 60.0, "teams": [
+        {"rank": 1, "team": "blue", "score": 20, "victims": 1, "penalties": 0, "disqualified": False},
+        {"rank": 2, "team": "red", "score": -5, "victims": 0, "penalties": 5, "disqualified": False}]}
+    lines = [{"team": "blue", "points": 20, "t": 10.0}, {"team": "red", "points": -5, "t": 30.0}]
+    write_results(tmp_path, scores, lines, [], {"red": (230, 20, 20), "blue": (20, 60, 230)})
+    img = pygame.image.load(str(tmp_path / "scores.png"))
+    px = pygame.surfarray.array3d(img)  # [x, y, rgb]
+
+    def count(rgb: tuple[int, int, int]) -> int:
+        return int(((abs(px.astype(int) - rgb)).sum(axis=2) <= 6).sum())
+
+    assert count((20, 60, 230)) > 200 and count((230, 20, 20)) > 200  # both lines, each in its colour
+    w, h = img.get_size()
+    title_band = px[w // 4: 3 * w // 4, 5:35]
+    assert (title_band.sum(axis=2) < 200).sum() > 50  # a title in dark ink above the plot
+    axis_labels = px[:, h - 25:h]
+    assert (axis_labels.sum(axis=2) < 200).sum() > 50  # "match time (s)" below it
+
+
+def test_robot_host_says_when_its_robots_register_and_when_the_core_is_back(tmp_path: Path) -> None:
+    import time
+
+    from conftest import wait_for
+    from robo_comp.launch import start_core
+
+    state = tmp_path / "state"
+    m = start_match(state, "demo_room", teams=["red", "blue"])
+    try:
+        m.robots("red", 2)
+        log = state / "robots-red.log"
+        wait_for(lambda: "registered" in m.log_tail("robots-red.log"), 30, "the host to say its robots registered")
+        assert re.search(r"robots: team red: 2 robot\(s\) registered with the core at \S+; tags \d+, \d+",
+                         log.read_text()), log.read_text()
+        m.proc.terminate()
+        m.proc.wait(10)
+        time.sleep(0.5)
+        m.proc = start_core(state, "--scenario", str(m.scenario), "--teams", "red,blue", "--practice")
+        wait_for(lambda: "again" in m.log_tail("robots-red.log"), 60, "the host to say the core is back")
+        assert re.search(r"registered again \(reconnect \d+: the core is back\)", log.read_text()), log.read_text()
+    finally:
+        m.close()

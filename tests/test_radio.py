@@ -8,6 +8,7 @@ import pytest
 import zmq
 
 from robo_comp import protocol as P
+from robo_comp.protocol.curve import secure_plain_client
 
 
 class Host:
@@ -18,6 +19,7 @@ class Host:
         self.s = zmq.Context.instance().socket(zmq.DEALER)
         self.s.setsockopt(zmq.LINGER, 0)
         self.s.setsockopt(zmq.ROUTING_ID, P.new_routing_id())
+        secure_plain_client(self.s, core.token(team))  # the core lets in no connection without a token
         self.s.connect(url)
         self.n = 0
         self.sid = None  # the session secret, from the first register's reply

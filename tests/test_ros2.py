@@ -55,7 +55,7 @@ class SimRobot:
     def stop(self) -> tuple[float, float, float]:
         """End it; its true pose in the arena."""
         self.proc.send_signal(signal.SIGTERM)
-        out, _ = self.proc.communicate(timeout=10)
+        out, _ = self.proc.communicate(timeout=60)  # a loaded machine: the loop may be slow to see SIGTERM
         line = [ln for ln in out.splitlines() if ln.startswith("pose ")][-1]
         x, y, h = map(float, line.split()[1:])
         return x, y, h

@@ -309,4 +309,5 @@ class Competition:
         else:  # the oldest lines were let go from memory: the event log has them all
             self.events().flush()
             lines = [rec.data for rec in read_log(self.events().path, strict=False) if rec.topic == "score.change"]
-        return write_results(folder, self.scores(), lines, self.finds)
+        return write_results(folder, self.scores(), lines, self.finds,
+                             {t.name: t.rgb for t in self.scenario.teams})  # each team in its own colour

@@ -35,10 +35,19 @@ import zmq
 
 from robo_comp import protocol as P
 from robo_comp.core.competition import Competition
-from robo_comp.protocol.curve import ServerKeys, ZapHandler, load_server_keys, secure_server
+from robo_comp.protocol.curve import ServerKeys, ZapHandler, load_server_keys, secure_plain_server, secure_server
 from robo_comp.core.mapdesk import MapDesk
 from robo_comp.core.uploads import UploadDesk
 from robo_comp.core.eventlog import EventLog, StorageFault
+from robo_comp.core.guard import (
+    HANDSHAKE_SECONDS,
+    PER_ADDRESS,
+    PUB_INBOUND,
+    SWEEP_SECONDS,
+    ConnectionGuard,
+    GuardLimits,
+    raise_fd_limit,
+)
 from robo_comp.private_files import private_dir
 from robo_comp.core.recovery import RecoveryReport, recover
 from robo_comp.core.sessions import Session
@@ -107,7 +116,8 @@ class Core:
                  host: str = "127.0.0.1",
                  port: int = 5555, pub_port: int = 0, heartbeat: float = 1.0, fsync: bool = False,
                  practice: bool = False, scoring: ScoringConfig | None = None, plugins: Any = None,
-                 approve_uploads: bool = False, curve: bool = False, pose_hz: float = POSE_HZ) -> None:
+                 approve_uploads: bool = False, curve: bool = False, pose_hz: float = POSE_HZ,
+                 max_connections: int | None = None, max_per_address: int | None = None) -> None:
         self.state_dir = private_dir(state_dir)  # tokens, logs, uploads, pictures: the organiser's (0700)
         self.scenario = scenario
         self.tokens = TokenBook(self.state_dir, teams or [t.name for t in scenario.teams])
@@ -115,7 +125,9 @@ class Core:
         #: CurveZMQ (``--curve``): the core's keys and the allow list from STATE/keys, else None.
         self.curve: ServerKeys | None = load_server_keys(self.state_dir, self.tokens.teams) if curve else None
         self._zap: ZapHandler | None = None
-        self._key_owner: str | None = None  # the key owner of the frame being handled (CurveZMQ)
+        # who the transport let in for the frame being handled: the CurveZMQ key's owner, or the
+        # PLAIN token's principal as "role:name" (the ZAP handler's user id); see _drain
+        self._key_owner: str | None = None
         self.host = host
         self.port = port
         self.pub_port = pub_port
@@ -128,8 +140,14 @@ class Core:
         self.pending_stops: dict[int, PendingStop] = {}
         self.next_task_id = 1
         self.next_core_req = 1
-        # A CURVE core owns its context: the ZAP endpoint is one per context.
-        self.ctx = zmq.Context() if curve else zmq.Context.instance()
+        # The core owns its context: the ZAP endpoint (the transport's credential check) is one per context.
+        self.ctx = zmq.Context()
+        # Connections are file descriptors: take all the process may have, and bound them (see bind)
+        nofile = raise_fd_limit()
+        self.ctx.set(zmq.MAX_SOCKETS, max(1024, min(nofile, 65_535)))
+        self.limits = GuardLimits.for_fd_limit(nofile, max_connections, max_per_address or PER_ADDRESS)
+        self._guard: ConnectionGuard | None = None
+        self._pub_guard: ConnectionGuard | None = None
         self.router: zmq.Socket | None = None
         self.pub: zmq.Socket | None = None
         self._running = False
@@ -148,9 +166,9 @@ class Core:
         # Routes whose connection went away (a send found no peer): nothing is pushed to them until
         # their session proves itself again there, so whoever takes such an id next gets nothing.
         self._unproven: set[bytes] = set()
-        # True while the short path of _handle may serve a proved message (no CURVE key to check, no
-        # unproven route, no storage fault); otherwise every message takes _prove's full path.
-        self._plain_turn = self.curve is None
+        # True while the short path of _handle may serve a proved message (no unproven route, no
+        # storage fault); otherwise every message takes _prove's full path.
+        self._plain_turn = True
         # Refusals of connections without a session, counted per (type, code) and logged once a beat
         # (a flood of bad hellos must not flood the log and the referee's console).
         self._refused_anon: dict[tuple[str, str], list[Any]] = {}
@@ -193,11 +211,16 @@ class Core:
     # ------------------------------------------------------------------ sockets and loop
     def bind(self) -> None:
         """Bind the ROUTER and PUB sockets and write ``STATE/core.json``."""
-        if self.curve is not None:  # the key check is up before the first handshake can start
-            self._zap = ZapHandler(self.ctx, self.curve.allowed)
+        # the credential check is up before the first handshake can start: a CurveZMQ key from
+        # STATE/keys, else a token as the PLAIN password (nothing of a peer without one is buffered)
+        self._zap = ZapHandler(self.ctx, self.curve.allowed if self.curve is not None else None,
+                               self.tokens.lookup)
         _seed_routing_ids()
         self.router = self.ctx.socket(zmq.ROUTER)
-        secure_server(self.router, self.curve)
+        if self.curve is not None:
+            secure_server(self.router, self.curve)
+        else:
+            secure_plain_server(self.router)
         self.router.setsockopt(zmq.LINGER, 0)
         self.router.setsockopt(zmq.MAXMSGSIZE, P.SOCKET_MAX_FRAME)
         # A second connection that presents a routing id in use is ignored by libzmq, never handed
@@ -209,22 +232,28 @@ class Core:
         # Dead connections (a cut cable) are dropped by ZMTP heartbeats, so that their ids free up.
         self.router.setsockopt(zmq.HEARTBEAT_IVL, int(max(1.0, self.heartbeat) * 2000))
         self.router.setsockopt(zmq.HEARTBEAT_TIMEOUT, int(max(1.0, self.heartbeat) * 10_000))
+        # a connection that has not proved a credential within this time is closed by libzmq
+        self.router.setsockopt(zmq.HANDSHAKE_IVL, int(HANDSHAKE_SECONDS * 1000))
         self.router.setsockopt(zmq.SNDHWM, 100_000)
         self.router.setsockopt(zmq.RCVHWM, 100_000)
         if self.port == 0:
             self.port = self.router.bind_to_random_port(f"tcp://{self.host}")
         else:
             self.router.bind(f"tcp://{self.host}:{self.port}")
+        self._guard = ConnectionGuard.watch(self.router, self.port, self.limits)
+        self._zap.admit = self._admit
         self.pub = self.ctx.socket(zmq.PUB)
         self.pub.setsockopt(zmq.LINGER, 0)
         # A slow subscriber (a wall on a weak link) gets at most this many events queued for it,
         # then PUB drops for that subscriber only: bounded memory, and the core never waits.
         self.pub.setsockopt(zmq.SNDHWM, PUB_QUEUE)
         secure_server(self.pub, self.curve)
+        self.pub.setsockopt(zmq.MAXMSGSIZE, 1024)  # subscriptions: a topic, a few bytes
         if self.pub_port == 0:
             self.pub_port = self.pub.bind_to_random_port(f"tcp://{self.host}")
         else:
             self.pub.bind(f"tcp://{self.host}:{self.pub_port}")
+        self._pub_guard = ConnectionGuard.watch(self.pub, self.pub_port, self.limits, PUB_INBOUND)
         shown = "127.0.0.1" if self.host in ("0.0.0.0", "*") else self.host
         info = {"router": f"tcp://{shown}:{self.port}", "pub": f"tcp://{shown}:{self.pub_port}",
                 "pid": os.getpid(), "protocol": P.PROTOCOL_VERSION, "teams": self.tokens.teams,
@@ -242,13 +271,16 @@ class Core:
 
     def close(self) -> None:
         """Close the sockets and the log of a core that will not run (its start failed)."""
+        for guard in (self._guard, self._pub_guard):
+            if guard is not None:
+                guard.close()
         for sock in (self.router, self.pub):
             if sock is not None:
                 sock.close(0)
         self.router = self.pub = None
         if self._zap is not None:
             self._zap.close()
-            self.ctx.term()
+        self.ctx.term()  # the core's own context (see __init__)
         self.events.close()
 
     def stop(self) -> None:
@@ -286,6 +318,9 @@ class Core:
         poller.register(self.router, zmq.POLLIN)
         if self._zap is not None:
             poller.register(self._zap.sock, zmq.POLLIN)
+        for guard in (self._guard, self._pub_guard):
+            if guard is not None:
+                poller.register(guard.monitor, zmq.POLLIN)
         poller.register(wake, zmq.POLLIN)
         self._running = not self._stop_asked
         next_tick = time.monotonic() + self.heartbeat
@@ -306,13 +341,22 @@ class Core:
                     timeout = min(timeout, max(0.0, next_clock - time.monotonic()))
                 if self._slices:  # background work left: look at the socket, then do the next slice
                     timeout = 0.0
+                pub_guard = self._pub_guard
+                if pub_guard is not None and pub_guard.sweeping:  # what PUB's subscribers sent, looked at often
+                    timeout = min(timeout, SWEEP_SECONDS)
                 if poller.poll(math.ceil(timeout * 1000)):
+                    if self._guard is not None:  # connections counted before their handshakes are judged
+                        self._guard.serve()
+                    if pub_guard is not None:
+                        pub_guard.serve()
                     if self._zap is not None:
                         self._zap.serve()
                     self._drain()
                     with contextlib.suppress(BlockingIOError):
                         wake.recv(4096)
                 now = time.monotonic()
+                if pub_guard is not None:
+                    pub_guard.sweep(now)
                 if self.pending_stops:
                     self._expire_stops(now)
                 if self.uploads.busy:
@@ -338,29 +382,29 @@ class Core:
             self.competition.log_clock()  # a clean stop records the clock to the last moment
             self._commit()
             self.events.close()
+            for guard in (self._guard, self._pub_guard):
+                if guard is not None:
+                    guard.close()
             self.router.close(0)
             assert self.pub is not None
             self.pub.close(0)
             if self._zap is not None:  # after the servers: no handshake may find no handler
                 self._zap.close()
-                self.ctx.term()  # the core's own context (see __init__)
+            self.ctx.term()  # the core's own context (see __init__)
 
     def _drain(self, budget: int = 2000) -> None:
         """Handle every message waiting on the ROUTER (up to ``budget``) without blocking."""
         router = self.router
         assert router is not None
-        curve = self.curve is not None
         for _ in range(budget):
-            try:
-                if curve:  # which key the frame came with (the ZAP handler named its owner)
-                    parts = router.recv_multipart(zmq.NOBLOCK, copy=False)
-                    owner = parts[-1].get("User-Id")
-                    self._key_owner = owner if isinstance(owner, str) else None
-                    frames = [f.bytes for f in parts]
-                else:
-                    frames = router.recv_multipart(zmq.NOBLOCK)
+            try:  # who the transport let in (the ZAP handler named the key's owner or the token's principal)
+                first = router.recv(zmq.NOBLOCK, copy=False)  # the routing id: its properties name the peer
             except zmq.Again:
                 return
+            owner = first.get("User-Id")
+            self._key_owner = owner if isinstance(owner, str) else None
+            # the rest of the message as bytes (cheaper than a Frame per part)
+            frames = [first.bytes, *router.recv_multipart()] if first.more else [first.bytes]
             self.stats["received"] += 1
             ident = frames[0]
             if len(frames) != 2:
@@ -384,7 +428,7 @@ class Core:
             proved = False
             if found is not None and self._plain_turn:
                 try:
-                    proved = _compare(secret, found.secret)
+                    proved = _compare(secret, found.secret) and found.key == self._key_owner
                 except TypeError:  # not ASCII text (bytes, a number, nil ...): not a secret of ours
                     pass
             if proved:
@@ -427,9 +471,12 @@ class Core:
                 "this message does not carry the session secret of this connection's session: every "
                 "message after 'hello' must carry the 'session' value the hello reply gave (as \"s\"); "
                 "a program that took another connection's routing id gets nothing")
-        if self.curve is not None and self._key_owner != sess.key:
-            raise AuthError(f"this session was opened with {sess.key}'s CurveZMQ key; a frame sent with "
-                            f"{self._key_owner}'s key does not belong to it")
+        if self._key_owner != sess.key:
+            if self.curve is not None:
+                raise AuthError(f"this session was opened with {sess.key}'s CurveZMQ key; a frame sent with "
+                                f"{self._key_owner}'s key does not belong to it")
+            raise AuthError(f"this session was opened by a connection that presented {sess.key}'s token; a "
+                            f"frame of a connection that presented {self._key_owner}'s does not belong to it")
         sess.last_seen = time.monotonic()
         if self._unproven:
             self._unproven.discard(ident)
@@ -438,7 +485,7 @@ class Core:
 
     def _replan(self) -> None:
         """Whether _handle's short path may serve proved messages (see ``_plain_turn``)."""
-        self._plain_turn = self.curve is None and not self._unproven and self.storage_fault is None
+        self._plain_turn = not self._unproven and self.storage_fault is None
 
     def _send_error(self, ident: bytes, req_id: int, err: RoboCompError, sess: Session | None,
                     msg_type: str = "?") -> None:
@@ -463,6 +510,49 @@ class Core:
         for (msg_type, code), (count, message) in sorted(rows.items()):
             self.emit("refused", None, {"by": "unknown", "type": msg_type, "code": code, "message": message,
                                         "count": count}, public=False)
+
+    def _admit(self, principal: Any) -> str | None:
+        """Asked by the ZAP handler about every principal that proved itself: None lets it in, a
+        sentence refuses the handshake (the core is full but for the referee and hosts, or the
+        principal holds its share of the sessions)."""
+        assert self._guard is not None
+        why = self._guard.admit(principal)
+        if why is None and not isinstance(principal, str):
+            why = self._sessions_full(principal)
+        return why
+
+    def _sessions_full(self, who: Principal) -> str | None:
+        """A sentence when ``who`` holds its share of sessions (a quarter of the core's connections;
+        the referee and hosts have no share), else None."""
+        if who.role in ("referee", "host"):
+            return None
+        share = max(16, self.limits.total // 4)
+        held = sum(1 for s in self.sessions.values() if s.who == who)
+        if held >= share:
+            return (f"{who.name} holds {held} sessions, its share of this core's {self.limits.total} connections; "
+                    "close some (or say bye) before opening more")
+        return None
+
+    def _log_refused_handshakes(self) -> None:
+        """One ``refused`` event (type ``connect``) and one log line per peer address whose
+        handshakes the transport refused since the last beat (no valid token or key, ``E_AUTH``)
+        or whose connections the guard cut (over a limit, ``E_RATE``), with their ``count``: a
+        flood is logged in bulk."""
+        rows: list[tuple[str, str, int, str]] = []
+        if self._zap is not None:
+            for (mechanism, address), row in sorted(self._zap.take_refused().items()):
+                rows.append(("E_AUTH", address, row.count, f"{row.count} connection(s) from {address or 'an unknown address'} "
+                             f"were refused ({mechanism}: {row.reason}); libzmq closed them before reading a message"))
+        for guard in (self._guard, self._pub_guard):
+            if guard is None:
+                continue
+            for address, cut in sorted(guard.take_cut().items()):
+                rows.append(("E_RATE", address, cut.count, f"{cut.count} connection(s) from {address} were cut at "
+                             f"once ({cut.reason}); the match goes on"))
+        for code, address, count, message in rows:
+            log.warning("%s", message)
+            self.emit("refused", None, {"by": "unknown", "type": "connect", "code": code, "message": message,
+                                        "count": count, "address": address}, public=False)
 
     # ------------------------------------------------------------------ output
     def send(self, ident: bytes, frame: bytes, urgent: bool = False) -> None:
@@ -725,6 +815,9 @@ class Core:
         self._log_positions()
         if self._refused_anon:
             self._log_refused()
+        if ((self._zap is not None and self._zap.refusals_waiting) or (self._guard and self._guard.cuts_waiting)
+                or (self._pub_guard and self._pub_guard.cuts_waiting)):
+            self._log_refused_handshakes()
         self.maps.push()
         self.competition.tick(now)
         hb = P.request("heartbeat", 0, {"t": time.time(), "core_id": self.core_id})
@@ -756,17 +849,32 @@ class Core:
 
     # ------------------------------------------------------------------ session requests
     def _check_key(self, who: Principal) -> None:
-        """With CurveZMQ a team's key lets in that team only (the referee's key any role)."""
+        """With CurveZMQ a team's key lets in that team only (the referee's key any role); with
+        PLAIN, the token of the hello is the one the connection proved (the same principal)."""
         owner = self._key_owner
-        if self.curve is not None and owner not in (REFEREE, who.name):
-            raise AuthError(f"this connection uses team {owner}'s key; {who.name}'s token needs {who.name}'s key")
+        if self.curve is not None:
+            if owner not in (REFEREE, who.name):
+                raise AuthError(f"this connection uses team {owner}'s key; {who.name}'s token needs {who.name}'s key")
+        elif self._zap is None or self._zap.principals.get(owner or "") != who:
+            raise AuthError(f"this connection proved {owner or 'nobody'} when it connected; say hello with "
+                            "the same token the connection presented (the client does this for you)")
 
     def _on_hello(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
         who = self.tokens.lookup(msg.body["token"])
         self._check_key(who)
+        instance = msg.body.get("instance")
+        if instance is not None and not P.INSTANCE_MIN <= len(instance) <= P.INSTANCE_MAX:
+            raise FieldError(f"hello's 'instance' must be a random id of {P.INSTANCE_MIN} to {P.INSTANCE_MAX} "
+                             "characters (robo_comp.protocol.new_instance_id), kept across reconnects")
+        full = self._sessions_full(who) if ident not in self.sessions else None
+        if full is not None:
+            raise RateLimitError(full)
         old = self._forget(ident)  # only a proved hello gets here with a session (see _prove)
         sess = Session(ident, who, str(msg.body.get("client", "client"))[:64], time.monotonic(),
-                       key=self._key_owner)
+                       key=self._key_owner, instance=instance)
+        if instance is not None:  # the same client again (a new connection): its old session ends now
+            for other in [o for o in self.sessions.values() if o.instance == instance and o.who == who]:
+                self._end_session(other, "its client said hello again on a new connection")
         self.sessions[ident] = sess
         if old is not None and old.who == who:
             sess.tags = old.tags
@@ -799,13 +907,19 @@ class Core:
         return None
 
     def _on_bye(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        s = self._forget(ident)
+        s = self.sessions.get(ident)
         if s is not None:
-            for tag in s.tags:
-                r = self.registry.robots[tag]
-                if r.session == ident and r.status == RobotStatus.CONNECTED:
-                    self._mark_lost(r, "its host said bye without leaving")
+            self._end_session(s, "its host said bye without leaving")
         return {}
+
+    def _end_session(self, s: Session, why: str) -> None:
+        """Forget session ``s`` (a bye, or its client's new hello); its robots are lost until they
+        register again."""
+        self._forget(s.ident)
+        for tag in s.tags:
+            r = self.registry.robots[tag]
+            if r.session == s.ident and r.status == RobotStatus.CONNECTED:
+                self._mark_lost(r, why)
 
     def _on_watch(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
         s = self.session(ident)
@@ -836,7 +950,14 @@ class Core:
         by_status: dict[str, int] = {}
         for r in self.registry.robots.values():
             by_status[r.status] = by_status.get(r.status, 0) + 1
-        return dict(self.stats, robots=by_status, sessions=len(self.sessions), log_seq=self.events.seq,
+        sessions_by: dict[str, int] = {}
+        for s in self.sessions.values():
+            sessions_by[s.who.name] = sessions_by.get(s.who.name, 0) + 1
+        guard = self._guard
+        return dict(self.stats, robots=by_status, sessions=len(self.sessions), sessions_by=sessions_by,
+                    connections=guard.open if guard else 0, connections_cut=guard.cut_total if guard else 0,
+                    connection_limit=self.limits.total,
+                    log_seq=self.events.seq,
                     storage=self.storage_fault, log_unwritten=self.events.unwritten,
                     uptime=time.monotonic() - self.started,
                     recovered=self.recovered.to_dict() if self.recovered is not None else None)
@@ -896,16 +1017,19 @@ class Core:
     def _on_register(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
         b = msg.body
         who = self.tokens.lookup(b["token"])
-        self._check_key(who)
         team = who.team
         if who.role != "team" or team is None:
             raise FieldError("robots register with a team token, not the referee's")
+        self._check_key(who)
         robot_id = b["robot_id"]
         if not (0 < len(robot_id) <= 64):
             raise FieldError("'robot_id' must have 1 to 64 characters")
         specs = check_specs(b.get("tasks", []))
         sess = self.sessions.get(ident)
         if sess is None:
+            full = self._sessions_full(who)
+            if full is not None:
+                raise RateLimitError(full)
             sess = Session(ident, who, "robots", time.monotonic(), key=self._key_owner)
             self.sessions[ident] = sess
         elif sess.who != who:

@@ -20,4 +20,7 @@ class Session:
     #: Under CurveZMQ: the owner of the key the session was opened with (every frame must match).
     key: str | None = None
     watching: bool = False
+    #: The random id the client keeps across its reconnects (hello's ``instance``): a new hello of
+    #: the same principal with the same instance ends this session (see ``Core._on_hello``).
+    instance: str | None = None
     tags: set[int] = field(default_factory=set)

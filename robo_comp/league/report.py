@@ -82,12 +82,16 @@ def rating_plot(view: dict[str, Any]) -> str:
     matplotlib.use("Agg")
     from matplotlib.figure import Figure
 
+    from robo_comp.scoring.results import team_colours
+
     fig = Figure(figsize=(8, 4))
     ax = fig.subplots()
-    for row in view["standings"]:
+    colours = team_colours([row["team"] for row in view["standings"]])  # one each: no repeats past 10 teams
+    for i, row in enumerate(view["standings"]):
         points = view["history"].get(row["team"], [])
         if points:
-            ax.plot([p[0] for p in points], [p[1] for p in points], marker=".", linewidth=1, label=row["team"])
+            ax.plot([p[0] for p in points], [p[1] for p in points], marker=".", linewidth=1, label=row["team"],
+                    color="#%02x%02x%02x" % colours[row["team"]], linestyle=("-", "--", ":")[i // 10 % 3])
     ax.set_xlabel("ranked match")
     ax.set_ylabel("rating (μ − 3σ)")
     ax.grid(alpha=0.3)
@@ -153,14 +157,16 @@ def render_report(view: dict[str, Any]) -> str:
     for scenario in sorted(view["scores"]):
         parts.append(f"<div>{score_plot(scenario, view['scores'][scenario], order)}</div>")
     parts.append("</div>")
-    parts.append("<h2>Matches</h2><p class='hint'>Replay a match: <code>robo-comp replay LOG</code> "
-                 "(the wall and the consoles connect to the replay as to a live core).</p><table><tr>"
+    parts.append("<h2>Matches</h2><p class='hint'>Watch a match again in a browser with the command in its "
+                 "row (<code>robo-comp web --replay LOG</code>, run in this page's folder), or feed the wall and the consoles with "
+                 "<code>robo-comp replay LOG</code>. A log is a binary event log, not a page.</p><table><tr>"
                  "<th>match</th><th class='name'>format</th><th>round</th><th class='name'>scenario</th>"
                  "<th>seed</th><th class='name'>ranked</th><th class='name'>teams (score)</th><th>log</th>"
                  "<th class='name'>limits</th></tr>")
     for m in view["matches"]:
         teams = ", ".join(f"{e(t)} ({m['scores'][t]:g})" if t in m.get("scores", {}) else e(t) for t in m["teams"])
-        link = f"<a href='{e(m['log'], quote=True)}'>events.log</a>" if m.get("status") == "done" else e(m["status"])
+        link = (f"<code>robo-comp web --replay {e(m['log'])}</code>" if m.get("status") == "done"
+                else e(m["status"]))
         parts.append(f"<tr><td>{m['id']}</td><td class='name'>{e(m['format'])}</td><td>{m['round']}</td>"
                      f"<td class='name'>{e(m['scenario'])}</td><td>{m['seed']}</td>"
                      f"<td class='name'>{'yes' if m['ranked'] else 'test'}</td><td class='name'>{teams}</td>"

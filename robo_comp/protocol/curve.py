@@ -1,7 +1,13 @@
-"""CurveZMQ for networked matches: key files, the core's ZAP handler, the client socket setup.
+"""Transport security: the core's ZAP handler, PLAIN tokens by default, CurveZMQ for networked
+matches (key files, the client socket setup).
 
-Plain TCP on localhost needs no set-up and stays the default. For a match over a network the
-organiser runs ``robo-comp keys --state DIR`` once, starts the core with ``--curve`` and hands
+Without ``--curve`` every connection to the core's ROUTER is a PLAIN handshake whose password is
+the client's token (team, referee, ...): the ZAP handler checks it with the core's token book, and
+a peer without a valid token never completes the handshake, so libzmq buffers nothing of it and the
+core never decodes a frame of it (:func:`secure_plain_client`, :func:`secure_plain_server`). PLAIN
+sends the token in clear, like the ``hello`` that follows: across a network use CurveZMQ.
+
+For a match over a network the organiser runs ``robo-comp keys --state DIR`` once, starts the core with ``--curve`` and hands
 each team its secret certificate plus the core's public certificate::
 
     STATE/keys/core.key            the core's public certificate: goes to everyone
@@ -16,8 +22,8 @@ when the client's public key is one of the ``*.key`` files in ``STATE/keys``. A 
 an allowed key never completes the handshake, so it never gets a reply or an event; inside the
 encrypted channel the token check stays exactly as without CURVE.
 
-Every socket that connects to a core goes through :func:`secure_client`; the core's sockets go
-through :func:`secure_server`. Clients find their keys with :func:`client_keys`.
+Every socket that connects to a core goes through :func:`secure_client` (CURVE) or
+:func:`secure_plain_client` (PLAIN); the core's sockets go through :func:`secure_server`. Clients find their keys with :func:`client_keys`.
 """
 from __future__ import annotations
 
@@ -26,14 +32,17 @@ import json
 import logging
 import os
 import tempfile
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import zmq
 import zmq.auth
+import zmq.utils.monitor
 from zmq.utils import z85
 
-from robo_comp.errors import FieldError
+from robo_comp.errors import AuthError, ConnectionLostError, FieldError, RoboCompError
 from robo_comp.teams.tokens import REFEREE, check_team_name
 
 log = logging.getLogger("robo_comp.protocol.curve")
@@ -49,6 +58,8 @@ ENV_CORE_KEY = "ROBO_COMP_CORE_KEY"
 ZAP_ENDPOINT = "inproc://zeromq.zap.01"
 #: The ZAP domain of the core's server sockets.
 ZAP_DOMAIN = b"robo_comp"
+#: The PLAIN user name every client presents (the password is its token).
+PLAIN_USER = b"robo_comp"
 
 
 @dataclass(frozen=True, slots=True)
@@ -90,24 +101,86 @@ def secure_server(sock: zmq.Socket, keys: ServerKeys | None) -> None:
     sock.zap_domain = ZAP_DOMAIN
 
 
+def secure_plain_client(sock: zmq.Socket, token: str | None) -> None:
+    """Present ``token`` as the PLAIN password of ``sock`` before it connects (a core without
+    ``--curve`` lets a connection in only with a valid token); nothing when ``token`` is None."""
+    if token is None:
+        return
+    sock.plain_username = PLAIN_USER
+    sock.plain_password = token.strip().encode("utf-8", "surrogatepass")
+
+
+#: The socket-monitor events that tell a client how its handshake with the core ended.
+HANDSHAKE_EVENTS = (zmq.EVENT_HANDSHAKE_SUCCEEDED | zmq.EVENT_HANDSHAKE_FAILED_AUTH
+                    | zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL | zmq.EVENT_HANDSHAKE_FAILED_NO_DETAIL)
+
+
+def handshake_error(frames: list[bytes], curve: bool) -> RoboCompError | None:
+    """What a client tells its user about one monitor message (see :data:`HANDSHAKE_EVENTS`):
+    None when the handshake succeeded (or the event says nothing about it), else the error."""
+    event = zmq.utils.monitor.parse_monitor_message(frames)["event"]
+    if event == zmq.EVENT_HANDSHAKE_FAILED_AUTH:
+        if curve:
+            return AuthError("the core refused this connection's CurveZMQ key: use the secret certificate "
+                             "the organiser gave you (--curve-cert) and this core's core.key (--core-key)")
+        return AuthError("the core refused this connection: the token is not valid for this core; use the "
+                         "token file the organiser gave you")
+    if event in (zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL, zmq.EVENT_HANDSHAKE_FAILED_NO_DETAIL):
+        hint = ("it may not run with --curve (leave out --curve-cert and --core-key)" if curve else
+                "if it runs with --curve, give --curve-cert and --core-key")
+        return ConnectionLostError(f"the connection to the core failed during its handshake: {hint}")
+    return None
+
+
+def secure_plain_server(sock: zmq.Socket) -> None:
+    """Make ``sock`` a PLAIN server before it binds: its handshakes go to the ZAP handler, which
+    lets in only a valid token (see :class:`ZapHandler`)."""
+    sock.plain_server = True
+    sock.zap_domain = ZAP_DOMAIN
+
+
+@dataclass(slots=True)
+class ZapTally:
+    """Refused handshakes since the last :meth:`ZapHandler.take_refused`, per (mechanism, address)."""
+
+    count: int = 0
+    reason: str = ""
+
+
 class ZapHandler:
     """The core's ZAP handler: a REP socket on :data:`ZAP_ENDPOINT`, served from the core's poller.
 
-    Bind it before the CURVE server sockets and close it after them: while no handler is bound,
-    libzmq would let every CURVE client in.
+    Under CurveZMQ it lets a handshake through when the client's public key is in ``allowed``;
+    with PLAIN (every core without ``--curve``) when the password is a token ``lookup`` accepts
+    (the core's :meth:`robo_comp.teams.tokens.TokenBook.lookup`, so every kind of principal it
+    knows is accepted). The ZAP reply's user id (each message's ``User-Id`` property) names who
+    proved themselves: the key's owner, or ``role:name`` of the token's principal
+    (:attr:`principals` maps it back).
+
+    Bind it before the server sockets and close it after them: while no handler is bound,
+    libzmq would let every client in.
     """
 
-    def __init__(self, ctx: zmq.Context, allowed: dict[bytes, str]) -> None:
-        self.allowed = dict(allowed)
+    def __init__(self, ctx: zmq.Context, allowed: dict[bytes, str] | None = None,
+                 lookup: Callable[[str], Any] | None = None,
+                 admit: Callable[[Any], str | None] | None = None) -> None:
+        self.allowed = dict(allowed or {})
+        self.lookup = lookup
+        #: Asked about every principal that proved itself: None lets it in, a sentence refuses it
+        #: (the core's connection limits).
+        self.admit = admit
+        #: User id -> principal, for PLAIN handshakes.
+        self.principals: dict[str, Any] = {}
         self.sock = ctx.socket(zmq.REP)
         self.sock.setsockopt(zmq.LINGER, 0)
         try:
             self.sock.bind(ZAP_ENDPOINT)
         except zmq.ZMQError as e:
             self.sock.close(0)
-            raise FieldError(f"cannot start the CurveZMQ key check in this process: {e}") from None
+            raise FieldError(f"cannot start the transport's credential check in this process: {e}") from None
         self.accepted = 0
         self.refused = 0
+        self._tally: dict[tuple[str, str], ZapTally] = {}
 
     def serve(self) -> int:
         """Answer every waiting ZAP request without blocking; return how many were answered."""
@@ -121,21 +194,52 @@ class ZapHandler:
             self.sock.send_multipart(self._answer(frames))
 
     def _answer(self, frames: list[bytes]) -> list[bytes]:
-        """The reply to one ZAP request (RFC 27): 200 for an allowed CURVE key, 400 otherwise."""
+        """The reply to one ZAP request (RFC 27): 200 for an allowed CURVE key or a valid PLAIN
+        token, 400 otherwise."""
         if len(frames) < 6:
             return [b"1.0", b"", b"500", b"malformed ZAP request", b"", b""]
         version, request_id, _domain, address, _identity, mechanism, *creds = frames
         if version != b"1.0":
             return [b"1.0", request_id, b"500", b"unknown ZAP version", b"", b""]
+        who: str | None = None
+        principal: Any = None
+        why = "no valid credential"
         if mechanism == b"CURVE" and len(creds) == 1:
             who = self.allowed.get(z85.encode(creds[0]))
-            if who is not None:
-                self.accepted += 1
-                return [b"1.0", request_id, b"200", b"OK", who.encode(), b""]
+            principal = who
+            why = "the key is not in STATE/keys"
+        elif mechanism == b"PLAIN" and len(creds) == 2 and self.lookup is not None:
+            try:
+                principal = self.lookup(creds[1].decode("utf-8", "surrogateescape"))
+            except RoboCompError:
+                why = "the password is not a valid token"
+            else:
+                who = f"{principal.role}:{principal.name}"
+                self.principals[who] = principal
+        if who is not None and self.admit is not None:
+            full = self.admit(principal)
+            if full is not None:
+                who, why = None, full
+        if who is not None:
+            self.accepted += 1
+            return [b"1.0", request_id, b"200", b"OK", who.encode(), b""]
         self.refused += 1
-        log.info("refused a %s handshake from %s: the key is not in STATE/keys",
-                 mechanism.decode(errors="replace"), address.decode(errors="replace"))
-        return [b"1.0", request_id, b"400", b"key not allowed", b"", b""]
+        key = (mechanism.decode(errors="replace"), address.decode(errors="replace"))
+        row = self._tally.setdefault(key, ZapTally())
+        row.count += 1
+        row.reason = why
+        return [b"1.0", request_id, b"400", why.encode()[:200], b"", b""]
+
+    @property
+    def refusals_waiting(self) -> bool:
+        """Whether handshakes were refused since the last :meth:`take_refused`."""
+        return bool(self._tally)
+
+    def take_refused(self) -> dict[tuple[str, str], ZapTally]:
+        """The refusals since the last call, per (mechanism, peer address), and start counting anew
+        (the core logs them once a beat: a flood of bad handshakes never floods the log)."""
+        rows, self._tally = self._tally, {}
+        return rows
 
     def close(self) -> None:
         """Close the ZAP socket (after the server sockets)."""
@@ -351,5 +455,5 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     k.set_defaults(func=run_keys)
 
 
-__all__ = ["ClientKeys", "ServerKeys", "ZapHandler", "add_curve_args", "client_keys", "create_keys",
-           "load_server_keys", "secure_client", "secure_server"]
+__all__ = ["HANDSHAKE_EVENTS", "ClientKeys", "ServerKeys", "ZapHandler", "ZapTally", "add_curve_args", "client_keys", "create_keys",
+           "handshake_error", "load_server_keys", "secure_client", "secure_plain_client", "secure_plain_server", "secure_server"]

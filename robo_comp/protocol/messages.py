@@ -37,7 +37,7 @@ _OPT_INT = "int or nil"
 # Field descriptions: type name -> {field: (kind, required)}.
 REQUESTS: dict[str, dict[str, tuple[str, bool]]] = {
     # sessions (consoles, walls, scripts)
-    "hello": {"token": (_STR, True), "client": (_STR, False)},
+    "hello": {"token": (_STR, True), "client": (_STR, False), "instance": (_STR, False)},
     "heartbeat": {},
     "bye": {},
     "watch": {"on": (_BOOL, False)},

@@ -32,6 +32,7 @@ from robo_comp.protocol.taskspec import check_args
 from robo_comp.errors import RoboCompError
 from robo_comp.plugins.manager import get_plugin_manager
 from robo_comp.robots.drivers import ArenaDriver
+from robo_comp.robots.oneworld import Foreign, is_real, merge_readings
 from robo_comp.robots.steps import Capture, Plan, Step, TaskFailed, TaskSpec
 from robo_comp.robots.teamcode import TeamCode, free_cell, in_bounds, stop_status
 from robo_comp.world.arena import Arena
@@ -100,9 +101,17 @@ class SimRobot:
         return plan_around(self.host.walls, self.free_cell(), goal, self.others_cells())
 
     def others_cells(self) -> set[tuple[int, int]]:
-        """The cells the host's other robots stand in now."""
+        """The cells the host's other robots stand in now, and those of other hosts' robots the
+        camera sees (:mod:`robo_comp.robots.oneworld`)."""
         me = self
-        return {r.cell() for r in self.host.robots.values() if r is not me}
+        cells = {r.cell() for r in self.host.robots.values() if r is not me}
+        world = self.host.world
+        if world is not None:
+            for rid in self.host.foreign.seen:
+                if rid in world:
+                    p = world.pose(rid)
+                    cells.add((int(round(p.x)), int(round(p.y))))
+        return cells
 
 
 #: How much lower the planner thread's scheduling priority is than the host loop's (Linux
@@ -226,6 +235,8 @@ class RobotHost:
             self.truth_sock.setsockopt(zmq.SNDHWM, 10)
             self.truth_sock.bind(truth_pub)
         self.camera_fixes = 0
+        #: Bodies of other hosts' robots the camera tracks (one world for real and virtual robots).
+        self.foreign = Foreign()
         self._code_fd: int | None = None
         #: robot id -> its task.done not yet answered by the core (sent again on re-registering).
         self.unacked_done: dict[str, dict[str, Any]] = {}
@@ -252,7 +263,7 @@ class RobotHost:
             self.poller.unregister(self.sock)
             self.sock.close(0)
         self.session = None  # a new connection opens a new session
-        self.sock = open_dealer(self.ctx, self.url, self.curve, SNDHWM=100_000, RCVHWM=100_000)
+        self.sock = open_dealer(self.ctx, self.url, self.curve, self.token, SNDHWM=100_000, RCVHWM=100_000)
         self.poller.register(self.sock, zmq.POLLIN)
         self.replies.clear()
         self._set_state("hello")
@@ -418,6 +429,15 @@ class RobotHost:
         self._waiting -= 1
         if self._waiting <= 0:
             self._set_state("up")
+            self._say_up()
+
+    def _say_up(self) -> None:
+        """One line on stdout when the robots are registered (again, after a reconnect), so the
+        person who started the host sees it work."""
+        tags = ", ".join(str(r.tag) for r in self.robots.values() if r.tag)
+        again = f" again (reconnect {self.reconnects}: the core is back)" if self.reconnects else ""
+        print(f"robots: team {self.team}: {len(self.robots)} robot(s) registered{again} with the core at "
+              f"{self.url}; tags {tags or '-'}", flush=True)
 
     def _lost_core(self, now: float) -> None:
         """Halt every robot and start reconnecting."""
@@ -612,6 +632,10 @@ class RobotHost:
                                         "with": other.tag if other else None})
         self.loc.update()
         for r in self.robots.values():
+            if is_real(r.driver):  # runs without a step too: it reads odometry and scans
+                if r.driver.step is None:
+                    r.driver.update(dt)
+                self.world.place(r.robot_id, self.team or "", *r.driver.pose)
             if r.driver.step is not None and r.driver.update(dt):
                 if r.driver.bump is not None and r.task is not None:
                     b = r.driver.bump
@@ -625,6 +649,8 @@ class RobotHost:
                     self._advance(r)
         if self._planning:
             self._take_plans()
+        if self.foreign.seen:
+            self.foreign.expire(self.world, time.monotonic())
 
     def _take_plans(self) -> None:
         """Hand finished plans to their tasks (a task replaced or stopped meanwhile drops its plan)."""
@@ -683,10 +709,10 @@ class RobotHost:
         if self.world is not None:
             rows = self.world.sense_many([r.robot_id for r in robots])
             readings = {r.tag: row for r, row in zip(robots, rows)}
-            for r in robots:  # a real robot's own sensors (a ROS 2 robot's scan) replace the arena's
+            for r in robots:  # a real robot's own sensors (a ROS 2 robot's scan) and the virtual world's
                 own = getattr(r.driver, "readings", None)
                 if own is not None:
-                    readings[r.tag].update(own())
+                    readings[r.tag] = merge_readings(readings[r.tag], own())
         # each plugin on its own: one that raises loses its readings only, not the others'
         for impl in self.pm.hook.robo_comp_sense.get_hookimpls():
             for r in robots:
@@ -758,7 +784,13 @@ class RobotHost:
                 try:
                     rid = f["robot"]
                     r = self.robots.get(rid)
+                    if r is None and self.world is not None and isinstance(rid, str):  # another host's robot:
+                        self.foreign.fix(self.world, rid, float(f["x"]), float(f["y"]),  # a body in this arena
+                                         float(f["heading"]), time.monotonic())
                     if r is not None:
+                        own_fix = getattr(r.driver, "camera_fix", None)  # a real robot's pose follows the camera
+                        if own_fix is not None:
+                            own_fix(float(f["x"]), float(f["y"]), float(f["heading"]))
                         before = self.loc.estimate(rid)
                         self.loc.camera_fix(rid, float(f["x"]), float(f["y"]), float(f["heading"]),
                                             float(f["sigma"]), t)
@@ -777,7 +809,9 @@ class RobotHost:
         assert self.truth_sock is not None and self.world is not None
         w = self.world
         robots = []
-        for rid in self.robots:
+        for rid, r in self.robots.items():
+            if is_real(r.driver):  # its truth is the real world's (a simulated ROS 2 robot publishes its own)
+                continue
             p = w.pose(rid)
             robots.append([rid, round(p.x, 4), round(p.y, 4), round(p.heading, 3)])
         h, wd = w.walls.shape

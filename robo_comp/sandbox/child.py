@@ -784,6 +784,19 @@ def _without_aslr() -> None:
     os.execv(sys.executable, list(sys.orig_argv))
 
 
+def _plant_hole(child: "Child") -> None:
+    """Tests only: every team module's builtins get the real ``os`` and ``socket`` modules (a
+    hole in the policy, to show what the OS layer still stops)."""
+    make = child.policy.make_globals
+
+    def holed(module_name: str) -> dict[str, Any]:
+        glb = make(module_name)
+        glb["__builtins__"].update(os=os, socket=socket)
+        return glb
+
+    child.policy.make_globals = holed  # type: ignore[method-assign]
+
+
 def main(argv: list[str] | None = None) -> None:
     """Child entry point (``python -m robo_comp.sandbox.child``)."""
     ap = argparse.ArgumentParser()
@@ -810,7 +823,7 @@ def main(argv: list[str] | None = None) -> None:
     _install_async_exc()
     child = Child(sock, limits)  # imports the policy and starts the workers
     if limits.get("test_policy_hole"):  # tests only (Limits.test_policy_hole): the real modules
-        child.policy.modules.update(os=os, socket=socket)  # type: ignore[call-overload]
+        _plant_hole(child)
     _warm_up(child)
     sys.stdout = _CappedStream(child, "stdout")
     sys.stderr = _CappedStream(child, "stderr")

@@ -20,6 +20,7 @@ for tests, tools and simple hosts.
 from __future__ import annotations
 
 import collections
+import contextlib
 import math
 import os
 import select
@@ -102,8 +103,9 @@ class Limits:
     the team's modules; doubled each time it happens again, up to ``max_cooldown``."""
     max_cooldown: float = 600.0
     test_policy_hole: bool = False
-    """TESTS ONLY: team code may ``import os`` and ``import socket`` (the real modules), a planted
-    hole in the policy through which tests check what the OS layer still stops (sandbox/oswall.py)."""
+    """TESTS ONLY: team code finds the real ``os`` and ``socket`` modules among its builtins, a
+    planted hole in the policy through which tests check what the OS layer still stops
+    (sandbox/oswall.py)."""
 
     def wire(self, seed: int) -> dict[str, Any]:
         """The subset the child needs."""
@@ -875,6 +877,14 @@ class Sandbox:
         return False
 
     def _kill(self) -> None:
+        if self.proc is not None and self.proc.poll() is None:
+            if self.os_sandbox:  # the child first: bwrap's init reaps it and then bwrap ends
+                inner = self.pid
+                if inner is not None and inner != self.proc.pid:
+                    with contextlib.suppress(ProcessLookupError, PermissionError):
+                        os.kill(inner, signal.SIGKILL)
+                    with contextlib.suppress(subprocess.TimeoutExpired):
+                        self.proc.wait(timeout=2.0)
         if self.proc is not None and self.proc.poll() is None:
             try:
                 os.killpg(self.proc.pid, signal.SIGKILL)

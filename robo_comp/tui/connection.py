@@ -28,7 +28,7 @@ import zmq.asyncio
 
 from robo_comp.client import open_dealer, resolve_core
 from robo_comp import protocol as P
-from robo_comp.protocol.curve import client_keys
+from robo_comp.protocol.curve import HANDSHAKE_EVENTS, client_keys, handshake_error
 from robo_comp.protocol.replies import reply_body, reply_error
 from robo_comp.errors import (
     ConnectionLostError,
@@ -97,6 +97,8 @@ class CoreLink:
         self._last_tx = 0.0
         self._lost = asyncio.Event()
         self._closing = False
+        #: Kept across reconnects: the core ends the old session when the console says hello again.
+        self.instance = P.new_instance_id()
 
     # ------------------------------------------------------------------ public
     @property
@@ -204,10 +206,12 @@ class CoreLink:
         self.url = resolve_core(self.core)
         keys = client_keys(self.core, self.token, self.curve_cert, self.core_key)
         self.session = None  # a new connection opens a new session
-        sock = open_dealer(self.ctx, self.url, keys)
+        sock = open_dealer(self.ctx, self.url, keys, self.token, connect=False)
         self.sock = sock
+        await self._handshake(sock, keys is not None)
         rid = self._id()
-        await sock.send(P.request("hello", rid, {"token": self.token, "client": self.client_name}))
+        await sock.send(P.request("hello", rid, {"token": self.token, "client": self.client_name,
+                                              "instance": self.instance}))
         t_end = time.monotonic() + HELLO_TIMEOUT
         while True:
             left = t_end - time.monotonic()
@@ -218,6 +222,24 @@ class CoreLink:
                 body = reply_body(msg)
                 self.session = body.get("session")
                 return body
+
+    async def _handshake(self, sock: zmq.asyncio.Socket, curve: bool) -> None:
+        """Connect ``sock`` and wait for the transport's handshake: a refused token or key raises
+        :class:`AuthError` (shown, and retried slowly) instead of a silent timeout."""
+        mon = sock.get_monitor_socket(HANDSHAKE_EVENTS)
+        try:
+            sock.connect(self.url)
+            t_end = time.monotonic() + HELLO_TIMEOUT
+            while (left := t_end - time.monotonic()) > 0 and await mon.poll(left * 1000):
+                err = handshake_error(await mon.recv_multipart(), curve)
+                if err is not None:
+                    raise err
+                return
+            raise TimeoutError_(f"the core at {self.url} does not answer")
+        finally:
+            with contextlib.suppress(zmq.ZMQError):
+                sock.disable_monitor()
+            mon.close(0)
 
     async def _run(self) -> None:
         """Connect, serve, and reconnect whenever the core goes away; until :meth:`close`."""

@@ -153,6 +153,7 @@ class Recording:
                     v.frags.append(_dump([rec.topic, data, round(t, 3)]))
             if table is not None:
                 model.apply("score", table)
+                story.apply("score", table, t, model.match.now(t)[0] if model.match.phase else None)
                 v.times.append(t)
                 v.frags.append(_dump(["score", table, round(t, 3)]))
         while model.arena is not None and (not v.key_times or next_key <= self.duration):

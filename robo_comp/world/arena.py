@@ -112,6 +112,8 @@ class Arena:
         # Robot state, one slot per robot (slots are reused after remove_robot).
         self._tags: list[str | None] = []
         self._slot: dict[str, int] = {}
+        #: Bodies that entered through :meth:`place` (robots this arena does not simulate or localize).
+        self.placed: set[str] = set()
         self._free: list[int] = []
         self._occ = np.zeros(self.walls.shape, dtype=np.int32)   # slot + 1 of the robot in a cell
         self._pending: list[Event] = []                          # events raised outside step()
@@ -241,6 +243,42 @@ class Arena:
         x, y = cells[0]
         return self.add_robot(tag, team, x, y, heading)
 
+    def place(self, tag: str, team: str, x: float, y: float, heading: float) -> None:
+        """Put the body of robot ``tag`` at (x, y, heading), adding it if it is not in the arena:
+        a robot this arena does not move (a real robot, or one an overhead camera tracks). It takes
+        no command; other robots' sensors and bump checks see its cell while it holds one (a cell
+        already held by another robot, or a wall, stays the other's: the body is then seen only
+        once it moves on). The position is kept inside the map."""
+        x = min(max(float(x), -0.49), self.width - 0.51)
+        y = min(max(float(y), -0.49), self.height - 0.51)
+        if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(float(heading))):
+            return
+        s = self._slot.get(tag)
+        if s is None:
+            if not self._free:
+                self._alloc(max(16, self._cap * 2))
+            s = self._free.pop()
+            self._slot[tag] = s
+            self.placed.add(tag)
+            self._tags[s] = tag
+            self._team[s] = team
+            self.active[s] = True
+            self.remaining[s] = 0.0
+            self.bumped[s] = False
+            self.odo_dist[s] = self.odo_turn[s] = 0.0
+            self._queues[s].clear()
+            self._cmd[s] = None
+        else:
+            ocx, ocy = self._cell(s)
+            if self._occ[ocy, ocx] == s + 1:
+                self._occ[ocy, ocx] = 0
+        self.mode[s] = _IDLE
+        self.x[s], self.y[s], self.heading[s] = x, y, float(heading) % 360.0
+        cx, cy = self._cell(s)
+        self.zone[s] = self.zone_map[cy, cx]
+        if self._occ[cy, cx] == 0 and not self.walls[cy, cx]:
+            self._occ[cy, cx] = s + 1
+
     def remove_robot(self, tag: str) -> None:
         """Take robot ``tag`` out of the arena (NoSuchRobotError if absent)."""
         s = self._slot_of(tag)
@@ -253,6 +291,7 @@ class Arena:
         self._tags[s] = None
         self._team[s] = None
         del self._slot[tag]
+        self.placed.discard(tag)
         self._free.append(s)
 
     def pose(self, tag: str) -> Pose:

@@ -278,7 +278,7 @@ class Localization:
         Vectorised over the arena's arrays: only the robots that drove or turned since the
         last update advance their estimate (a robot standing still has nothing to add)."""
         arena = self.arena
-        tags = arena.tags
+        tags = [t for t in arena.tags if t not in arena.placed] if arena.placed else arena.tags
         if len(self.reckoners) != len(tags) or not all(t in self.reckoners for t in tags):
             for gone in set(self.reckoners) - set(tags):
                 del self.reckoners[gone]
@@ -325,4 +325,4 @@ class Localization:
 
     def estimates(self) -> dict[str, tuple[float, float, float]]:
         """Estimated poses of all robots by tag."""
-        return {t: self._reckoner(t).pose() for t in self.arena.tags}
+        return {t: self._reckoner(t).pose() for t in self.arena.tags if t not in self.arena.placed}

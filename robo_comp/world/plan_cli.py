@@ -32,7 +32,8 @@ def add_parser(subparsers: Any) -> None:
 
 
 def _configure(p: argparse.ArgumentParser) -> None:
-    p.add_argument("map", metavar="MAP", help="Moving AI .map file or text grid")
+    p.add_argument("map", metavar="MAP", help="Moving AI .map file, text grid, or a scenario (.toml, or a "
+                                              "bundled scenario's name): its walls")
     p.add_argument("start", metavar="START", nargs="?", help="start cell as x,y")
     p.add_argument("goal", metavar="GOAL", nargs="?", help="goal cell as x,y")
     p.add_argument("--diagonal", action="store_true",
@@ -63,9 +64,16 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from robo_comp.world.maps import load_map
+    from robo_comp.world.maps import GridMap, load_map
 
-    gm = load_map(args.map)
+    if str(args.map).endswith(".toml") or "/" not in str(args.map) and "." not in str(args.map):
+        from robo_comp.testing.match import resolve_scenario
+        from robo_comp.world.scenario import load_scenario
+
+        sc = load_scenario(resolve_scenario(args.map))  # the scenario's walls (its map, extra walls)
+        gm = GridMap(sc.walls, sc.name)
+    else:
+        gm = load_map(args.map)
     if args.scen:
         if args.start or args.goal:
             raise _UsageError("give either START GOAL or --scen, not both")

@@ -14,8 +14,9 @@ counter-clockwise yaw turns the arena heading the other way (ROS's "left" is the
 ``heading - 90``).
 
 Steps. ``Move(x, y)`` turns on the spot towards the cell's centre, then drives to it with
-proportional control on distance and heading; ``Turn`` turns until the heading is reached; both
-republish the command on every :meth:`update` (the host's tick) and end with a zero ``Twist``.
+proportional control on distance and heading, and there turns to face the way from its cell to
+that one if it is more than ``FACE_SLACK`` degrees off (a grid robot's heading, so a path's end
+heading is known); ``Turn`` turns until the heading is reached; both republish the command on every :meth:`update` (the host's tick) and end with a zero ``Twist``.
 ``halt`` publishes a zero ``Twist`` at once; so does ``pause`` (the host lost the core), which
 keeps the step to resume it. A watchdog thread publishes a zero ``Twist`` for a robot that was
 commanded to move but whose driver has not been updated for ``DEADMAN`` seconds (a paused match,
@@ -44,6 +45,12 @@ ODOM_TIMEOUT = 5.0
 #: A Move is done within this many cells of the target, a Turn within this many degrees.
 POS_TOLERANCE = 0.06
 HEADING_TOLERANCE = 2.0
+#: How far a camera fix moves the odometry pose towards it (a fix is noisy; odometry is smooth).
+CAMERA_GAIN = 0.3
+#: A Move that arrives within this many degrees of its direction does not turn to face it.
+FACE_SLACK = 5.0
+#: Within this many cells of the target a Move no longer turns on the spot towards it.
+CLOSE = 0.2
 #: Above this heading error (degrees) a Move turns on the spot before it drives.
 TURN_FIRST = 20.0
 
@@ -55,6 +62,9 @@ def _wrap(deg: float) -> float:
 
 class ROS2Driver(PoseReadings):
     """One ROS 2 robot (same interface as :class:`robo_comp.robots.drivers.ArenaDriver`)."""
+
+    #: A real robot: the host keeps its arena body at :attr:`pose` (see :mod:`robo_comp.robots.oneworld`).
+    external_body = True
 
     def __init__(self, bus: Bus, namespace: str, *, cell_m: float, x: float, y: float, heading: float = 0.0,
                  max_speed: float = 0.2, max_turn: float = 1.0) -> None:
@@ -68,8 +78,10 @@ class ROS2Driver(PoseReadings):
         self.step: Step | None = None
         self.bump: dict[str, Any] | None = None
         self._timer = 0.0
-        self._anchor: tuple[float, float, float] | None = None  # the first odometry (X, Y, yaw)
+        self._anchor: tuple[float, float, float] | None = None  # the odometry (X, Y, yaw) at ``start``
+        self._raw: tuple[float, float, float] | None = None  # the latest odometry
         self._target_heading = 0.0
+        self._facing = False  # a Move is turning to its final heading
         self._waited = 0.0
         self._scan: LaserScan | None = None
         self.odom_count = 0
@@ -116,6 +128,7 @@ class ROS2Driver(PoseReadings):
             m = msgs[-1]
             p = m.pose.pose
             X, Y, yaw = p.position.x, p.position.y, yaw_of(p.orientation)
+            self._raw = (X, Y, yaw)
             if self._anchor is None:
                 self._anchor = (X, Y, yaw)
             X0, Y0, yaw0 = self._anchor
@@ -133,6 +146,15 @@ class ROS2Driver(PoseReadings):
             self._scan = scans[-1]
             self.scan_count += len(scans)
 
+    def camera_fix(self, x: float, y: float, heading: float) -> None:
+        """A fix of the organiser's overhead camera: the pose moves :data:`CAMERA_GAIN` of the way
+        to it (all of it before any odometry), and odometry counts on from there."""
+        px, py, ph = self._pose
+        g = 1.0 if self._raw is None else CAMERA_GAIN
+        self.start = (px + g * (x - px), py + g * (y - py), (ph + g * _wrap(heading - ph)) % 360.0)
+        self._pose = self.start
+        self._anchor = self._raw  # None before odometry: the first odometry anchors the new start
+
     # ------------------------------------------------------------------ commands
     def _publish(self, v: float, w: float) -> None:
         with self._lock:
@@ -147,10 +169,15 @@ class ROS2Driver(PoseReadings):
         self.step = step
         self.bump = None
         self._waited = 0.0
+        self._facing = False
         self._last_update = time.monotonic()
         if isinstance(step, Turn):
             self._target_heading = (self._pose[2] + step.degrees) % 360.0
-        elif not isinstance(step, Move):
+        elif isinstance(step, Move):  # it ends facing the way from its cell to the next, as a grid robot
+            cx, cy = self.cell()
+            self._target_heading = math.degrees(math.atan2(step.y - cy, step.x - cx)) % 360.0 \
+                if (step.x, step.y) != (cx, cy) else self._pose[2]
+        else:
             self._start_timer(step)
 
     def halt(self) -> None:
@@ -200,12 +227,17 @@ class ROS2Driver(PoseReadings):
             return 0.0, -self._turn_rate(err)
         dx, dy = step.x - x, step.y - y
         dist = math.hypot(dx, dy)
-        if dist <= POS_TOLERANCE:
-            return None
         err = _wrap(math.degrees(math.atan2(dy, dx)) - h)
-        if abs(err) > 90.0 and dist < 0.3:  # just past the target: done rather than turning round
-            return None
-        if abs(err) > TURN_FIRST:
+        # there, or beside or just past it (turning on the spot towards a point a few cm away only
+        # chases the noise of the pose): face the way it came, if it is more than a little off
+        if dist <= POS_TOLERANCE or (dist < CLOSE and abs(err) > 45.0):
+            final = _wrap(self._target_heading - h)
+            if abs(final) <= HEADING_TOLERANCE or (abs(final) <= FACE_SLACK and not self._facing):
+                self._facing = False
+                return None
+            self._facing = True
+            return 0.0, -self._turn_rate(final)
+        if abs(err) > TURN_FIRST and dist >= CLOSE:
             return 0.0, -self._turn_rate(err)
         v = min(self.max_speed, max(0.06, 2.0 * dist * self.cell_m))
         w = max(-self.max_turn, min(self.max_turn, 2.5 * math.radians(err)))  # steer, no floor

@@ -8,7 +8,10 @@ command at 100 Hz (a wall stops it: the move that would enter a wall cell is not
 publishes ``/tb1/odom`` (``nav_msgs/Odometry``, 20 Hz, the ``odom`` frame starting at zero
 where it starts) and ``/tb1/scan`` (``sensor_msgs/LaserScan``, 360 rays, 5 Hz, ranges to the
 arena's walls). It prints ``ready`` when it has joined and, on SIGTERM, its true pose in the
-arena (``pose X Y HEADING``) before it exits. There is no ROS in it: only the messages.
+arena (``pose X Y HEADING``) before it exits. With ``--truth-pub URL --robot-id ID`` it also
+publishes its true pose as a simulating robot host does (``robots --truth-pub``), so a synthetic
+overhead camera (``robo-comp camera run --synthetic``) sees it. There is no ROS in it: only the
+messages.
 """
 from __future__ import annotations
 
@@ -34,6 +37,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--max-speed", type=float, default=0.31, help="m/s (TurtleBot 4: 0.31)")
     ap.add_argument("--max-turn", type=float, default=1.9, help="rad/s")
     ap.add_argument("--duration", type=float, default=0.0, help="exit after S seconds (0: until SIGTERM)")
+    ap.add_argument("--robot-id", default="", help="its robot id in the match (for --truth-pub)")
+    ap.add_argument("--truth-pub", metavar="URL",
+                    help="publish its true pose here, as a simulating host does, for synthetic overhead cameras "
+                         "(robo-comp camera run --synthetic URL)")
     args = ap.parse_args(argv)
 
     from robo_comp.robots.ros2.bus import Bus, topic_name
@@ -74,6 +81,18 @@ def main(argv: list[str] | None = None) -> int:
         h, wd = walls.shape
         return not (0 <= cx < wd and 0 <= cy < h) or bool(walls[cy, cx])
 
+    truth_sock: Any = None
+    if args.truth_pub:
+        import zmq
+
+        from robo_comp import protocol as P
+
+        truth_sock = zmq.Context.instance().socket(zmq.PUB)
+        truth_sock.setsockopt(zmq.LINGER, 0)
+        truth_sock.bind(args.truth_pub)
+        h_cells, w_cells = walls.shape
+        packed = np.packbits(walls, axis=None).tobytes()
+    next_truth = time.monotonic()
     print("ready", flush=True)
     dt = 0.01
     t0 = last = time.monotonic()
@@ -110,7 +129,14 @@ def main(argv: list[str] | None = None) -> int:
                                      angle_min=-math.pi, angle_max=math.pi - 2 * math.pi / rays,
                                      angle_increment=2 * math.pi / rays, scan_time=0.2,
                                      range_min=0.15, range_max=12.0, ranges=ranges))
+        if truth_sock is not None and now >= next_truth:
+            next_truth = now + 0.05
+            x, y, hd = arena_pose()
+            truth_sock.send_multipart([b"truth", P.pack({"w": w_cells, "h": h_cells, "walls": packed,
+                                                         "robots": [[args.robot_id, x, y, hd]]})])
         time.sleep(dt)
+    if truth_sock is not None:
+        truth_sock.close(0)
     x, y, hd = arena_pose()
     print(f"pose {x:.4f} {y:.4f} {hd:.3f}", flush=True)
     return 0

@@ -1,0 +1,66 @@
+"""Hand-made ZMTP 3.0 for attack tests and benches: a raw TCP peer that speaks just enough of
+ZeroMQ's wire protocol to reach the core's ROUTER below pyzmq (greeting, commands, frames), and
+the core's memory read from ``/proc``."""
+from __future__ import annotations
+
+import json
+import struct
+from pathlib import Path
+from urllib.parse import urlparse
+
+
+def zmtp_greeting(mechanism: str = "NULL", as_server: bool = False) -> bytes:
+    """The 64-byte ZMTP 3.0 greeting with ``mechanism`` (NULL, PLAIN or CURVE)."""
+    return (b"\xff" + b"\0" * 8 + b"\x7f" + bytes([3, 0]) + mechanism.encode().ljust(20, b"\0")
+            + bytes([1 if as_server else 0]) + b"\0" * 31)
+
+
+def zmtp_frame(body: bytes, more: bool = False, command: bool = False) -> bytes:
+    """One ZMTP frame: flags (MORE, LONG, COMMAND), size, body."""
+    flags = (0x01 if more else 0) | (0x04 if command else 0)
+    if len(body) > 255:
+        return struct.pack(">BQ", flags | 0x02, len(body)) + body
+    return struct.pack(">BB", flags, len(body)) + body
+
+
+def zmtp_command(name: bytes, properties: dict[bytes, bytes] | None = None, body: bytes = b"") -> bytes:
+    """A ZMTP command frame: its name, then ``properties`` (name, value) as metadata, or ``body``."""
+    data = bytes([len(name)]) + name + body
+    for key, value in (properties or {}).items():
+        data += bytes([len(key)]) + key + struct.pack(">I", len(value)) + value
+    return zmtp_frame(data, command=True)
+
+
+def zmtp_plain_hello(user: bytes, password: bytes) -> bytes:
+    """A PLAIN ``HELLO`` command (then an ``INITIATE`` completes the client's side)."""
+    return zmtp_command(b"HELLO", body=bytes([len(user)]) + user + bytes([len(password)]) + password)
+
+
+def zmtp_open(mechanism: str = "NULL", password: bytes | None = None) -> bytes:
+    """Everything a DEALER sends to complete a handshake, in one piece: the greeting, then READY
+    (NULL) or HELLO with ``password`` and INITIATE (PLAIN)."""
+    meta = {b"Socket-Type": b"DEALER"}
+    if mechanism == "PLAIN":
+        return (zmtp_greeting("PLAIN") + zmtp_plain_hello(b"robo_comp", password or b"")
+                + zmtp_command(b"INITIATE", meta))
+    return zmtp_greeting("NULL") + zmtp_command(b"READY", meta)
+
+
+def router_address(state: Path) -> tuple[str, int]:
+    """(host, port) of the ROUTER of the core whose state folder is ``state``."""
+    url = urlparse(json.loads((Path(state) / "core.json").read_text())["router"])
+    assert url.hostname is not None and url.port is not None
+    return url.hostname, url.port
+
+
+def core_rss(state: Path) -> int:
+    """Resident memory, in bytes, of the core process whose state folder is ``state`` (Linux)."""
+    pid = json.loads((Path(state) / "core.json").read_text())["pid"]
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) * 1024
+    raise RuntimeError(f"no VmRSS for process {pid}")
+
+
+__all__ = ["core_rss", "router_address", "zmtp_command", "zmtp_frame", "zmtp_greeting", "zmtp_open",
+           "zmtp_plain_hello"]

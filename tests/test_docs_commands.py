@@ -1,0 +1,104 @@
+"""Commands the documentation gives, run as written: a newcomer who follows the organiser's
+guide word for word meets no traceback and no step that fails."""
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def blocks(doc: Path, section: str, lang: str) -> list[str]:
+    """The ```lang code blocks of the section whose heading starts with ``section``."""
+    text = doc.read_text()
+    start = text.index(f"\n## {section}")
+    end = text.find("\n## ", start + 4)
+    part = text[start:end if end > 0 else None]
+    return re.findall(rf"```{lang}\n(.*?)```", part, re.S)
+
+
+def test_organiser_section_1_as_written(tmp_path: Path) -> None:
+    doc = ROOT / "docs" / "organiser.md"
+    sh = blocks(doc, "1.", "sh")
+    assert len(sh) == 2, sh
+    (tmp_path / "team_templates").symlink_to(ROOT / "team_templates")  # the guide runs in the repository
+    env = dict(os.environ, PATH=f"{Path(sys.executable).parent}:{os.environ.get('PATH', '')}")
+    for block in sh:
+        p = subprocess.run(["bash", "-e", "-o", "pipefail", "-c", block], cwd=tmp_path, env=env, capture_output=True,
+                           text=True, timeout=120)
+        assert p.returncode == 0 and "Traceback" not in p.stderr, f"{block}\n{p.stdout}\n{p.stderr}"
+    assert (tmp_path / "arenas" / "final.toml").is_file()
+    assert "playable" in p.stdout or "cost" in p.stdout  # the second block checked and planned
+    (py,) = blocks(doc, "1.", "python")
+    p = subprocess.run([sys.executable, "-c", py], cwd=tmp_path, env=env, capture_output=True, text=True,
+                       timeout=300)
+    assert p.returncode == 0, f"{py}\n{p.stdout}\n{p.stderr[-3000:]}"
+    assert (tmp_path / "final-dryrun.jsonl").is_file()
+
+
+def test_tutorial_sections_2_to_4_as_written(tmp_path: Path) -> None:
+    """The tutorial's match by hand: its commands run as written (with its /tmp/match moved into
+    the test's folder), and what it shows them printing is what they print."""
+    import time
+
+    doc = ROOT / "docs" / "tutorial.md"
+    match = str(tmp_path / "match")
+    env = dict(os.environ, PATH=f"{Path(sys.executable).parent}:{os.environ.get('PATH', '')}")
+    start = blocks(doc, "2.", "sh")
+    procs = []
+    try:
+        lines = [ln for ln in start[0].splitlines() if ln.strip()]
+        assert len(lines) == 2 and lines[0].startswith("robo-comp core") and lines[1].startswith("robo-comp robots")
+        # ("exec": terminate() then stops the command, not only its shell; "--port 0": this machine is
+        # shared, the tutorial's default port 5555 may be another match's)
+        core = subprocess.Popen("exec " + lines[0].replace("/tmp/match", match) + " --port 0", shell=True, env=env,
+                                cwd=tmp_path,
+                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        procs.append(core)
+        assert "serving 'Demo room'" in (core.stdout.readline() if core.stdout else "")
+        robots = subprocess.Popen("exec " + lines[1].replace("/tmp/match", match), shell=True, env=env, cwd=tmp_path,
+                                  stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        procs.append(robots)
+        assert "registered" in (robots.stdout.readline() if robots.stdout else "")
+
+        def shown(block: str) -> list[tuple[str, list[str]]]:
+            """``$ command`` lines with the output the tutorial shows under each."""
+            out: list[tuple[str, list[str]]] = []
+            for ln in block.splitlines():
+                if ln.startswith("$ "):
+                    out.append((ln[2:], []))
+                elif out:
+                    out[-1][1].append(ln.rstrip())
+            return out
+
+        for cmd, want in shown(start[1]) + shown(blocks(doc, "3.", "sh")[0]):
+            cmd = cmd.replace("/tmp/match", match)
+            if " events " in cmd:
+                events = subprocess.Popen("exec " + cmd.replace(" events ", " --json events "), shell=True, env=env, cwd=tmp_path, text=True,
+                                          stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+                procs.append(events)
+                time.sleep(1.5)
+                continue
+            p = subprocess.run(cmd, shell=True, env=env, cwd=tmp_path, capture_output=True, text=True, timeout=60)
+            assert p.returncode == 0, f"{cmd}\n{p.stdout}{p.stderr}"
+            assert [ln.rstrip() for ln in p.stdout.splitlines()] == want, f"{cmd}\nshown:\n" + "\n".join(want) + \
+                f"\nprinted:\n{p.stdout}"
+        events = procs[-1]
+        events.wait(60)
+        seen = [__import__("json").loads(ln) for ln in events.stdout.read().splitlines() if ln.strip()]  # type: ignore[union-attr]
+        pictures = [e["data"] for e in seen if e["topic"] == "picture"]
+        assert [p["id"] for p in pictures] == [1, 2, 3, 4]  # each once
+        assert pictures[0]["heading"] == 270.0 and pictures[0]["victims"] == ["v1"], pictures[0]
+        (py,) = blocks(doc, "4.", "python")
+        p = subprocess.run([sys.executable, "-c", py.replace("/tmp/match", match)], cwd=tmp_path, env=env,
+                           capture_output=True, text=True, timeout=60)
+        assert p.returncode == 0, p.stderr
+        assert "'state': 'confirmed', 'message': 'victim v1 (adult) found'" in p.stdout, p.stdout
+        assert "'team': 'red', 'score': 15.0, 'victims': 1" in p.stdout, p.stdout
+    finally:
+        for pr in reversed(procs):
+            pr.terminate()
+            pr.wait(10)
