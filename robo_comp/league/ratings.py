@@ -35,9 +35,10 @@ def rate(current: dict[str, tuple[float, float]], ranks: dict[str, int]) -> dict
 
 
 #: A rating is provisional (marked ``?`` on the table, the report and the console) until its
-#: σ falls below this: about 30 two-team matches (σ starts at 8.33), where the 16-entrant
-#: reference field's order first reached Kendall's τ 0.9 (docs/performance.md, "League").
-SURE_SIGMA = 4.5
+#: σ falls below this: about 20 two-team matches (σ starts at 8.33); the 16-entrant reference
+#: field's order reached Kendall's τ 0.9 after 19 matches an entrant and held it
+#: (docs/performance.md, "League fair play").
+SURE_SIGMA = 5.0
 
 
 def provisional(sigma: float) -> bool:
