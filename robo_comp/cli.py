@@ -127,7 +127,8 @@ def _start_core(args: argparse.Namespace, state: Path) -> tuple[Any, bool]:
              "scenario": str(Path(args.scenario).resolve()) if args.scenario else None,
              "scenario_sha256": matchfile.scenario_hash(args.scenario),
              "practice": args.practice, "approve_uploads": args.approve_uploads, "rules": args.rules,
-             "curve": args.curve, "pose_hz": args.pose_hz, "heartbeat": args.heartbeat, "port": args.port}
+             "curve": args.curve, "pose_hz": args.pose_hz, "heartbeat": args.heartbeat, "port": args.port,
+             "robots": args.robots, "max_speed": args.max_speed}
     settings, recovering = matchfile.resolve(state, given, args.override)
     scenario_file = settings.get("scenario")
     if recovering and scenario_file and not args.scenario:
@@ -145,6 +146,7 @@ def _start_core(args: argparse.Namespace, state: Path) -> tuple[Any, bool]:
                 heartbeat=settings.get("heartbeat", 1.0), fsync=args.fsync, plugins=pm,
                 practice=practice, approve_uploads=bool(settings.get("approve_uploads")),
                 curve=bool(settings.get("curve")), pose_hz=settings.get("pose_hz", 10.0),
+                robots_per_team=settings.get("robots"), max_speed=settings.get("max_speed"),
                 max_connections=args.max_connections, max_per_address=args.max_per_address)
     try:
         core.bind()
@@ -153,7 +155,8 @@ def _start_core(args: argparse.Namespace, state: Path) -> tuple[Any, bool]:
                                 "approve_uploads": bool(settings.get("approve_uploads")),
                                 "rules": settings.get("rules"), "curve": bool(settings.get("curve")),
                                 "pose_hz": settings.get("pose_hz", 10.0), "heartbeat": core.heartbeat,
-                                "port": core.port})
+                                "port": core.port, "robots": core.robots_per_team,
+                                "max_speed": settings.get("max_speed")})
     except OSError:
         core.close()
         raise
@@ -185,9 +188,19 @@ def _robots(args: argparse.Namespace) -> int:
                      prefix=args.prefix, speed=args.speed, report_hz=args.report_hz, seed=args.seed,
                      truth=truth, driver=args.driver, driver_options=options,
                      curve=client_keys(args.core, token, args.curve_cert, args.core_key),
-                     positioning=_positioning(args.positioning), truth_pub=args.truth_pub)
+                     positioning=_positioning(args.positioning), truth_pub=args.truth_pub,
+                     camera_key=args.camera_key or _default_camera_key(args.core, args.positioning))
     host.run(duration=args.duration or None)
     return 0
+
+
+def _default_camera_key(core: str, positioning: str | None) -> str | None:
+    """The camera's public certificate when the host runs beside the core (``--core STATE``) and
+    ``robo-comp keys`` made it there: ``STATE/keys/organiser.key``."""
+    if positioning is None:
+        return None
+    key = Path(core) / "keys" / "organiser.key"
+    return str(key) if key.is_file() else None
 
 
 def _ros2_options(args: argparse.Namespace) -> dict[str, object]:
@@ -278,6 +291,12 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--curve", action="store_true", default=None,
                    help="CurveZMQ for a networked match: encrypted sockets, only the keys in STATE/keys "
                         "get in (run 'robo-comp keys --state STATE' first)")
+    c.add_argument("--robots", type=int, metavar="N",
+                   help="robots each team may register at most (default: what the scenario gives each team)")
+    c.add_argument("--max-speed", type=_positive, metavar="CELLS_PER_S",
+                   help="the fastest a robot may drive: a robot host's declared speed is cut to it, and a "
+                        "reported pose farther than that from the last one is refused (default: 4x the "
+                        "scenario's robot speed)")
     c.add_argument("--advertise", metavar="NAME",
                    help="let robots and consoles on the LAN find this core by name (--core mdns:NAME), over "
                         "mDNS on the interface of --host (off by default; docs/organiser.md)")
@@ -311,6 +330,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "centers; ros2: ROS 2 robots over DDS (pip install 'robo_comp[ros2]'; docs/robots.md)")
     r.add_argument("--rcc", metavar="HOST:PORT[,HOST:PORT...]",
                    help="for --driver er1: each robot's robot control center (one per robot, in order)")
+    r.add_argument("--camera-key", metavar="CERT",
+                   help="the overhead camera's public certificate (STATE/keys/organiser.key): fixes are "
+                        "taken only over CurveZMQ from the camera holding its secret half (default: that "
+                        "file in the --core state folder, when there is one)")
     r.add_argument("--ros2-ns", metavar="NS[,NS...]",
                    help="for --driver ros2: each robot's ROS 2 namespace (one per robot, in order; topics "
                         "/NS/cmd_vel, /NS/odom, /NS/scan)")

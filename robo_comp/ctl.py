@@ -49,6 +49,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                          description="A sandbox whose code hit its limits too often rests (60 s, doubling) "
                                      "and restarts by itself; this restarts it at once.")
     sr.add_argument("tags", help="robot tag, or several separated by commas")
+    cmds.add_parser("hosts", help="referee: the organiser's robot hosts and the robots each holds")
+    ho = cmds.add_parser("handover", help="referee: hand robots to the next robot host that registers them",
+                         description="Each robot is halted and let go by the host that holds it; the next host "
+                                     "that registers it (with its robot id) runs it. For a host that hangs, or "
+                                     "robots moving to a spare host.")
+    ho.add_argument("tags", help="robot tag, or several separated by commas")
     m = cmds.add_parser("match", help="referee: start, pause, resume, finish or extend the match; "
                                       "or set the outage rule",
                         description="'outage --rule pause|count' chooses what a core outage (a crash, a restart) "
@@ -93,6 +99,15 @@ def _print_robots(rows: list[dict[str, Any]]) -> None:
         label = f"{task['name']}#{task['task_id']}" if task else "-"
         print(f"{r['tag']:>5} {r['team']:<8} {r['status']:<10} {r['x']:>7.2f} {r['y']:>7.2f} "
               f"{r['heading']:>5.0f}  {label:<22} {r['queue']}")
+
+
+def _print_hosts(rows: list[dict[str, Any]]) -> None:
+    if not rows:
+        print("no robot host is connected")
+    for h in rows:
+        since = time.strftime("%H:%M:%S", time.localtime(h["opened"]))
+        print(f"host {h['host']}  team {h['team']}  since {since}  heard {h['silent']:.1f} s ago  "
+              f"robots: {', '.join(f'{t} ({rid})' for t, rid in zip(h['tags'], h['robots'])) or '-'}")
 
 
 def _when(v: Any) -> str:
@@ -192,6 +207,19 @@ def _run(c: Client, args: argparse.Namespace) -> int:
         out = c.tasks(args.tag)
         if not args.json:
             _print_tasks(out)
+    elif args.cmd == "hosts":
+        out = c.request("hosts")["hosts"]
+        if not args.json:
+            _print_hosts(out)
+    elif args.cmd == "handover":
+        try:
+            tags = [int(t) for t in args.tags.split(",") if t.strip()]
+        except ValueError:
+            print(f"error: tags must be numbers separated by commas, got {args.tags!r}", file=sys.stderr)
+            return 2
+        out = c.request("handover", tags=tags)
+        if not args.json:
+            print(f"handed over: {', '.join(map(str, out['released']))} (the next host that registers them runs them)")
     elif args.cmd == "give":
         task_args = _task_args(args.args)
         if task_args is None:

@@ -73,6 +73,8 @@ def _start_camera(state: Path, teams: list[str], robots: int, out: Any) -> list[
     import socket
     import subprocess
 
+    from robo_comp.protocol.curve import create_keys
+    from robo_comp.teams.tokens import ORGANISER
     from robo_comp.world.overhead.binding import Bindings
     from robo_comp.world.overhead.synth import floor_markers
 
@@ -85,6 +87,8 @@ def _start_camera(state: Path, teams: list[str], robots: int, out: Any) -> list[
     bind = Bindings({10 + i * robots + k: f"{t}-{k + 1}" for i, t in enumerate(teams) for k in range(robots)},
                     floor_markers(w, h))
     (state / "markers.toml").write_text(bind.to_toml())
+    # the camera speaks under the organiser's key, and the hosts (beside the core) pin its public half
+    create_keys(state, teams)
     fixes = f"tcp://127.0.0.1:{port()}"
     truths = [f"tcp://127.0.0.1:{port()}" for _ in teams]
     procs = [start_robots(state, t, robots, "--positioning", f"camera:{fixes}", "--truth-pub", u,
@@ -93,7 +97,8 @@ def _start_camera(state: Path, teams: list[str], robots: int, out: Any) -> list[
     log = open(state / "camera.log", "wb")
     procs.append(subprocess.Popen([sys.executable, "-m", "robo_comp.cli", "camera", "run", "--markers",
                                    str(state / "markers.toml"), "--pub", fixes, "--synthetic", ",".join(truths),
-                                   "--cameras", "2"], stdout=log, stderr=subprocess.STDOUT))
+                                   "--cameras", "2", "--key", str(state / "keys" / f"{ORGANISER}.key_secret")],
+                                  stdout=log, stderr=subprocess.STDOUT))
     print("demo: robot positions come from two synthetic overhead cameras (robo-comp camera run)", file=out)
     return procs
 
@@ -109,7 +114,8 @@ def run_demo(duration: float = 20.0, robots: int = 3, out: Any = None, web: int 
     state = Path(tempfile.mkdtemp(prefix="robo-comp-demo-"))  # kept: the match can be replayed
     procs: list[Any] = []
     try:
-        procs.append(start_core(state, "--scenario", str(scenario)))
+        # the organiser's hosts run `robots` robots a team (the scenario gives each team 2)
+        procs.append(start_core(state, "--scenario", str(scenario), "--robots", str(robots)))
         teams = json.loads((state / "core.json").read_text())["teams"][:2]
         if web is not None:
             procs.append(_start_web(state, web, out))

@@ -126,10 +126,23 @@ class ConnectionLostError(RoboCompError):
     code = "E_CONNECTION"
 
 
+class HeldError(RoboCompError):
+    """A robot is held by another robot host that is still running it (the referee hands it over)."""
+
+    code = "E_HELD"
+
+
+class ImplausibleError(RoboCompError):
+    """A claim about the world that the match cannot believe (a pose the robot could not reach)."""
+
+    code = "E_IMPLAUSIBLE"
+
+
 ALL_ERRORS: tuple[type[RoboCompError], ...] = (
     RoboCompError, MalformedError, VersionError, UnknownTypeError, FieldError, TooLargeError,
     AuthError, ForbiddenError, NotYoursError, NoSuchRobotError, BadTaskError, UnavailableError,
     RateLimitError, TimeoutError_, PhaseError, ScenarioError, UploadError, StorageError, ConnectionLostError,
+    HeldError, ImplausibleError,
 )
 _BY_CODE = {cls.code: cls for cls in ALL_ERRORS}
 

@@ -35,8 +35,9 @@ def start_core(state: Path, *extra: str, port: int = 0, wait: float = 20.0) -> s
 
 
 def start_robots(state: Path, team: str, count: int, *extra: str) -> subprocess.Popen[bytes]:
-    """Start ``robo-comp robots`` for ``team`` against the core whose state folder is ``state``."""
-    return _spawn(["robots", "--core", str(state), "--token-file", str(state / "teams" / f"{team}.token"),
+    """Start ``robo-comp robots`` for ``team`` against the core whose state folder is ``state``, with
+    the organiser's host token for that team (``STATE/hosts/<team>.token``)."""
+    return _spawn(["robots", "--core", str(state), "--token-file", str(state / "hosts" / f"{team}.token"),
                    "--count", str(count), *extra], state / f"robots-{team}.log")
 
 

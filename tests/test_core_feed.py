@@ -54,7 +54,7 @@ class Host:
 @pytest.mark.core_args("--pose-hz", str(POSE_HZ))
 def test_reports_reach_subscribers_conflated_per_team(core):
     url = json.loads((core.state / "core.json").read_text())["router"]
-    red, blue = Host(url, core.token("red")), Host(url, core.token("blue"))
+    red, blue = Host(url, core.host_token("red")), Host(url, core.host_token("blue"))
     ref = core.client("referee")
     feed = ref.subscribe("robot.position")  # the prefix of robot.positions
     blue_console = core.client("blue")
@@ -100,7 +100,7 @@ def test_reports_reach_subscribers_conflated_per_team(core):
 
 def test_a_batch_of_reports_is_checked_row_by_row_and_keeps_the_good_rows(core):
     url = json.loads((core.state / "core.json").read_text())["router"]
-    red, blue = Host(url, core.token("red")), Host(url, core.token("blue"))
+    red, blue = Host(url, core.host_token("red")), Host(url, core.host_token("blue"))
     ref = core.client("referee")
     try:
         mine = [red.register(f"r{i}") for i in range(2)]
@@ -139,7 +139,7 @@ def test_a_batch_of_reports_is_checked_row_by_row_and_keeps_the_good_rows(core):
 @pytest.mark.core_args("--pose-hz", "2")
 def test_a_robot_that_left_is_not_in_the_next_positions_batch(core):
     url = json.loads((core.state / "core.json").read_text())["router"]
-    red = Host(url, core.token("red"))
+    red = Host(url, core.host_token("red"))
     feed = core.client("referee").subscribe()
     try:
         stays, leaves = red.register("r0"), red.register("r1")

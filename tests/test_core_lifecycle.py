@@ -5,11 +5,14 @@ import json
 import signal
 import time
 
+import pytest
+
 from conftest import HEARTBEAT, next_event_where, wait_for, wait_robots
 from robo_comp import protocol as P
 from robo_comp.launch import start_core, stop_all
 
 
+@pytest.mark.core_args("--robots", "4")  # the built-in arena gives each team 3: the organiser allows a 4th
 def test_reconnect_keeps_the_tag(core):
     p = core.robots("red", 3, "--prefix", "alpha")
     red = core.client("red")

@@ -92,7 +92,7 @@ def test_ctl_lists_gives_and_is_refused_with_exit_1(core):
     out = ctl(core, "red", "give", str(rtag), "fly", "[]")
     assert out.returncode == 1 and "E_BAD_TASK" in out.stderr and "goTo" in out.stderr
     out = ctl(core, "red", "monitor", str(rtag))
-    assert out.returncode == 0 and "advertised" in out.stdout
+    assert out.returncode == 0 and "can run" in out.stdout
     out = ctl(core, "red", "stop", str(rtag))
     assert out.returncode == 0 and "halted" in out.stdout
     bad = subprocess.run([sys.executable, "-m", "robo_comp.cli", "ctl", "--core", str(core.state),

@@ -102,8 +102,10 @@ def test_oversized_beyond_socket_cap_only_drops_that_peer(core, raw):
     assert core.proc.poll() is None
 
 
-def test_wrong_types_on_robot_messages(core, raw):
-    tok = core.token("red")
+def test_wrong_types_on_robot_messages(core):
+    import json
+    tok = core.host_token("red")
+    raw = Raw(json.loads((core.state / "core.json").read_text())["router"], tok)  # a robot host's connection
     ok = raw.ask(P.request("register", 1, {"token": tok, "robot_id": "r1", "tasks": [{"name": 3}]}))
     assert _err(ok) == "E_FIELD"
     ok = raw.ask(P.request("register", 2, {"token": tok, "robot_id": "r1", "tasks": []}))
@@ -114,8 +116,10 @@ def test_wrong_types_on_robot_messages(core, raw):
     assert _err(raw.ask(P.request("report", 3, {"tag": tag + 50, "x": 1, "y": 1, "heading": 0}, sid))) == "E_NOT_YOURS"
     assert _err(raw.ask(P.request("report", 4, {"tag": tag, "x": "1", "y": 1, "heading": 0}, sid))) == "E_FIELD"
     assert _err(raw.ask(P.request("task.done", 5, {"tag": tag, "task_id": 77, "ok": True, "status": ""}, sid))) == "E_FIELD"
-    assert _err(raw.ask(P.request("register", 6, {"token": core.token("referee"), "robot_id": "x"}, sid))) == "E_FIELD"
-    # blue's token on red's host connection: refused (a connection speaks for one principal)
-    assert _err(raw.ask(P.request("register", 8, {"token": core.token("blue"), "robot_id": "x"}, sid))) == "E_AUTH"
+    # the referee's or a team's token never registers robots (only the organiser's host tokens)
+    assert _err(raw.ask(P.request("register", 6, {"token": core.token("referee"), "robot_id": "x"}, sid))) == "E_FORBIDDEN"
+    assert _err(raw.ask(P.request("register", 9, {"token": core.token("red"), "robot_id": "x"}, sid))) == "E_FORBIDDEN"
+    # blue's host token on red's host connection: refused (a connection speaks for one principal)
+    assert _err(raw.ask(P.request("register", 8, {"token": core.host_token("blue"), "robot_id": "x"}, sid))) == "E_AUTH"
     # without the secret, the same report is refused whatever it says
     assert _err(raw.ask(P.request("report", 7, {"tag": tag, "x": 1, "y": 1, "heading": 0}))) == "E_AUTH"

@@ -51,12 +51,12 @@ def test_keys_are_made_once_with_private_secrets(tmp_path: Path) -> None:
     assert out.returncode == 0, out.stderr
     assert "red.key_secret" in out.stdout and "core.key" in out.stdout
     keys = state / "keys"
-    for name in ("core", "red", "blue", "referee"):
+    for name in ("core", "red", "blue", "referee", "organiser"):
         assert (keys / f"{name}.key").is_file()
         assert stat.S_IMODE((keys / f"{name}.key_secret").stat().st_mode) == 0o600
     before = {p.name: p.read_bytes() for p in keys.iterdir()}
     assert create_keys(state, ["red", "blue", "green"]) == {"core": False, "red": False, "blue": False,
-                                                            "green": True, "referee": False}
+                                                            "green": True, "referee": False, "organiser": False}
     assert all((keys / n).read_bytes() == b for n, b in before.items())  # existing keys kept
 
 
@@ -71,8 +71,8 @@ def test_curve_match(curve_core: CoreHandle, tmp_path: Path) -> None:
     info = json.loads((state / "core.json").read_text())
     assert info["curve"] is True and len(info["curve_public"]) == 40
     keys = state / "keys"
-    # a robot host with its team's certificate, given explicitly
-    curve_core.procs.append(start_robots(state, "red", 2, "--curve-cert", str(keys / "red.key_secret"),
+    # a robot host with the organiser's certificate, given explicitly (a team's key never hosts robots)
+    curve_core.procs.append(start_robots(state, "red", 2, "--curve-cert", str(keys / "organiser.key_secret"),
                                          "--core-key", str(keys / "core.key")))
     good = curve_core.client("red")  # a state folder: the token's team certificate is found there
     assert good.curve is not None

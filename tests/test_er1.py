@@ -117,7 +117,7 @@ def test_halt_sends_stop_at_once_and_errors_end_the_step_like_a_bump():
 
 def test_a_host_drives_an_er1_for_a_real_core(core):
     rcc = FakeRCC(delay=0.02)
-    host = RobotHost(resolve_core(str(core.state)), core.token("red"), 1, driver="er1",
+    host = RobotHost(resolve_core(str(core.state)), core.host_token("red"), 1, driver="er1",
                      driver_options={"rcc": [rcc.address]})
     th = threading.Thread(target=host.run, kwargs={"duration": 30}, daemon=True)
     th.start()

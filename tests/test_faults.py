@@ -216,7 +216,7 @@ def test_latency_and_a_dead_link_between_a_host_and_the_core(core: CoreHandle) -
     port = int(json.loads((core.state / "core.json").read_text())["router"].rsplit(":", 1)[1])
     proxy = DelayProxy(port, delay=0.05, jitter=0.1, seed=3).start()
     host = subprocess.Popen([sys.executable, "-m", "robo_comp.cli", "robots", "--core", proxy.url, "--token-file",
-                             str(core.token_file("red")), "--count", "2", "--speed", "4"],
+                             str(core.host_token_file("red")), "--count", "2", "--speed", "4"],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, stdin=subprocess.DEVNULL)
     core.procs.append(host)
     try:
@@ -261,7 +261,7 @@ def test_a_host_whose_clock_runs_fast_and_jumps(core: CoreHandle, tmp_path: Path
     clock.write_text("+0 x2\n")
     env = dict(os.environ, LD_PRELOAD=lib, FAKETIME_TIMESTAMP_FILE=str(clock), FAKETIME_NO_CACHE="1")
     host = subprocess.Popen([sys.executable, "-m", "robo_comp.cli", "robots", "--core", str(core.state),
-                             "--token-file", str(core.token_file("red")), "--count", "2"],
+                             "--token-file", str(core.host_token_file("red")), "--count", "2"],
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, stdin=subprocess.DEVNULL, env=env)
     core.procs.append(host)
     red = core.client("red")
@@ -623,23 +623,26 @@ def test_task_done_is_idempotent_and_a_task_lost_on_the_way_is_handed_over_again
     assert [e["data"]["task_id"] for e in core.logged_events("task.done")].count(tid) == 1
     # the same result again with a registration (a reconnect whose answer was lost): taken once too
     second = red.give(tag, "goTo", [4, 4])["task_id"]
-    back = Peer(router(core))
-    assert back.own("hello", {"token": core.token("red"), "client": "robots"})["ok"]
-    reg = back.own("register", {"token": core.token("red"), "robot_id": "r1", "fresh": False, "done": body,
+    host.close()  # the old connection is gone (a host keeps its robots until then: E_HELD)
+    wait_for(lambda: red.monitor(tag)["status"] == "lost", 10, "the robot lost with its old connection")
+    back = Peer(router(core), token=core.host_token("red"))
+    assert back.own("hello", {"token": core.host_token("red"), "client": "robots"})["ok"]
+    reg = back.own("register", {"token": core.host_token("red"), "robot_id": "r1", "fresh": False, "done": body,
                                 "tasks": [{"name": "goTo", "args": [{"name": "x", "type": "int"},
                                                                     {"name": "y", "type": "int"}]}]})
     assert reg["ok"] and reg["body"]["task"]["task_id"] == second, reg  # never got it: handed over again
     assert [e["data"]["task_id"] for e in core.logged_events("task.done")].count(tid) == 1
     assert red.tasks(tag)["current"]["task_id"] == second
     # a host that restarted (fresh) and runs nothing: the task is cancelled, saying why
-    fresh = Peer(router(core))
-    assert fresh.own("hello", {"token": core.token("red"), "client": "robots"})["ok"]
-    reg = fresh.own("register", {"token": core.token("red"), "robot_id": "r1", "tasks": []})
+    back.close()
+    wait_for(lambda: red.monitor(tag)["status"] == "lost", 10, "the robot lost with its old connection")
+    fresh = Peer(router(core), token=core.host_token("red"))
+    assert fresh.own("hello", {"token": core.host_token("red"), "client": "robots"})["ok"]
+    reg = fresh.own("register", {"token": core.host_token("red"), "robot_id": "r1", "tasks": []})
     assert reg["ok"] and reg["body"]["task"] is None, reg
     cancelled = next(t for t in red.tasks(tag)["done"] if t["task_id"] == second)
     assert cancelled["state"] == "cancelled" and "host restarted" in cancelled["status"], cancelled
-    for p in (host, back, fresh):
-        p.close()
+    fresh.close()
 
 
 # ---------------------------------------------------------------------------------------------

@@ -346,9 +346,9 @@ def test_live_core_answers_every_fuzzed_frame(core: Any) -> None:
     """One core, many sessions' worth of generated frames: one error reply each (no reply for
     an accepted notification), never E_INTERNAL, and the core still serves a real client."""
     url = Client(str(core.state), core.token("referee")).url
-    anon, team = Raw(url, core.token("red")), Raw(url, core.token("red"))
+    anon, team, host = Raw(url, core.token("red")), Raw(url, core.token("red")), Raw(url, core.host_token("red"))
     assert team.call("hello", {"token": core.token("red")})["ok"]
-    reg = team.call("register", {"token": core.token("red"), "robot_id": "fz-1", "tasks": []}, 2)
+    reg = host.call("register", {"token": core.host_token("red"), "robot_id": "fz-1", "tasks": []}, 2)
     assert reg["ok"]
     seen: dict[str, int] = {}
 
@@ -373,6 +373,7 @@ def test_live_core_answers_every_fuzzed_frame(core: Any) -> None:
     finally:
         anon.close()
         team.close()
+        host.close()
     ref = core.client("referee")
     assert ref.request("stats")["received"] > 120
     assert any(r["robot_id"] == "fz-1" for r in ref.robots())
@@ -386,9 +387,9 @@ STOP_WAIT = 4.0  # the core's own stop timeout is 2 s
 def _host_with_robot(core: Any) -> tuple[Raw, int, str]:
     """A raw robot host of team red with one registered robot: (socket, tag, url)."""
     url = Client(str(core.state), core.token("referee")).url
-    host = Raw(url, core.token("red"))
-    assert host.call("hello", {"token": core.token("red")})["ok"]
-    reg = host.call("register", {"token": core.token("red"), "robot_id": "h-1", "tasks": []}, 2)
+    host = Raw(url, core.host_token("red"))
+    assert host.call("hello", {"token": core.host_token("red")})["ok"]
+    reg = host.call("register", {"token": core.host_token("red"), "robot_id": "h-1", "tasks": []}, 2)
     return host, reg["body"]["tag"], url
 
 

@@ -116,9 +116,9 @@ def blue_robot(core: CoreHandle) -> tuple[Any, dict[str, Any]]:
 
 def raw_host(core: CoreHandle, team: str, robot_id: str, routing_id: bytes | None = None) -> tuple[Peer, int]:
     """A raw robot host that said hello and registered one robot: (peer, tag)."""
-    host = Peer(router(core), routing_id or P.new_routing_id(), token=core.token(team))
-    assert host.own("hello", {"token": core.token(team), "client": "robots"})["ok"]
-    reg = host.own("register", {"token": core.token(team), "robot_id": robot_id, "x": 2, "y": 2, "tasks": [
+    host = Peer(router(core), routing_id or P.new_routing_id(), token=core.host_token(team))
+    assert host.own("hello", {"token": core.host_token(team), "client": "robots"})["ok"]
+    reg = host.own("register", {"token": core.host_token(team), "robot_id": robot_id, "x": 2, "y": 2, "tasks": [
         {"name": "goTo", "args": [{"name": "x", "type": "int"}, {"name": "y", "type": "int"}]}]})
     assert reg["ok"], reg
     return host, reg["body"]["tag"]
@@ -317,7 +317,7 @@ def test_another_teams_tag_in_every_message_kind(core: CoreHandle) -> None:
     for type_, body in as_console.items():
         assert code(console.ask(type_, body, secret=console.session)) in ("E_NOT_YOURS", "E_FORBIDDEN"), type_
     for type_, body in as_host.items():
-        assert code(host.ask(type_, body, secret=host.session)) in ("E_NOT_YOURS", "E_AUTH"), type_
+        assert code(host.ask(type_, body, secret=host.session)) in ("E_NOT_YOURS", "E_AUTH", "E_FORBIDDEN"), type_
     assert code(host.ask("radio", {"tag": own_tag, "to": tag, "data": "hi"}, secret=host.session)) == "E_NOT_YOURS"
     after = core.referee().monitor(tag)
     assert (after["status"], after["team"]) == (before["status"], before["team"]) == ("connected", "blue")
@@ -337,7 +337,7 @@ def test_host_messages_from_a_console_and_console_messages_from_a_host(core: Cor
     assert console.own("hello", {"token": core.token("red")})["ok"]
     for type_ in ("report", "task.next", "task.done", "leave", "picture", "bump", "advertise"):
         body = dict(SAMPLE_BODIES[type_], tag=tag)
-        assert code(console.ask(type_, body, secret=console.session)) == "E_NOT_YOURS", type_
+        assert code(console.ask(type_, body, secret=console.session)) == "E_FORBIDDEN", type_
     for type_ in ("stats", "match", "penalty", "approve", "broadcast", "disqualify"):
         body = SAMPLE_BODIES.get(type_, {"team": "blue"} if type_ == "disqualify" else {})
         assert code(host.ask(type_, body, secret=host.session)) == "E_FORBIDDEN", type_

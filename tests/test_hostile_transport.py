@@ -185,7 +185,8 @@ def test_a_hello_must_use_the_token_the_connection_presented(core: CoreHandle) -
     red = peer(core, core.token("red"))
     reply = red.ask("hello", {"token": core.token("blue")})
     assert code(reply) == "E_AUTH" and "token" in reply["error"]["message"]
-    assert code(red.ask("register", {"token": core.token("blue"), "robot_id": "b-1"})) == "E_AUTH"
+    assert code(red.ask("register", {"token": core.host_token("blue"), "robot_id": "b-1"})) == "E_AUTH"
+    assert code(red.ask("register", {"token": core.token("blue"), "robot_id": "b-1"})) == "E_FORBIDDEN"
     assert red.own("hello", {"token": core.token("red")})["ok"]  # its own token: fine
     assert red.own("robots")["ok"]
     red.close()

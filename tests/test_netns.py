@@ -229,7 +229,7 @@ def start_core(net: Net) -> None:
 
 def robots(net: Net, role: str, team: str) -> None:
     """Three robots of ``team`` on host ``role``."""
-    net.spawn(role, [*CLI, "robots", "--core", str(net.state), "--token-file", str(net.state / "teams" / f"{team}.token"),
+    net.spawn(role, [*CLI, "robots", "--core", str(net.state), "--token-file", str(net.state / "hosts" / f"{team}.token"),
                      "--count", "3", "--speed", str(SPEED)], f"robots-{role}.log")
 
 

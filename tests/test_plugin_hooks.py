@@ -61,7 +61,7 @@ def test_host_calls_sense_and_extension_hooks(core):
     rec = Recorder()
     pm.register(rec)
     pm.register(Broken())
-    host = RobotHost(resolve_core(str(core.state)), core.token("red"), 1, plugins=pm)
+    host = RobotHost(resolve_core(str(core.state)), core.host_token("red"), 1, plugins=pm)
     th = threading.Thread(target=host.run, kwargs={"duration": 40}, daemon=True)
     th.start()
     try:

@@ -17,6 +17,7 @@ import zmq
 
 from robo_comp import protocol as P
 from robo_comp.client import resolve_core
+from robo_comp.protocol.curve import create_keys, load_secret, open_server
 from robo_comp.errors import FieldError
 from robo_comp.launch import start_robots, stop_all
 from robo_comp.robots.host import RobotHost
@@ -190,10 +191,13 @@ def test_a_host_takes_fixes_for_its_own_robots_only(core):
     """A camera publishes a fix for a blue robot and one for a red robot: the red team's host
     moves its own robot and ignores the other (a team cannot claim another team's marker)."""
     url = f"tcp://127.0.0.1:{_free_port()}"
+    create_keys(core.state, ["red", "blue"])
     ctx = zmq.Context.instance()
     pub = ctx.socket(zmq.PUB)
+    open_server(pub, *load_secret(core.state / "keys" / "organiser.key_secret"))
     pub.bind(url)
-    host = RobotHost(resolve_core(str(core.state)), core.token("red"), 1, positioning=url)
+    host = RobotHost(resolve_core(str(core.state)), core.host_token("red"), 1, positioning=url,
+                     camera_key=core.state / "keys" / "organiser.key")
     th = threading.Thread(target=host.run, kwargs={"duration": 30}, daemon=True)
     th.start()
     try:
@@ -225,10 +229,12 @@ def test_robots_finish_goto_seen_only_through_synthetic_camera_frames(core, tmp_
     fixes = f"tcp://127.0.0.1:{_free_port()}"
     b = binding.Bindings({10 + i: f"red-{i + 1}" for i in range(3)}, FLOOR)
     (tmp_path / "markers.toml").write_text(b.to_toml())
+    create_keys(core.state, ["red", "blue"])  # the host beside the core pins STATE/keys/organiser.key
     host = start_robots(core.state, "red", 3, "--positioning", f"camera:{fixes}", "--truth-pub", truth)
     cam = subprocess.Popen([sys.executable, "-m", "robo_comp.cli", "camera", "run", "--markers",
                             str(tmp_path / "markers.toml"), "--pub", fixes, "--synthetic", truth, "--cameras", "2",
-                            "--fps", "10"], stderr=subprocess.PIPE, text=True)
+                            "--fps", "10", "--key", str(core.state / "keys" / "organiser.key_secret")],
+                           stderr=subprocess.PIPE, text=True)
     try:
         red = core.client("red")
         red.watch(True)

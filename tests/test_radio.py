@@ -19,12 +19,12 @@ class Host:
         self.s = zmq.Context.instance().socket(zmq.DEALER)
         self.s.setsockopt(zmq.LINGER, 0)
         self.s.setsockopt(zmq.ROUTING_ID, P.new_routing_id())
-        secure_plain_client(self.s, core.token(team))  # the core lets in no connection without a token
+        secure_plain_client(self.s, core.host_token(team))  # the core lets in no connection without a token
         self.s.connect(url)
         self.n = 0
         self.sid = None  # the session secret, from the first register's reply
         self.inbox: list[dict] = []
-        self.tags = [self.ask("register", token=core.token(team), robot_id=i)["body"]["tag"] for i in ids]
+        self.tags = [self.ask("register", token=core.host_token(team), robot_id=i)["body"]["tag"] for i in ids]
 
     def ask(self, type_: str, **body) -> dict:
         self.n += 1

@@ -680,7 +680,7 @@ def test_gateway_on_a_curve_core(tmp_path: Path) -> None:
     m = Match(state, None, core)
     web = None
     try:
-        m.robots("red", 1, "--curve-cert", str(state / "keys" / "red.key_secret"),
+        m.robots("red", 1, "--curve-cert", str(state / "keys" / "organiser.key_secret"),
                  "--core-key", str(state / "keys" / "core.key"))
         web, url = start_web("--core", str(state))
 

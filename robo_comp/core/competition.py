@@ -245,7 +245,10 @@ class Competition:
             raise FieldError("'png' must be a PNG image")
         pid = self.judge.next_picture
         write_private(private_dir(self.picture_dir) / f"{pid}.png", png)  # the team's: 0600 in 0700
-        meta = self.judge.picture(r.team, r.tag, b["x"], b["y"], b["heading"], t=time.time(),
+        # judged where the core tracks the robot (its host's accepted reports), or where the host says
+        # it was taken only as far as the tracking bears that out: no pose the robot never reached
+        x, y, heading = self.access.judged_pose(r, b, "picture")
+        meta = self.judge.picture(r.team, r.tag, x, y, heading, t=time.time(),
                                   sha256=hashlib.sha256(png).hexdigest()[:16], label=b.get("label", ""))
         seen = meta["victims"]
         public = {k: meta[k] for k in ("id", "tag", "team", "x", "y", "heading", "t")}
@@ -285,8 +288,9 @@ class Competition:
 
     def _on_bump(self, ident: bytes, msg: P.Message) -> None:
         r = self.access.hosted(ident, msg.body["tag"])
-        self.out.emit("robot.bump", r.team, {"tag": r.tag, "team": r.team, "x": msg.body["x"],
-                                              "y": msg.body["y"], "with": msg.body.get("with")})
+        x, y, _ = self.access.judged_pose(r, msg.body, "bump")
+        self.out.emit("robot.bump", r.team, {"tag": r.tag, "team": r.team, "x": x,
+                                              "y": y, "with": msg.body.get("with")})
         self.feed({"kind": "robot.bump", "team": r.team, "tag": r.tag})
         return None
 

@@ -39,6 +39,10 @@ class Access(Protocol):
     def halt_and_remove(self, tag: int, reason: str) -> None:
         """Halt robot ``tag``, cancel its tasks and take it out of the match."""
 
+    def judged_pose(self, r: RobotRecord, claim: dict[str, Any], what: str) -> tuple[float, float, float]:
+        """The pose at which the match judges ``what`` (a picture, a bump) of robot ``r``: the host's
+        ``claim`` only where the core's tracked pose bears it out, else the tracked pose."""
+
 
 class Outbox(Protocol):
     """What goes out of the core, after the turn's log flush."""

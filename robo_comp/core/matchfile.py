@@ -19,7 +19,8 @@ MATCH_FILE = "match.json"
 #: The recorded settings and what the organiser calls them on the command line.
 OPTIONS = {"teams": "--teams", "scenario_sha256": "--scenario", "practice": "--practice",
            "approve_uploads": "--approve-uploads", "rules": "--rules", "curve": "--curve",
-           "pose_hz": "--pose-hz", "heartbeat": "--heartbeat", "port": "--port"}
+           "pose_hz": "--pose-hz", "heartbeat": "--heartbeat", "port": "--port", "robots": "--robots",
+           "max_speed": "--max-speed"}
 
 
 def scenario_hash(path: str | None) -> str | None:

@@ -52,6 +52,18 @@ class RobotRecord:
     last_report: float = 0.0
     radio_allowance: float = 0.0
     radio_checked: float = 0.0
+    #: Fair play (robo_comp.match.plausibility): the robot's top speed as the core believes it
+    #: (cells/s); the anchor pose (x, y, sigma) and when it was taken (monotonic; 0: never in this
+    #: process, e.g. after a recovery), and the driving budget left at that time.
+    speed: float = 0.0
+    gate_budget: float = 0.0
+    gate_t: float = 0.0
+    gate_x: float = 0.0
+    gate_y: float = 0.0
+    gate_sigma: float = 0.0
+    #: Poses refused since the last integrity event about this robot (reported once a beat).
+    refused_poses: int = 0
+    refused_why: str = ""
 
     def summary(self) -> dict[str, Any]:
         """One row of the ``robots`` listing."""

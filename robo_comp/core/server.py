@@ -57,6 +57,9 @@ from robo_comp.protocol.taskspec import check_args, check_specs, find_spec
 from robo_comp.errors import (
     AuthError,
     FieldError,
+    ForbiddenError,
+    HeldError,
+    ImplausibleError,
     MalformedError,
     NotYoursError,
     RateLimitError,
@@ -66,11 +69,12 @@ from robo_comp.errors import (
     TooLargeError,
     UnavailableError,
 )
+from robo_comp.match.plausibility import MAX_SIGMA, WINDOW, PoseGate
 from robo_comp.plugins.manager import get_plugin_manager
 from robo_comp.scoring.config import ScoringConfig
 from robo_comp.scoring.match import CLOCK_PERIOD
 from robo_comp.teams.policy import check_owner, check_referee
-from robo_comp.teams.tokens import REFEREE, Principal, TokenBook
+from robo_comp.teams.tokens import ORGANISER, REFEREE, Principal, TokenBook
 from robo_comp.world.public import arena_payload
 from robo_comp.world.scenario import Scenario
 
@@ -89,6 +93,9 @@ POSE_HZ = 10.0
 #: largest piece of background work between two looks at the socket.
 POSE_CHUNK = 500
 MAX_RESULT = 64 * 1024
+#: Without ``--max-speed``: the fastest a robot may be (cells/s) is this many times the scenario's
+#: robot speed (hosts declare their robots' speed at ``register``; a faster claim is cut to this).
+MAX_SPEED_FACTOR = 4.0
 #: Frames held back while the log cannot be written, at most (the oldest go first).
 HELD_FRAMES = 50_000
 #: Requests served while the event log cannot be written: they log nothing, or (stop) must never
@@ -117,6 +124,7 @@ class Core:
                  port: int = 5555, pub_port: int = 0, heartbeat: float = 1.0, fsync: bool = False,
                  practice: bool = False, scoring: ScoringConfig | None = None, plugins: Any = None,
                  approve_uploads: bool = False, curve: bool = False, pose_hz: float = POSE_HZ,
+                 robots_per_team: int | None = None, max_speed: float | None = None,
                  max_connections: int | None = None, max_per_address: int | None = None) -> None:
         self.state_dir = private_dir(state_dir)  # tokens, logs, uploads, pictures: the organiser's (0700)
         self.scenario = scenario
@@ -133,6 +141,15 @@ class Core:
         self.pub_port = pub_port
         self.heartbeat = heartbeat
         self.registry = Registry()
+        #: At most this many robots per team (None: what the scenario gives each team).
+        self.robots_per_team = robots_per_team
+        fastest_zone = max([1.0, *(z.speed_factor for z in scenario.zones)])
+        #: The fastest a robot may drive (cells/s): a host's declared speed is cut to it.
+        self.max_speed = float(max_speed) if max_speed else scenario.kinematics.speed * fastest_zone * MAX_SPEED_FACTOR
+        self._default_speed = min(self.max_speed, scenario.kinematics.speed * fastest_zone)
+        #: Fair play: which reported poses a robot could have reached (robo_comp.match.plausibility).
+        self.gate = PoseGate(scenario.walls, self.max_speed)
+        self._implausible: set[int] = set()  # robots with refused poses not yet told to the referee
         self.tasks = TaskMachine(self._task_started, self._task_finished)
         self.sessions: dict[bytes, Session] = {}
         # Who watches what: team name -> routing ids, and the referee's under None.
@@ -171,7 +188,7 @@ class Core:
         self._plain_turn = True
         # Refusals of connections without a session, counted per (type, code) and logged once a beat
         # (a flood of bad hellos must not flood the log and the referee's console).
-        self._refused_anon: dict[tuple[str, str], list[Any]] = {}
+        self._refused_anon: dict[tuple[str, str, Principal | None], list[Any]] = {}
         self._moved: set[int] = set()  # moved since the last heartbeat (the log's sample)
         self._posed: dict[str, set[int]] = {}  # team -> robots that reported since the last batch
         # Background work cut into slices of bounded size (position batches, position samples for the
@@ -188,6 +205,7 @@ class Core:
             "reports": self._on_reports,
             "task.next": self._on_task_next, "task.done": self._on_task_done, "radio": self._on_radio,
             "leave": self._on_leave, "reply": self._on_host_reply, "arena": self._on_arena, "stats": self._on_stats,
+            "hosts": self._on_hosts, "handover": self._on_handover,
         }
         self.pm = plugins or get_plugin_manager()
         log_path = self.state_dir / "events.log"
@@ -441,6 +459,8 @@ class Core:
                 sess = self._prove(ident, msg.type, secret)
                 if self.storage_fault is not None and msg.type not in STORAGE_FREE:
                     raise StorageError(self.storage_fault)
+            if sess is not None and msg_type not in sess.allowed:
+                raise ForbiddenError(_role_refusal(sess.who, msg_type))
             body = self._handlers[msg.type](ident, msg)
             if body is not None:
                 self._reply(ident, P.ok_reply(req_id, body))
@@ -493,10 +513,11 @@ class Core:
         self._reply(ident, P.error_reply(req_id, err))
         if self.storage_fault is not None:  # nothing more is logged until the log can be written
             return
-        if sess is None:  # counted, and logged once a beat (see _log_refused)
-            row = self._refused_anon.get((msg_type, err.code))
+        if sess is None or msg_type in P.NOTIFICATIONS:  # counted, and logged once a beat (see _log_refused)
+            key = (msg_type, err.code, sess.who if sess is not None else None)
+            row = self._refused_anon.get(key)
             if row is None:
-                self._refused_anon[(msg_type, err.code)] = [1, err.message]
+                self._refused_anon[key] = [1, err.message]
             else:
                 row[0] += 1
             return
@@ -504,12 +525,14 @@ class Core:
                                              "code": err.code, "message": err.message}, public=False)
 
     def _log_refused(self) -> None:
-        """One ``refused`` event per (type, code) for the refusals of connections without a
-        session since the last beat, with their ``count``."""
+        """One ``refused`` event per (type, code, sender) with its ``count`` for the refusals since
+        the last beat of connections without a session and of notifications (a report refused ten
+        times a second is one line a beat for the referee, not ten)."""
         rows, self._refused_anon = self._refused_anon, {}
-        for (msg_type, code), (count, message) in sorted(rows.items()):
-            self.emit("refused", None, {"by": "unknown", "type": msg_type, "code": code, "message": message,
-                                        "count": count}, public=False)
+        for (msg_type, code, who), (count, message) in sorted(rows.items(), key=lambda kv: (kv[0][0], kv[0][1])):
+            self.emit("refused", who.team if who is not None else None, {
+                "by": who.name if who is not None else "unknown", "type": msg_type, "code": code,
+                "message": message, "count": count}, public=False)
 
     def _admit(self, principal: Any) -> str | None:
         """Asked by the ZAP handler about every principal that proved itself: None lets it in, a
@@ -756,6 +779,29 @@ class Core:
         r.moving = False
         r.status = RobotStatus.DISQUALIFIED
 
+    def judged_pose(self, r: RobotRecord, claim: dict[str, Any], what: str) -> tuple[float, float, float]:
+        """The pose at which the match judges ``what`` of robot ``r`` (see :class:`~robo_comp.core.desk.Access`).
+
+        The organiser's simulation knows a robot's true pose, which its reports (the robot's own
+        estimate) only approach; so a host's claimed pose is used where the tracked pose bears it out
+        (within 3 sigma, plus the driving since the last report). Anything else is judged at the
+        tracked pose, and the referee gets an ``integrity`` event."""
+        tracked = (r.x, r.y, r.heading)
+        if not all(type(claim.get(k)) in (int, float) for k in ("x", "y")):
+            return tracked
+        x, y = float(claim["x"]), float(claim["y"])
+        since = time.time() - r.last_report if r.last_report else self.gate.lag
+        verdict = self.gate.bears_out((r.x, r.y), r.sigma, since, r.speed, (x, y))
+        if not verdict.ok:
+            self.emit("integrity", None, {"kind": what, "tag": r.tag, "team": r.team, "count": 1, "x": r.x,
+                                          "y": r.y, "message": f"{what} {verdict.reason}; judged where it is "
+                                                              "tracked"}, public=False)
+            return tracked
+        heading: Any = claim.get("heading")
+        if type(heading) in (int, float) and math.isfinite(heading):
+            return x, y, float(heading)
+        return x, y, r.heading
+
     def _mark_returned(self, r: RobotRecord) -> None:
         if r.status != RobotStatus.CONNECTED and r.tag not in self.competition.disqualified_robots:
             r.status = RobotStatus.CONNECTED
@@ -815,6 +861,8 @@ class Core:
         self._log_positions()
         if self._refused_anon:
             self._log_refused()
+        if self._implausible:
+            self._log_implausible()
         if ((self._zap is not None and self._zap.refusals_waiting) or (self._guard and self._guard.cuts_waiting)
                 or (self._pub_guard and self._pub_guard.cuts_waiting)):
             self._log_refused_handshakes()
@@ -849,11 +897,16 @@ class Core:
 
     # ------------------------------------------------------------------ session requests
     def _check_key(self, who: Principal) -> None:
-        """With CurveZMQ a team's key lets in that team only (the referee's key any role); with
-        PLAIN, the token of the hello is the one the connection proved (the same principal)."""
+        """With CurveZMQ a team's key lets in that team only, the organiser's key the robot hosts
+        (and the referee's key any role); with PLAIN, the token of the hello is the one the
+        connection proved (the same principal)."""
         owner = self._key_owner
         if self.curve is not None:
-            if owner not in (REFEREE, who.name):
+            if who.role == "host":
+                if owner not in (REFEREE, ORGANISER):
+                    raise AuthError(f"this connection uses {owner}'s key; a robot host's token needs the "
+                                    f"organiser's key ({ORGANISER}.key_secret)")
+            elif owner not in (REFEREE, who.name):
                 raise AuthError(f"this connection uses team {owner}'s key; {who.name}'s token needs {who.name}'s key")
         elif self._zap is None or self._zap.principals.get(owner or "") != who:
             raise AuthError(f"this connection proved {owner or 'nobody'} when it connected; say hello with "
@@ -1013,30 +1066,109 @@ class Core:
         self._send_host(r, "stop", {"tag": r.tag}, cid)
         return None  # the reply goes out when the robot confirms (see _on_host_reply)
 
+    def _on_hosts(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
+        """The robot hosts (the referee's view): who, since when, last heard, which robots."""
+        check_referee(self.session(ident).who, "list the robot hosts")
+        now = time.monotonic()
+        rows = []
+        for sid, s in self.sessions.items():
+            if s.who.role != "host":
+                continue
+            held = sorted(t for t in s.tags if self.registry.robots[t].session == sid)
+            rows.append({"host": sid.hex(), "team": s.who.team, "client": s.client, "opened": s.opened,
+                         "silent": round(now - s.last_seen, 3), "tags": held,
+                         "robots": [self.registry.robots[t].robot_id for t in held]})
+        rows.sort(key=lambda row: (row["team"] or "", row["opened"]))
+        return {"hosts": rows}
+
+    def _on_handover(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
+        """The referee hands robots over: each is halted and released by the host that holds it, and
+        the next host that registers it (with its robot id) takes it."""
+        who = self.session(ident).who
+        check_referee(who, "hand robots over from one robot host to another")
+        tags = msg.body["tags"]
+        if not tags or len(tags) > 1000 or any(type(t) is not int for t in tags):
+            raise FieldError("'tags' must be a list of 1 to 1000 robot tags")
+        released = []
+        for tag in tags:
+            r = self.registry.get(tag)
+            old = r.session
+            if old is not None:
+                self._send_host(r, "stop", {"tag": tag})
+                self.send(old, P.request("release", 0, {"tag": tag, "message":
+                                                         "the referee handed this robot over to another host"}))
+                if old in self.sessions:
+                    self.sessions[old].tags.discard(tag)
+            if r.status == RobotStatus.CONNECTED:
+                r.status = RobotStatus.LOST
+                r.moving = False
+                self.emit("robot.lost", r.team, {"tag": tag, "x": r.x, "y": r.y,
+                                                 "message": "handed over by the referee; waiting for its next host"})
+                self.competition.feed({"kind": "robot.lost", "team": r.team, "tag": tag})
+            r.session = None
+            released.append(tag)
+            self.emit("robot.handover", r.team, {"tag": tag, "by": who.name, "from": old.hex() if old else None},
+                      public=False)
+        return {"released": released}
+
     # ------------------------------------------------------------------ robot-host requests
+    def robot_limit(self, team: str) -> int:
+        """How many robots ``team`` may register: ``--robots``, else what the scenario gives it
+        (a team the scenario does not name: as many as its largest team)."""
+        if self.robots_per_team is not None:
+            return self.robots_per_team
+        counts = {t.name: t.robots for t in self.scenario.teams}
+        return counts.get(team, max(counts.values(), default=1))
+
     def _on_register(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
         b = msg.body
         who = self.tokens.lookup(b["token"])
         team = who.team
-        if who.role != "team" or team is None:
-            raise FieldError("robots register with a team token, not the referee's")
+        if who.role != "host" or team is None:
+            raise ForbiddenError(
+                "robots register only through the organiser's robot host, with a host token "
+                "(STATE/hosts/<team>.token); a team's token gives its robots commands but never speaks "
+                "for the world (see docs/security.md, 'Who runs what')")
         self._check_key(who)
         robot_id = b["robot_id"]
         if not (0 < len(robot_id) <= 64):
             raise FieldError("'robot_id' must have 1 to 64 characters")
         specs = check_specs(b.get("tasks", []))
         sess = self.sessions.get(ident)
+        if sess is not None and sess.who != who:
+            raise AuthError(f"this connection's session speaks for {sess.who.name}; robots of "
+                            f"{who.name} register on a connection of their own")
+        r = self.registry.lookup(team, robot_id)
+        returning = r is not None
+        if r is None:
+            limit = self.robot_limit(team)
+            have = len(self.registry.of_team(team))
+            if have >= limit:
+                raise ForbiddenError(
+                    f"team {team} has its {limit} robot{'s' if limit != 1 else ''} already (the scenario gives "
+                    f"each team {limit}); robot {robot_id!r} is one too many and was not registered. A robot "
+                    "that comes back registers with its old robot id; the organiser may allow more with "
+                    "'robo-comp core --robots N'")
+            if "x" in b and "y" in b:
+                where = self.gate.where(float(b["x"]), float(b["y"]))
+                if not where.ok:
+                    raise ImplausibleError(f"robot {robot_id!r} cannot start there: {where.reason}")
+        elif (r.session is not None and r.session != ident and r.session in self.sessions
+              and r.status == RobotStatus.CONNECTED):
+            holder = self.sessions[r.session]
+            raise HeldError(
+                f"robot {robot_id!r} (tag {r.tag}) of team {team} is held by another robot host (connected "
+                f"since {time.strftime('%H:%M:%S', time.localtime(holder.opened))}, {len(holder.tags)} robots, "
+                f"heard {time.monotonic() - holder.last_seen:.1f} s ago) and was not taken from it. Stop that "
+                f"host first (its robots are lost after {3 * self.heartbeat:g} s without it, and then this "
+                f"host takes them), or ask the referee: 'robo-comp ctl hosts' lists the hosts, "
+                f"'robo-comp ctl handover {r.tag}' hands the robot to the next host that registers it")
         if sess is None:
             full = self._sessions_full(who)
             if full is not None:
                 raise RateLimitError(full)
             sess = Session(ident, who, "robots", time.monotonic(), key=self._key_owner)
             self.sessions[ident] = sess
-        elif sess.who != who:
-            raise AuthError(f"this connection's session speaks for {sess.who.name}; robots of "
-                            f"{who.name} register on a connection of their own")
-        r = self.registry.lookup(team, robot_id)
-        returning = r is not None
         if r is None:
             r = self.registry.add(team, robot_id)
         elif r.session is not None and r.session != ident and r.session in self.sessions:
@@ -1044,9 +1176,9 @@ class Core:
         r.session = ident
         sess.tags.add(r.tag)
         r.tasks = specs
-        for k in ("x", "y", "heading"):
-            if k in b:
-                setattr(r, k, float(b[k]))
+        declared = b.get("speed")
+        r.speed = min(self.max_speed, float(declared)) if declared and declared > 0 else self._default_speed
+        self._registered_pose(r, b, returning)
         was = r.status
         r.status = RobotStatus.DISQUALIFIED if r.tag in self.competition.disqualified_robots else RobotStatus.CONNECTED
         r.last_report = time.time()
@@ -1075,11 +1207,72 @@ class Core:
                 "task": r.current.wire() if r.current else None,
                 "hold": self.competition.phase in ("paused", "finished")}
 
+    def _registered_pose(self, r: RobotRecord, b: dict[str, Any], returning: bool) -> None:
+        """Take the pose a robot registers with, if it could be there: a new robot anywhere free in
+        the arena (checked before), a returning one within what it could have driven since it was
+        last seen by this core (after a core restart, anywhere free: this core never saw it)."""
+        now = time.monotonic()
+        if "heading" in b:
+            r.heading = float(b["heading"])
+        if "x" not in b or "y" not in b:
+            return
+        x, y = float(b["x"]), float(b["y"])
+        if returning and r.gate_t:  # it may have driven all the time it was away (not only LAG's worth)
+            budget = max(self.gate.refill(r.gate_budget, now - r.gate_t, r.speed), r.speed * (now - r.gate_t))
+            verdict, budget = self.gate.step((r.gate_x, r.gate_y, r.gate_sigma), budget, x, y, 0.0, r.speed)
+        else:
+            verdict, budget = self.gate.where(x, y), self.gate.capacity(r.speed)
+        if verdict.ok:
+            r.x, r.y = x, y
+            r.gate_x, r.gate_y, r.gate_sigma, r.gate_budget, r.gate_t = x, y, 0.0, budget, now
+        else:
+            self._refuse_pose(r, verdict.reason)
+
+    def _refuse_pose(self, r: RobotRecord, why: str) -> None:
+        """A pose of robot ``r`` was not taken: counted, and told to the referee once a beat."""
+        r.refused_poses += 1
+        r.refused_why = why
+        self._implausible.add(r.tag)
+
+    def _log_implausible(self) -> None:
+        """One ``integrity`` event (referee only) per robot whose poses were refused since the last beat."""
+        tags, self._implausible = sorted(self._implausible), set()
+        for tag in tags:
+            r = self.registry.robots[tag]
+            self.emit("integrity", None, {"kind": "pose", "tag": tag, "team": r.team, "count": r.refused_poses,
+                                          "x": r.x, "y": r.y, "message": r.refused_why}, public=False)
+            r.refused_poses = 0
+
     def _on_report(self, ident: bytes, msg: P.Message) -> None:
         b = msg.body
-        self._pose(self.hosted(ident, b["tag"]), b["x"], b["y"], b["heading"], b.get("moving", False),
-                   b.get("sensors"), time.time())
+        r = self.hosted(ident, b["tag"])
+        if not self._plausible(r, b["x"], b["y"], 0.0, time.monotonic()):
+            raise ImplausibleError(f"robot {r.tag}'s pose was not taken: {r.refused_why}")
+        self._pose(r, b["x"], b["y"], b["heading"], b.get("moving", False), b.get("sensors"), time.time())
         return None
+
+    def _plausible(self, r: RobotRecord, x: float, y: float, sigma: float, now: float) -> bool:
+        """Whether robot ``r`` could be at ``(x, y)`` now (then its driving budget is spent); a
+        refused pose is counted for the referee's ``integrity`` event. A robot this core has not
+        placed yet (registered without a position, or recovered from the log after a restart) may
+        be anywhere a robot can be; from then on it drives."""
+        if r.gate_t and now - r.gate_t >= WINDOW and (r.x, r.y) != (r.gate_x, r.gate_y):
+            # the anchor's window has passed: the pose taken last is the anchor now (else a robot taken
+            # far from its anchor would be measured from there for good)
+            budget = self.gate.refill(r.gate_budget, now - r.gate_t, r.speed)
+            _, left = self.gate.step((r.gate_x, r.gate_y, r.gate_sigma), budget, r.x, r.y, r.sigma, r.speed)
+            r.gate_x, r.gate_y, r.gate_sigma, r.gate_budget, r.gate_t = r.x, r.y, r.sigma, left, now
+        if r.gate_t:
+            budget = self.gate.refill(r.gate_budget, now - r.gate_t, r.speed)
+            verdict, budget = self.gate.step((r.gate_x, r.gate_y, r.gate_sigma), budget, x, y, sigma, r.speed)
+        else:
+            verdict, budget = self.gate.where(x, y, sigma), self.gate.capacity(r.speed)
+        if not verdict.ok:
+            self._refuse_pose(r, verdict.reason)
+            return False
+        if not r.gate_t or now - r.gate_t >= WINDOW:  # the anchor's window has passed: this pose is the next
+            r.gate_x, r.gate_y, r.gate_sigma, r.gate_budget, r.gate_t = x, y, sigma, budget, now
+        return True
 
     def _on_reports(self, ident: bytes, msg: P.Message) -> None:
         """Many robots of one host in one message (a host reports its robots in batches).
@@ -1093,11 +1286,22 @@ class Core:
         sensors = b.get("sensors") or [None] * n
         sigmas = b.get("sigma") or [0.0] * n
         now = time.time()
+        mono = time.monotonic()
         foreign = []
+        refused = []
         robots = self.registry.robots
         moved = self._moved
         posed = self._posed
         connected = RobotStatus.CONNECTED
+        # the plausibility check (PoseGate.step) inlined for the common case: in the arena, on a free
+        # cell, within the driving budget; anything else takes the full check and its reason
+        gate = self.gate
+        walls, width = gate.wall_bytes, gate.width
+        xmax, ymax = width - 0.5, gate.height - 0.5
+        lag, slack = gate.lag, gate.slack
+        max_sigma = MAX_SIGMA
+        window = WINDOW
+        hypot, floor = math.hypot, math.floor
         for tag, x, y, h, mv, sn, sg in zip(b["tags"], b["x"], b["y"], b["heading"], moving, sensors, sigmas):
             r = robots.get(tag)
             if r is None or r.session != ident:
@@ -1105,6 +1309,24 @@ class Core:
                 continue
             if r.status is not connected:
                 self._mark_returned(r)
+            sp = r.speed
+            since = mono - r.gate_t
+            budget = r.gate_budget + since * sp
+            cap = sp * lag + slack
+            if budget > cap:
+                budget = cap
+            g0 = r.gate_sigma
+            noise = 3.0 * ((sg if sg < max_sigma else max_sigma) + (g0 if g0 < max_sigma else max_sigma))
+            d = hypot(x - r.gate_x, y - r.gate_y)
+            if (r.gate_t and d <= budget + noise and -0.5 <= x < xmax and -0.5 <= y < ymax
+                    and not walls[floor(y + 0.5) * width + floor(x + 0.5)]):
+                if since >= window:  # the next anchor: the budget pays for the move, less the noise
+                    d = d - noise if d > noise else 0.0
+                    r.gate_budget = budget - d if budget > d else 0.0
+                    r.gate_x, r.gate_y, r.gate_sigma, r.gate_t = x, y, sg, mono
+            elif not self._plausible(r, x, y, sg, mono):
+                refused.append(tag)
+                continue
             r.x, r.y, r.heading, r.moving, r.sigma = x, y, h, mv, sg
             if sn is not None:
                 r.sensors = sn
@@ -1116,6 +1338,9 @@ class Core:
             team.add(tag)
         if foreign:  # the others' rows were taken
             raise NotYoursError(f"robots {foreign[:10]} are not hosted by this connection; register them first")
+        if refused:
+            raise ImplausibleError(f"the poses of robots {refused[:10]} were not taken (the referee sees why): "
+                                   f"{robots[refused[0]].refused_why}")
         return None
 
     def _pose(self, r: RobotRecord, x: float, y: float, heading: float, moving: bool,
@@ -1216,9 +1441,12 @@ class Core:
                 f"robot {p.tag} could not stop: {err.get('message', 'no reason given')}")), True)
             return None
         body = body or {}
-        for k in ("x", "y", "heading"):
-            if type(body.get(k)) in (int, float):
-                setattr(r, k, float(body[k]))
+        if type(body.get("heading")) in (int, float) and math.isfinite(body["heading"]):
+            r.heading = float(body["heading"])
+        x: Any = body.get("x")
+        y: Any = body.get("y")
+        if type(x) in (int, float) and type(y) in (int, float) and self._plausible(r, x, y, r.sigma, time.monotonic()):
+            r.x, r.y = float(x), float(y)  # where it halted, if it could be there (else where it is tracked)
         r.moving = False
         cancelled = self.tasks.cancel_all(r, "stopped", "cancelled by stop")
         ms = (time.monotonic() - p.t0) * 1000
@@ -1263,3 +1491,13 @@ def _seed_routing_ids() -> None:
         ctypes.CDLL(None).srand(secrets.randbits(32))
     except (OSError, AttributeError):  # no C library to reach (not Linux/macOS): nothing to seed
         log.debug("could not seed libzmq's routing id counter")
+
+
+def _role_refusal(who: Principal, type_: str) -> str:
+    """The sentence for a message a principal's role may not send (see ``protocol.ROLE_MESSAGES``)."""
+    if who.role == "host":
+        return (f"a robot host runs robots and reports what happens to them; {type_!r} is for the consoles "
+                "of a team or the referee, with their own tokens")
+    return (f"{type_!r} is a robot host's message: only the organiser's robot hosts (STATE/hosts/) say where "
+            f"robots are and what they see. {who.name}'s token gives robots commands, uploads code and reads "
+            "its own robots; it never speaks for the world")

@@ -1,6 +1,7 @@
 """Sessions: a connection that said hello (or registered robots) and proved it on every message."""
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 
 from robo_comp import protocol as P
@@ -24,3 +25,11 @@ class Session:
     #: the same principal with the same instance ends this session (see ``Core._on_hello``).
     instance: str | None = None
     tags: set[int] = field(default_factory=set)
+    #: The message types this session's principal may send (``protocol.ROLE_MESSAGES``).
+    allowed: frozenset[str] = frozenset()
+    #: When the session was opened (wall-clock seconds, shown to the referee).
+    opened: float = field(default_factory=time.time)
+
+    def __post_init__(self) -> None:
+        if not self.allowed:
+            self.allowed = P.ROLE_MESSAGES.get(self.who.role, frozenset())

@@ -14,13 +14,17 @@ nothing of theirs.
 """
 from robo_comp.protocol.arena import unpack_walls
 from robo_comp.protocol.messages import (
+    ANY_ROLE,
+    CONSOLE_ONLY,
     CORE_TO_HOST,
+    HOST_ONLY,
     MAX_RADIO,
     MAX_REPORTS,
     NOTIFICATIONS,
     OPENING,
     RADIO_RATE,
     REQUESTS,
+    ROLE_MESSAGES,
     check_reports,
     decode,
     validate,
@@ -52,7 +56,7 @@ from robo_comp.protocol.wire import (
 )
 
 __all__ = [
-    "INSTANCE_MAX", "INSTANCE_MIN",
+    "ANY_ROLE", "CONSOLE_ONLY", "HOST_ONLY", "ROLE_MESSAGES", "INSTANCE_MAX", "INSTANCE_MIN",
     "CORE_TO_HOST", "EVERYONE", "MAX_FRAME", "MAX_RADIO", "MAX_REPORTS", "NOTIFICATIONS", "OPENING",
     "PRIVATE_KEYS", "PRIVATE_TOPICS", "PUBLIC_TOPICS", "PROTOCOL_VERSION", "RADIO_RATE", "REQUESTS", "ROUTING_ID_BYTES", "SESSION_BYTES",
     "SESSION_KEY", "SOCKET_MAX_FRAME", "TOPICS", "Message", "check_reports", "decode", "decode_envelope",

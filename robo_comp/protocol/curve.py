@@ -43,7 +43,7 @@ import zmq.utils.monitor
 from zmq.utils import z85
 
 from robo_comp.errors import AuthError, ConnectionLostError, FieldError, RoboCompError
-from robo_comp.teams.tokens import REFEREE, check_team_name
+from robo_comp.teams.tokens import ORGANISER, REFEREE, check_team_name
 
 log = logging.getLogger("robo_comp.protocol.curve")
 
@@ -99,6 +99,15 @@ def secure_server(sock: zmq.Socket, keys: ServerKeys | None) -> None:
     sock.curve_publickey = keys.public
     sock.curve_secretkey = keys.secret
     sock.zap_domain = ZAP_DOMAIN
+
+
+def open_server(sock: zmq.Socket, public: bytes, secret: bytes) -> None:
+    """Make ``sock`` a CURVE server under a key pair with no allow list (no ZAP): any client may
+    connect, and every client knows it talks to the holder of ``secret`` (the overhead camera's
+    PUB socket, whose subscribers pin its public key)."""
+    sock.curve_server = True
+    sock.curve_publickey = public
+    sock.curve_secretkey = secret
 
 
 def secure_plain_client(sock: zmq.Socket, token: str | None) -> None:
@@ -318,12 +327,13 @@ def default_teams(state: str | Path) -> list[str]:
 
 
 def create_keys(state: str | Path, teams: list[str]) -> dict[str, bool]:
-    """Create the core's, each team's and the referee's key pairs in ``STATE/keys``.
+    """Create the core's, each team's, the referee's and the organiser's (robot hosts, camera) key
+    pairs in ``STATE/keys``.
 
     Existing key pairs are kept (running it again only adds what is missing). Returns
     name -> True when that pair was created now.
     """
-    names = [CORE_NAME, *(check_team_name(t) for t in teams), REFEREE]
+    names = [CORE_NAME, *(check_team_name(t) for t in teams), REFEREE, ORGANISER]
     kdir = keys_dir(state)
     kdir.mkdir(parents=True, exist_ok=True)
     os.chmod(kdir, 0o700)
@@ -345,7 +355,7 @@ def load_server_keys(state: str | Path, teams: list[str]) -> ServerKeys:
     for path in sorted(kdir.glob("*.key")):
         if path.stem != CORE_NAME:
             allowed[load_public(path)] = path.stem
-    missing = [n for n in [*teams, REFEREE] if n not in allowed.values()]
+    missing = [n for n in [*teams, REFEREE, ORGANISER] if n not in allowed.values()]
     if missing:
         raise FieldError(f"no CurveZMQ key for {', '.join(missing)} in {kdir}: "
                          f"run robo-comp keys --state {state} --teams {','.join(teams)} first")
@@ -368,13 +378,17 @@ def _state_info(core: str) -> tuple[Path, dict[str, object]] | None:
 
 
 def _token_owner(state: Path, token: str | None) -> str | None:
-    """Whose token ``token`` is in the state folder: a team name, ``referee`` or None."""
+    """Whose key goes with token ``token`` in the state folder: a team name, ``referee``,
+    ``organiser`` (a robot host's token) or None."""
     if not token:
         return None
     token = token.strip()
-    for path in [state / "referee.token", *sorted((state / "teams").glob("*.token"))]:
+    for path in [state / "referee.token", *sorted((state / "teams").glob("*.token")),
+                 *sorted((state / "hosts").glob("*.token"))]:
         try:
             if path.read_text().strip() == token:
+                if path.parent.name == "hosts":
+                    return ORGANISER
                 return REFEREE if path.name == "referee.token" else path.stem
         except OSError:
             continue
@@ -440,6 +454,8 @@ def run_keys(args: argparse.Namespace) -> int:
     for team in teams:
         print(f"  team {team}: hand over {team}.key_secret (secret, to that team only) and {CORE_NAME}.key")
     print(f"  referee and walls: {REFEREE}.key_secret and {CORE_NAME}.key")
+    print(f"  the organiser's robot hosts and overhead camera: {ORGANISER}.key_secret and {CORE_NAME}.key "
+          "(never to a team)")
     print("Clients connect with --curve-cert NAME.key_secret --core-key core.key "
           f"(or ${ENV_CERT} / ${ENV_CORE_KEY}).")
     return 0
@@ -455,5 +471,6 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     k.set_defaults(func=run_keys)
 
 
-__all__ = ["HANDSHAKE_EVENTS", "ClientKeys", "ServerKeys", "ZapHandler", "ZapTally", "add_curve_args", "client_keys", "create_keys",
-           "handshake_error", "load_server_keys", "secure_client", "secure_plain_client", "secure_plain_server", "secure_server"]
+__all__ = ["HANDSHAKE_EVENTS", "ClientKeys", "ServerKeys", "ZapHandler", "ZapTally", "add_curve_args", "client_keys",
+           "create_keys", "handshake_error", "load_server_keys", "open_server", "secure_client", "secure_plain_client",
+           "secure_plain_server", "secure_server"]

@@ -49,6 +49,9 @@ REQUESTS: dict[str, dict[str, tuple[str, bool]]] = {
     "snapshot": {},
     "arena": {},
     "stats": {},
+    # the organiser's robot hosts as the referee sees them, and handing robots from one host to the next
+    "hosts": {},
+    "handover": {"tags": (_LIST, True)},
     # the match (referee: match, penalty, disqualify, broadcast)
     "match": {"action": (_STR, True), "seconds": (_NUM, False), "rule": (_STR, False)},
     "score": {},
@@ -71,7 +74,7 @@ REQUESTS: dict[str, dict[str, tuple[str, bool]]] = {
     "register": {
         "token": (_STR, True), "robot_id": (_STR, True), "tasks": (_LIST, False),
         "x": (_NUM, False), "y": (_NUM, False), "heading": (_NUM, False),
-        "task_id": (_OPT_INT, False),
+        "task_id": (_OPT_INT, False), "speed": (_NUM, False),
         # a task.done the core has not acknowledged (sent again after a reconnect), and whether
         # the robot registers for the first time since its host started
         "done": (_MAP, False), "fresh": (_BOOL, False),
@@ -92,9 +95,10 @@ REQUESTS: dict[str, dict[str, tuple[str, bool]]] = {
     },
     "radio": {"tag": (_INT, True), "to": (_OPT_INT, False), "data": (_ANY, True)},
     "leave": {"tag": (_INT, True)},
-    "picture": {"tag": (_INT, True), "x": (_NUM, True), "y": (_NUM, True), "heading": (_NUM, True),
+    # x/y/heading of a picture or a bump are the host's word only: the core judges at its tracked pose
+    "picture": {"tag": (_INT, True), "x": (_NUM, False), "y": (_NUM, False), "heading": (_NUM, False),
                 "png": (_BIN, True), "label": (_STR, False)},
-    "bump": {"tag": (_INT, True), "x": (_NUM, True), "y": (_NUM, True), "with": (_OPT_INT, False)},
+    "bump": {"tag": (_INT, True), "x": (_NUM, False), "y": (_NUM, False), "with": (_OPT_INT, False)},
     "advertise": {"tag": (_INT, True), "tasks": (_LIST, True)},
     "log": {"tag": (_OPT_INT, False), "stream": (_STR, True), "text": (_STR, True)},
     # replies from a robot host to a core-initiated request (stop, upload, unload, extensions)
@@ -108,7 +112,24 @@ MAX_REPORTS = 1000
 
 #: Messages the core sends to robot hosts (requests expect a ``reply``).
 CORE_TO_HOST = ("heartbeat", "task.start", "task.interrupt", "stop", "radio", "hold", "map.delta", "event",
-                "upload", "unload", "extensions", "sandbox.reset")
+                "upload", "unload", "extensions", "sandbox.reset", "release")
+
+#: Messages only the organiser's robot hosts send (``STATE/hosts/<team>.token``): they say what
+#: happens in the world (robots, poses, pictures, bumps, task results) and answer for robots.
+HOST_ONLY = frozenset({"register", "report", "reports", "task.next", "task.done", "radio", "leave",
+                       "picture", "bump", "advertise", "log", "reply"})
+#: Messages every principal may send (a host reports a find for its team's code, reads the map).
+ANY_ROLE = frozenset({"hello", "heartbeat", "bye", "arena", "map", "map.delta", "find"})
+#: Messages of consoles, walls and scripts: a team's or the referee's token.
+CONSOLE_ONLY = frozenset(REQUESTS) - HOST_ONLY - ANY_ROLE
+#: What each role may send: the core refuses any other type from a session of that role
+#: (``E_FORBIDDEN``). A team gives commands and reads its robots; only the organiser's hosts
+#: speak for the world.
+ROLE_MESSAGES: dict[str, frozenset[str]] = {
+    "team": CONSOLE_ONLY | ANY_ROLE,
+    "referee": CONSOLE_ONLY | ANY_ROLE,
+    "host": HOST_ONLY | ANY_ROLE,
+}
 
 _NONE = type(None)
 #: The Python types each field kind admits (None = anything). bool is not an int here.

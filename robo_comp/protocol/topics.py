@@ -24,6 +24,9 @@ TOPICS = (
     "match.phase", "score", "score.change", "penalty", "disqualified", "broadcast", "find.reported",
     "picture", "robot.bump", "robot.tasks", "robot.log", "upload.pending", "upload.sent", "upload.done",
     "upload.unloaded", "sandbox.reset",
+    # fair play: claims about the world the match did not believe, and robots handed between hosts
+    # (both for the referee, and the team whose robot it is; never public)
+    "integrity", "robot.handover",
 )
 
 
@@ -42,7 +45,7 @@ PUBLIC_TOPICS: dict[str, tuple[str, ...] | None] = {
 }
 #: Topics that reach only the event's team and the referee, live and replayed.
 PRIVATE_TOPICS = frozenset({"radio", "refused", "robot.log", "upload.pending", "upload.sent", "upload.done",
-                            "upload.unloaded", "sandbox.reset"})
+                            "upload.unloaded", "sandbox.reset", "integrity", "robot.handover"})
 assert set(TOPICS) == PUBLIC_TOPICS.keys() | PRIVATE_TOPICS and not PUBLIC_TOPICS.keys() & PRIVATE_TOPICS
 
 

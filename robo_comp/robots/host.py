@@ -20,6 +20,7 @@ from collections import deque
 from collections.abc import Callable, Generator
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -27,9 +28,10 @@ import zmq
 
 from robo_comp import protocol as P
 from robo_comp.client import open_dealer
-from robo_comp.protocol.curve import ClientKeys
+from robo_comp.match.plausibility import WINDOW, PoseGate
+from robo_comp.protocol.curve import ClientKeys, load_public, secure_client
 from robo_comp.protocol.taskspec import check_args
-from robo_comp.errors import RoboCompError
+from robo_comp.errors import FieldError, RoboCompError
 from robo_comp.plugins.manager import get_plugin_manager
 from robo_comp.robots.drivers import ArenaDriver
 from robo_comp.robots.oneworld import Foreign, is_real, merge_readings
@@ -79,6 +81,11 @@ class SimRobot:
     inbox: deque[dict[str, Any]] = field(default_factory=lambda: deque(maxlen=100))
     last_report: float = 0.0
     last_sensed: float = 0.0
+    #: The anchor of camera fixes (x, y, sigma, monotonic time) and the driving budget left then: a fix
+    #: that the robot could not have driven to is refused (robo_comp.match.plausibility).
+    fix: tuple[float, float, float, float] | None = None
+    fix_last: tuple[float, float, float] | None = None
+    fix_budget: float = 0.0
 
     # RobotView for tasks -------------------------------------------------
     def cell(self) -> tuple[int, int]:
@@ -166,7 +173,8 @@ class RobotHost:
                  tick_hz: float = 20.0, driver: str = "sim", driver_options: dict[str, Any] | None = None,
                  plugins: Any = None, ctx: zmq.Context | None = None, seed: int = 0,
                  truth: Scenario | None = None, curve: ClientKeys | None = None,
-                 positioning: str | None = None, truth_pub: str | None = None) -> None:
+                 positioning: str | None = None, truth_pub: str | None = None,
+                 camera_key: str | Path | None = None) -> None:
         self.url = core_url
         self.token = token
         self.count = count
@@ -221,13 +229,19 @@ class RobotHost:
         # of the simulated one; and, in simulation, the true poses its synthetic cameras draw.
         self.positioning = positioning
         self.fix_sock: zmq.Socket | None = None
+        self._fix_opened = self._fix_heard = 0.0
+        #: Fixes refused as implausible (jumps the robot could not drive), and when that was last said.
+        self.fixes_refused = 0
+        self._fix_warned = 0.0
+        self.fix_gate: PoseGate | None = None
         if positioning is not None:
-            self.fix_sock = self.ctx.socket(zmq.SUB)
-            self.fix_sock.setsockopt(zmq.LINGER, 0)
-            for topic in (b"fixes", b"camera"):
-                self.fix_sock.setsockopt(zmq.SUBSCRIBE, topic)
-            self.fix_sock.connect(positioning)
-            self.poller.register(self.fix_sock, zmq.POLLIN)  # a fix wakes the loop
+            if camera_key is None:
+                raise FieldError(
+                    "a robot host takes fixes only from the organiser's camera: give --camera-key with the "
+                    "camera's public certificate (STATE/keys/organiser.key, made by 'robo-comp keys'; the "
+                    "camera runs with 'robo-comp camera run --key STATE/keys/organiser.key_secret')")
+            self._camera_public = load_public(camera_key)
+            self._open_fixes()
         self.truth_sock: zmq.Socket | None = None
         if truth_pub is not None:
             self.truth_sock = self.ctx.socket(zmq.PUB)
@@ -238,8 +252,36 @@ class RobotHost:
         #: Bodies of other hosts' robots the camera tracks (one world for real and virtual robots).
         self.foreign = Foreign()
         self._code_fd: int | None = None
+        #: Robots another host still holds (E_HELD): asked for again once a heartbeat, quietly.
+        self.held: dict[str, str] = {}
+        self._held_retry = 0.0
+        #: Robots the referee handed over to another host: this host leaves them alone.
+        self.released: set[str] = set()
         #: robot id -> its task.done not yet answered by the core (sent again on re-registering).
         self.unacked_done: dict[str, dict[str, Any]] = {}
+
+    FIX_SILENCE = 2.0
+    """Seconds without a message from the camera after which the host connects to it afresh."""
+
+    def _open_fixes(self) -> None:
+        """Subscribe to the camera's fixes over CurveZMQ with the camera's key pinned: a program
+        that binds the camera's address without the organiser's secret key never completes the
+        handshake, so none of its fixes arrive. libzmq does not retry a connection whose handshake
+        failed, so a silent camera gets a fresh connection every :attr:`FIX_SILENCE` seconds (an
+        impostor that held the address must not cut the real camera off for good)."""
+        assert self.positioning is not None
+        if self.fix_sock is not None:
+            self.poller.unregister(self.fix_sock)
+            self.fix_sock.close(0)
+        self._fix_opened = self._fix_heard = time.monotonic()
+        public, secret = zmq.curve_keypair()
+        self.fix_sock = self.ctx.socket(zmq.SUB)
+        self.fix_sock.setsockopt(zmq.LINGER, 0)
+        secure_client(self.fix_sock, ClientKeys(public, secret, self._camera_public))
+        for topic in (b"fixes", b"camera"):
+            self.fix_sock.setsockopt(zmq.SUBSCRIBE, topic)
+        self.fix_sock.connect(self.positioning)
+        self.poller.register(self.fix_sock, zmq.POLLIN)  # a fix wakes the loop
 
     # ------------------------------------------------------------------ sending
     def _send(self, type_: str, body: dict[str, Any], on_reply: Reply | None = None) -> None:
@@ -291,13 +333,21 @@ class RobotHost:
         if not self.robots:
             self._create_robots(body)
         self._set_state("registering")
-        self._waiting = len(self.robots)  # replies still to come before we are "up"
-        for r in self.robots.values():
-            b = r.driver
-            self._send("register", {"token": self.token, "robot_id": r.robot_id, "tasks": self.adverts(r.tag),
-                                    "x": b.x, "y": b.y, "heading": b.heading,
-                                    "task_id": r.task.id if r.task else None, **self._resend(r)},
-                       lambda ok, body, r=r: self._on_registered(r, ok, body))
+        mine = [r for r in self.robots.values() if r.robot_id not in self.released]
+        self._waiting = len(mine)  # replies still to come before we are "up"
+        if not mine:
+            self._set_state("up")
+        for r in mine:
+            self._register(r)
+
+    def _register(self, r: SimRobot) -> None:
+        """Register robot ``r`` (again) with its pose, tasks, top speed and the task it runs."""
+        b = r.driver
+        assert self.world is not None
+        self._send("register", {"token": self.token, "robot_id": r.robot_id, "tasks": self.adverts(r.tag),
+                                "x": b.x, "y": b.y, "heading": b.heading, "speed": float(self.world.speed),
+                                "task_id": r.task.id if r.task else None, **self._resend(r)},
+                   lambda ok, body, r=r: self._on_registered(r, ok, body))
 
     def adverts(self, tag: int) -> list[dict[str, Any]]:
         """What robot ``tag`` advertises: the plugins' tasks, then its uploaded code's (which win)."""
@@ -372,6 +422,7 @@ class RobotHost:
             self.world.speed = self.speed
         self.loc = Localization(self.world, external=self.positioning is not None)
         self.walls = self.world.walls
+        self.fix_gate = PoseGate(self.walls, self.world.speed * float(self.world.speed_map.max(initial=1.0)))
 
     def _create_robots(self, arena: dict[str, Any]) -> None:
         assert self.world is not None and self.team is not None
@@ -409,9 +460,15 @@ class RobotHost:
         return extra
 
     def _on_registered(self, r: SimRobot, ok: bool, body: dict[str, Any]) -> None:
-        if not ok:
+        if not ok and body.get("code") == "E_HELD":
+            if r.robot_id not in self.held:  # said once; asked again quietly once a heartbeat
+                log.warning("robot %s: %s", r.robot_id, body.get("message"))
+            self.held[r.robot_id] = str(body.get("message"))
+        elif not ok:
             log.error("robot %s was refused: %s", r.robot_id, body.get("message"))
         else:
+            if self.held.pop(r.robot_id, None) is not None:
+                log.warning("robot %s: the other host let it go; this host runs it now", r.robot_id)
             self.unacked_done.pop(r.robot_id, None)  # the core has it (or had it already)
             if r.tag and r.tag != body["tag"]:
                 self.by_tag.pop(r.tag, None)
@@ -483,6 +540,16 @@ class RobotHost:
                 self._reconnect("the core restarted")
             return
         if type_ == "event":
+            return
+        if type_ == "release":  # the referee handed a robot to another host: halt it and let it go
+            gone = self.by_tag.pop(body.get("tag", -1), None)
+            if gone is not None:
+                self._halt(gone)
+                gone.task = None
+                gone.tag = 0
+                self.released.add(gone.robot_id)
+                log.warning("robot %s: %s; this host no longer runs it", gone.robot_id,
+                            body.get("message", "released by the core"))
             return
         if type_ == "hold":  # the match is paused or over: robots hold still, tasks wait
             self.holding = bool(body.get("on"))
@@ -764,9 +831,13 @@ class RobotHost:
             try:
                 topic, body = self.fix_sock.recv_multipart(zmq.NOBLOCK)
             except zmq.Again:
+                now = time.monotonic()
+                if now - self._fix_heard > self.FIX_SILENCE and now - self._fix_opened > self.FIX_SILENCE:
+                    self._open_fixes()
                 return
             except ValueError:  # not two frames: not the camera's
                 continue
+            self._fix_heard = time.monotonic()
             try:
                 msg = P.unpack(body)
                 if topic == b"camera":
@@ -787,6 +858,8 @@ class RobotHost:
                     if r is None and self.world is not None and isinstance(rid, str):  # another host's robot:
                         self.foreign.fix(self.world, rid, float(f["x"]), float(f["y"]),  # a body in this arena
                                          float(f["heading"]), time.monotonic())
+                    if r is not None and not self._fix_plausible(r, float(f["x"]), float(f["y"]), float(f["sigma"])):
+                        continue
                     if r is not None:
                         own_fix = getattr(r.driver, "camera_fix", None)  # a real robot's pose follows the camera
                         if own_fix is not None:
@@ -803,6 +876,39 @@ class RobotHost:
             if moved and self.state == "up" and self.sock is not None:
                 rows = list(moved.values())
                 self.sock.send(P.request("reports", 0, self._pose_rows(rows, time.monotonic(), {}), self.session))
+
+    def _fix_plausible(self, r: SimRobot, x: float, y: float, sigma: float) -> bool:
+        """Whether a camera fix of robot ``r`` is one it could have driven to since the last fix taken
+        (or since it started); a refused fix is counted and said once a second."""
+        gate = self.fix_gate
+        if gate is None:
+            return True
+        now = time.monotonic()
+        speed = gate.speed
+        if r.fix is None:  # the first fix: measured from where the robot started
+            x0, y0, _ = r.driver.pose
+            anchor, t0, budget = (x0, y0, 0.0), now, gate.capacity(speed)
+        else:
+            x0, y0, s0, t0 = r.fix
+            budget = gate.refill(r.fix_budget, now - t0, speed)
+            if now - t0 >= WINDOW and r.fix_last is not None and r.fix_last[:2] != (x0, y0):
+                # the window has passed: the fix taken last is the anchor now
+                _, budget = gate.step((x0, y0, s0), budget, *r.fix_last, speed)
+                x0, y0, s0, t0 = *r.fix_last, now
+                r.fix, r.fix_budget = (x0, y0, s0, t0), budget
+            anchor = (x0, y0, s0)
+        verdict, left = gate.step(anchor, budget, x, y, sigma, speed)
+        if not verdict.ok:
+            self.fixes_refused += 1
+            if now - self._fix_warned > 1.0:
+                self._fix_warned = now
+                log.warning("positioning: a fix of %s was refused: %s (%d refused so far)", r.robot_id,
+                            verdict.reason, self.fixes_refused)
+            return False
+        if r.fix is None or now - t0 >= WINDOW:  # the anchor's window has passed: this fix is the next
+            r.fix, r.fix_budget = (x, y, sigma, now), left
+        r.fix_last = (x, y, sigma)
+        return True
 
     def _publish_truth(self) -> None:
         """The robots' true poses for synthetic cameras (simulation only: ``--truth-pub``)."""
@@ -879,6 +985,11 @@ class RobotHost:
                 next_tick = now + self.tick
                 if self.state == "up" and now - self.last_tx > self.heartbeat:
                     self._send("heartbeat", {})
+                if self.held and self.state == "up" and now >= self._held_retry:
+                    self._held_retry = now + self.heartbeat
+                    for rid in list(self.held):
+                        if rid in self.robots and rid not in self.released:
+                            self._register(self.robots[rid])
                 silent = now - self.last_rx
                 if silent > 3 * self.heartbeat and now - self.state_since > 3 * self.heartbeat:
                     self._lost_core(now)

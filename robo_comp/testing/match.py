@@ -96,6 +96,14 @@ class Match:
         """The token file of ``team`` (what ``--token-file`` takes)."""
         return self.state / ("referee.token" if team == "referee" else f"teams/{team}.token")
 
+    def host_token(self, team: str) -> str:
+        """The organiser's robot-host token for ``team``'s robots (``STATE/hosts/<team>.token``)."""
+        return self.host_token_file(team).read_text().strip()
+
+    def host_token_file(self, team: str) -> Path:
+        """The robot-host token file of ``team`` (what ``robo-comp robots --token-file`` takes)."""
+        return self.state / "hosts" / f"{team}.token"
+
     @property
     def teams(self) -> list[str]:
         """The match's team names (from the token files)."""

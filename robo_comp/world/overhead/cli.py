@@ -61,7 +61,7 @@ def _run(args: argparse.Namespace) -> int:
     bindings = load_bindings(args.markers)
     cals = [load_calibration(c) for c in args.calibration or []]
     n = run(bindings, args.pub, sources=args.source, calibrations=cals, truth_url=args.synthetic,
-            cameras=args.cameras, fps=args.fps, duration=args.duration or None)
+            cameras=args.cameras, fps=args.fps, duration=args.duration or None, key=args.key)
     print(f"{n} frames")
     return 0
 
@@ -95,4 +95,8 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     r.add_argument("--cameras", type=int, default=1, help="synthetic cameras side by side (default 1)")
     r.add_argument("--fps", type=float, default=10.0, help="synthetic frames per second (default 10)")
     r.add_argument("--duration", type=float, default=0.0, help="stop after S seconds (0 = run until stopped)")
+    r.add_argument("--key", metavar="SECRET_CERT",
+                   help="the organiser's secret certificate (STATE/keys/organiser.key_secret, made by robo-comp "
+                        "keys): fixes go out over CurveZMQ under this key, and hosts that pin its public half "
+                        "(robots --camera-key) take them; without it hosts refuse the fixes")
     r.set_defaults(func=_run)

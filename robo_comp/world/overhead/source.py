@@ -30,6 +30,7 @@ import zmq
 
 from robo_comp import protocol as P
 from robo_comp.errors import FieldError
+from robo_comp.protocol.curve import load_secret, open_server
 from robo_comp.world.overhead.binding import Bindings
 from robo_comp.world.overhead.calibrate import MOVED_CELLS, Calibration, calibrate, drift
 from robo_comp.world.overhead.detect import Detector, poses
@@ -159,13 +160,20 @@ def synthetic_rig(bindings: Bindings, walls: np.ndarray, cameras: int) -> tuple[
 
 def run(bindings: Bindings, pub_url: str, *, sources: list[str] | None = None,
         calibrations: list[Calibration] | None = None, truth_url: str | None = None, cameras: int = 1,
-        fps: float = 10.0, duration: float | None = None) -> int:
+        fps: float = 10.0, duration: float | None = None, key: str | Path | None = None) -> int:
     """Serve fixes on ``pub_url`` until ``duration`` (or forever): from ``sources`` with their
-    ``calibrations``, or from synthetic cameras drawing ``truth_url``'s arena. Returns frames done."""
+    ``calibrations``, or from synthetic cameras drawing ``truth_url``'s arena. Returns frames done.
+
+    ``key`` is the organiser's secret certificate (``STATE/keys/organiser.key_secret``): the PUB
+    socket is then a CurveZMQ server with that key, and hosts that pin its public half
+    (``robots --camera-key``) know the fixes are the organiser's camera's. Without it the fixes
+    go out in the clear and hosts refuse them."""
     ctx = zmq.Context.instance()
     pub = ctx.socket(zmq.PUB)
     pub.setsockopt(zmq.LINGER, 0)
     pub.setsockopt(zmq.SNDHWM, 100)
+    if key is not None:
+        open_server(pub, *load_secret(key))  # any host may listen; only the camera speaks with this key
     pub.bind(pub_url)
     robot_marker = {r: m for m, r in bindings.robots.items()}
     truth: TruthFeed | None = None
