@@ -104,8 +104,9 @@ def test_the_reference_explorer_loses_no_points_to_bumps(tmp_path):
 
 
 def test_code_that_never_moves_cannot_hold_up_a_match(tmp_path):
-    """A loop of calls that take no time would stop the simulated clock; past CALL_BURST calls in a
-    row each one takes a clock step, so the match still ends on time."""
+    """A loop of calls that take no time would stop the simulated clock; past the robot's call
+    budget (CALL_BURST at once) each is answered as the budget refills in simulated time, so
+    the match still ends on time."""
     busy = reference.source("sitter").replace("def play(robot, width, height, index, count):\n",
                                               "def play(robot, width, height, index, count):\n"
                                               "    while True:\n        robot.sense()\n")

@@ -6,11 +6,14 @@
     robo-comp league submit season rescuers ./rescuers    # a team's code (checked like an upload)
     robo-comp league run season --format round-robin     # schedule and play (local processes)
     robo-comp league run season --format swiss --rounds 4 --ray auto
-    robo-comp league table season                        # the leaderboard (--json for data)
-    robo-comp league report season season/report.html    # one static page with plots
+    robo-comp league table season                        # the leaderboard (--json for data; ? = provisional)
+    robo-comp league table season --order-free           # and a Bradley-Terry re-rating of the season
+    robo-comp league report season season/report.html    # one static page with plots and each match's limits
     robo-comp league cancel season 12                    # a match that cannot be played: out
+    robo-comp league repair season                       # a damaged league.db: keep what can be read
 
-See docs/league.md.
+Ctrl-C stops a run at once; 'league run' again plays what it stopped. One run per league at a
+time. An entrant over its limits in a match forfeits that match. See docs/league.md.
 """
 from __future__ import annotations
 

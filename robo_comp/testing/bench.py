@@ -198,9 +198,10 @@ class Bench:
       that robot's next call (or the end of its task) before it answers another robot, so
       module globals shared by the robots change in the same order every run;
     * calls that take no time (``position``, ``sense``, ``plan``, ``map_piece``, pictures,
-      ``look``, ``report_find``) are answered at once at the current simulated time -- up to
-      :data:`CALL_BURST` in a row; past them, each is answered a clock step later until the
-      robot moves again (code that never moves cannot stop the clock);
+      ``look``, ``report_find``) are answered at once at the current simulated time while the
+      robot's call budget (:class:`Budget`: :data:`CALL_BURST` at once, refilled per simulated
+      second) pays for them; past it, each is answered when the budget has refilled (code that
+      never moves cannot stop the clock);
     * the simulated clock advances (steps of ``dt`` seconds, all robots moving together) only when
       every running robot waits for a movement (``move``, ``turn``, ``go_to``); a movement is
       answered at the step where it ends.
