@@ -168,22 +168,6 @@ def _frame(type_: str, id_: int, body: dict, session: str | None) -> bytes:
     return P.pack(msg)
 
 
-def _register_raw(url: str, token: str, robots: int) -> tuple[list[zmq.Socket], list[int]]:
-    ctx = zmq.Context.instance()
-    socks, tags = [], []
-    for i in range(robots):
-        d = ctx.socket(zmq.DEALER)
-        d.setsockopt(zmq.LINGER, 0)
-        secure_plain_client(d, token)
-        d.connect(url)
-        d.send(_frame("register", 1, {"token": token, "robot_id": f"bench-{i}", "x": 2.0, "y": 2.0}, None))
-        socks.append(d)
-    for d in socks:
-        assert d.poll(10_000), "no register reply"
-        tags.append(P.unpack(d.recv())["body"]["tag"])
-    return socks, tags
-
-
 def core_rate(state: Path, robots: int, seconds: float) -> tuple[float, int]:
     """Reports per second the core absorbs (ownership check + PUB event) from ``robots`` clients."""
     info = json.loads((state / "core.json").read_text())
