@@ -21,6 +21,7 @@ pytest.importorskip("cyclonedds")
 from conftest import wait_for, wait_robots  # noqa: E402
 from robo_comp.client import resolve_core  # noqa: E402
 from robo_comp.launch import start_robots, stop_all  # noqa: E402
+from robo_comp.protocol.curve import create_keys  # noqa: E402
 from robo_comp.protocol import unpack_walls  # noqa: E402
 from robo_comp.robots.host import RobotHost  # noqa: E402
 from robo_comp.robots.oneworld import merge_readings  # noqa: E402
@@ -66,9 +67,10 @@ def test_a_ros2_robot_and_a_simulated_robot_see_each_other(core, tmp_path, monke
     fixes, truth_blue, truth_red = (f"tcp://127.0.0.1:{_port()}" for _ in range(3))
     walls_shape = None
     procs: list[subprocess.Popen] = []
+    create_keys(core.state, ["red", "blue"])  # the camera speaks under the organiser's key; hosts pin it
     host = RobotHost(resolve_core(str(core.state)), core.host_token("red"), 1, driver="ros2", seed=2,
                      driver_options={"ros2_ns": ["tb1"], "ros2_domain": domain, "ros2_speed": 0.25},
-                     positioning=fixes)
+                     positioning=fixes, camera_key=core.state / "keys" / "organiser.key")
     th = threading.Thread(target=host.run, kwargs={"duration": 120}, daemon=True)
     th.start()
     try:
@@ -87,7 +89,7 @@ def test_a_ros2_robot_and_a_simulated_robot_see_each_other(core, tmp_path, monke
         h, w = walls_shape
         (tmp_path / "markers.toml").write_text(Bindings({10: "red-1", 11: "blue-1"}, floor_markers(w, h)).to_toml())
         procs.append(subprocess.Popen([sys.executable, "-m", "robo_comp.cli", "camera", "run", "--markers",
-                                       str(tmp_path / "markers.toml"), "--pub", fixes, "--synthetic",
+                                       str(tmp_path / "markers.toml"), "--pub", fixes, "--key", str(core.state / "keys" / "organiser.key_secret"), "--synthetic",
                                        f"{truth_blue},{truth_red}", "--fps", "10"],
                                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
         # the red host sees the blue robot through the camera: a body in its arena

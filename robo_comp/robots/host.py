@@ -55,6 +55,11 @@ Reply = Callable[[bool, dict[str, Any]], None]
 REPORT_CHUNK = 100
 
 
+#: Seconds a connection that is still saying hello and registering gets before the host tries a new
+#: one (a link that delays every byte by 150 ms needs about a second for the handshake's round trips).
+HANDSHAKE_PATIENCE = 3.0
+
+
 @dataclass(slots=True)
 class RunningTask:
     """A task a robot is running: its id, name and generator of steps (and, while it waits for
@@ -991,7 +996,10 @@ class RobotHost:
                         if rid in self.robots and rid not in self.released:
                             self._register(self.robots[rid])
                 silent = now - self.last_rx
-                if silent > 3 * self.heartbeat and now - self.state_since > 3 * self.heartbeat:
+                # connecting takes handshake round trips (PLAIN or CURVE, then hello and register): on
+                # a slow link a fresh connection gets HANDSHAKE_PATIENCE before it is given up
+                patience = 3 * self.heartbeat if self.state == "up" else max(3 * self.heartbeat, HANDSHAKE_PATIENCE)
+                if silent > 3 * self.heartbeat and now - self.state_since > patience:
                     self._lost_core(now)
         if leave and self.state == "up":
             for r in self.by_tag.values():
