@@ -250,8 +250,14 @@ def test_a_host_drives_a_ros2_robot_for_a_real_core_and_stops_it_on_stop_and_on_
         mark = listen.mark()
         core.proc.send_signal(signal.SIGSTOP)
         try:
+            # a zero Twist between two steps of the task is not the halt: wait until the host has
+            # noticed the silent core (it then halts its robots and runs no step until it is back)
+            t_end = time.monotonic() + 10
+            while host.state == "up" and time.monotonic() < t_end:
+                time.sleep(0.02)
+            assert host.state != "up", "the host did not notice the silent core"
             stopped_at = listen.wait(is_zero, 5, "zero Twist after the core went silent",
-                                     since=mark)
+                                     since=listen.mark())
             time.sleep(0.5)
             assert all(v == 0.0 and w == 0.0 for t, v, w in listen.got if t >= stopped_at[0]), \
                 "the robot was commanded to move after the core was lost"
