@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from robo_comp.core.tasks import TaskRecord
+from robo_comp.match.plausibility import Track
 from robo_comp.errors import NoSuchRobotError
 
 FIRST_TAG = 101
@@ -52,18 +53,8 @@ class RobotRecord:
     last_report: float = 0.0
     radio_allowance: float = 0.0
     radio_checked: float = 0.0
-    #: Fair play (robo_comp.match.plausibility): the robot's top speed as the core believes it
-    #: (cells/s); the anchor pose (x, y, sigma) and when it was taken (monotonic; 0: never in this
-    #: process, e.g. after a recovery), and the driving budget left at that time.
-    speed: float = 0.0
-    gate_budget: float = 0.0
-    gate_t: float = 0.0
-    gate_x: float = 0.0
-    gate_y: float = 0.0
-    gate_sigma: float = 0.0
-    #: (the hot path's copies: 3 sigma of the anchor, capped; the budget's capacity at this speed)
-    gate_noise: float = 0.0
-    gate_cap: float = 0.0
+    #: Fair play: the robot's top speed, anchor and driving budget (robo_comp.match.plausibility).
+    track: Track = field(default_factory=Track)
     #: Poses refused since the last integrity event about this robot (reported once a beat).
     refused_poses: int = 0
     refused_why: str = ""

@@ -791,7 +791,7 @@ class Core:
             return tracked
         x, y = float(claim["x"]), float(claim["y"])
         since = time.time() - r.last_report if r.last_report else self.gate.lag
-        verdict = self.gate.bears_out((r.x, r.y), r.sigma, since, r.speed, (x, y))
+        verdict = self.gate.bears_out((r.x, r.y), r.sigma, since, r.track.speed, (x, y))
         if not verdict.ok:
             self.emit("integrity", None, {"kind": what, "tag": r.tag, "team": r.team, "count": 1, "x": r.x,
                                           "y": r.y, "message": f"{what} {verdict.reason}; judged where it is "
@@ -1177,8 +1177,8 @@ class Core:
         sess.tags.add(r.tag)
         r.tasks = specs
         declared = b.get("speed")
-        r.speed = min(self.max_speed, float(declared)) if declared and declared > 0 else self._default_speed
-        r.gate_cap = self.gate.capacity(r.speed)
+        speed = min(self.max_speed, float(declared)) if declared and declared > 0 else self._default_speed
+        r.track.speed, r.track.cap = speed, self.gate.capacity(speed)
         self._registered_pose(r, b, returning)
         was = r.status
         r.status = RobotStatus.DISQUALIFIED if r.tag in self.competition.disqualified_robots else RobotStatus.CONNECTED
@@ -1210,25 +1210,17 @@ class Core:
 
     def _registered_pose(self, r: RobotRecord, b: dict[str, Any], returning: bool) -> None:
         """Take the pose a robot registers with, if it could be there: a new robot anywhere free in
-        the arena (checked before), a returning one within what it could have driven since it was
-        last seen by this core (after a core restart, anywhere free: this core never saw it)."""
-        now = time.monotonic()
+        the arena, a returning one within what it could have driven while it was away (after a core
+        restart, anywhere free: this core never placed it)."""
         if "heading" in b:
             r.heading = float(b["heading"])
-        if "x" not in b or "y" not in b:
-            return
-        x, y = float(b["x"]), float(b["y"])
-        if returning and r.gate_t:  # it may have driven all the time it was away (not only LAG's worth)
-            budget = max(self.gate.refill(r.gate_budget, now - r.gate_t, r.speed), r.speed * (now - r.gate_t))
-            verdict, budget = self.gate.step((r.gate_x, r.gate_y, r.gate_sigma), budget, x, y, 0.0, r.speed)
-        else:
-            verdict, budget = self.gate.where(x, y), self.gate.capacity(r.speed)
-        if verdict.ok:
-            r.x, r.y = x, y
-            r.gate_x, r.gate_y, r.gate_sigma, r.gate_budget, r.gate_t = x, y, 0.0, budget, now
-            r.gate_noise = 0.0
-        else:
-            self._refuse_pose(r, verdict.reason)
+        if "x" in b and "y" in b:
+            x, y = float(b["x"]), float(b["y"])
+            verdict = self.gate.admit(r.track, x, y, 0.0, time.monotonic(), away=returning)
+            if verdict.ok:
+                r.x, r.y = x, y
+            else:
+                self._refuse_pose(r, verdict.reason)
 
     def _refuse_pose(self, r: RobotRecord, why: str) -> None:
         """A pose of robot ``r`` was not taken: counted, and told to the referee once a beat."""
@@ -1254,29 +1246,12 @@ class Core:
         return None
 
     def _plausible(self, r: RobotRecord, x: float, y: float, sigma: float, now: float) -> bool:
-        """Whether robot ``r`` could be at ``(x, y)`` now (then its driving budget is spent); a
-        refused pose is counted for the referee's ``integrity`` event. A robot this core has not
-        placed yet (registered without a position, or recovered from the log after a restart) may
-        be anywhere a robot can be; from then on it drives."""
-        if r.gate_t and now - r.gate_t >= WINDOW and (r.x, r.y) != (r.gate_x, r.gate_y):
-            # the anchor's window has passed: the pose taken last is the anchor now (else a robot taken
-            # far from its anchor would be measured from there for good)
-            budget = self.gate.refill(r.gate_budget, now - r.gate_t, r.speed)
-            _, left = self.gate.step((r.gate_x, r.gate_y, r.gate_sigma), budget, r.x, r.y, r.sigma, r.speed)
-            r.gate_x, r.gate_y, r.gate_sigma, r.gate_budget, r.gate_t = r.x, r.y, r.sigma, left, now
-            r.gate_noise = 3.0 * min(r.sigma, MAX_SIGMA)
-        if r.gate_t:
-            budget = self.gate.refill(r.gate_budget, now - r.gate_t, r.speed)
-            verdict, budget = self.gate.step((r.gate_x, r.gate_y, r.gate_sigma), budget, x, y, sigma, r.speed)
-        else:
-            verdict, budget = self.gate.where(x, y, sigma), self.gate.capacity(r.speed)
+        """Whether robot ``r`` could be at ``(x, y)`` now (``PoseGate.admit``: then its track moves
+        on); a refused pose is counted for the referee's ``integrity`` event."""
+        verdict = self.gate.admit(r.track, x, y, sigma, now, last=(r.x, r.y, r.sigma))
         if not verdict.ok:
             self._refuse_pose(r, verdict.reason)
-            return False
-        if not r.gate_t or now - r.gate_t >= WINDOW:  # the anchor's window has passed: this pose is the next
-            r.gate_x, r.gate_y, r.gate_sigma, r.gate_budget, r.gate_t = x, y, sigma, budget, now
-            r.gate_noise = 3.0 * min(sigma, MAX_SIGMA)
-        return True
+        return verdict.ok
 
     def _on_reports(self, ident: bytes, msg: P.Message) -> None:
         """Many robots of one host in one message (a host reports its robots in batches).
@@ -1304,7 +1279,7 @@ class Core:
         xmax, ymax = width - 0.5, gate.height - 0.5
         max_sigma = MAX_SIGMA
         window = WINDOW
-        hypot, floor = math.hypot, math.floor
+        floor = math.floor
         for tag, x, y, h, mv, sn, sg in zip(b["tags"], b["x"], b["y"], b["heading"], moving, sensors, sigmas):
             r = robots.get(tag)
             if r is None or r.session != ident:
@@ -1312,25 +1287,21 @@ class Core:
                 continue
             if r.status is not connected:
                 self._mark_returned(r)
-            since = mono - r.gate_t
-            budget = r.gate_budget + since * r.speed
-            if budget > r.gate_cap:
-                budget = r.gate_cap
-            lim = budget + r.gate_noise + (3.0 * sg if sg < max_sigma else 3.0 * max_sigma)
-            dx = x - r.gate_x
-            dy = y - r.gate_y
-            if (r.gate_t and dx * dx + dy * dy <= lim * lim and -0.5 <= x < xmax and -0.5 <= y < ymax
-                    and not walls[floor(y + 0.5) * width + floor(x + 0.5)]):
-                if since >= window:  # the next anchor: the budget pays for the move, less the noise
-                    noise = lim - budget
-                    d = hypot(dx, dy)
-                    d = d - noise if d > noise else 0.0
-                    r.gate_budget = budget - d if budget > d else 0.0
-                    r.gate_x, r.gate_y, r.gate_sigma, r.gate_t = x, y, sg, mono
-                    r.gate_noise = 3.0 * (sg if sg < max_sigma else max_sigma)
-            elif not self._plausible(r, x, y, sg, mono):
-                refused.append(tag)
-                continue
+            tr = r.track
+            since = mono - tr.t
+            budget = tr.budget + since * tr.speed
+            if budget > tr.cap:
+                budget = tr.cap
+            lim = budget + tr.noise + (3.0 * sg if sg < max_sigma else 3.0 * max_sigma)
+            dx = x - tr.x
+            dy = y - tr.y
+            # PoseGate.admit inlined for the common case (a placed robot within its anchor's window and
+            # budget, on a free cell); the rest (a new anchor once a second, refusals) takes admit itself
+            if not (tr.t and since < window and dx * dx + dy * dy <= lim * lim and -0.5 <= x < xmax
+                    and -0.5 <= y < ymax and not walls[floor(y + 0.5) * width + floor(x + 0.5)]):
+                if not self._plausible(r, x, y, sg, mono):
+                    refused.append(tag)
+                    continue
             r.x, r.y, r.heading, r.moving, r.sigma = x, y, h, mv, sg
             if sn is not None:
                 r.sensors = sn

@@ -51,6 +51,22 @@ class Verdict:
     reason: str = ""
 
 
+@dataclass(slots=True)
+class Track:
+    """One robot's standing with a :class:`PoseGate`: its top speed and the budget's capacity at
+    that speed, its anchor (``x``, ``y``, ``noise`` = 3 sigma capped, taken at ``t``; ``t`` 0 = not
+    placed yet) and the driving budget left at ``t``. The core keeps one per robot, a robot host one
+    per robot for its camera's fixes; :meth:`PoseGate.admit` is the one rule both follow."""
+
+    speed: float = 0.0
+    cap: float = 0.0
+    t: float = 0.0
+    x: float = 0.0
+    y: float = 0.0
+    noise: float = 0.0
+    budget: float = 0.0
+
+
 class PoseGate:
     """The plausibility check for one arena: ``walls`` (h, w) bool, ``speed`` the fastest any robot
     may drive (cells/s, already multiplied by the fastest surface zone)."""
@@ -101,6 +117,39 @@ class PoseGate:
                                   f"at {speed:g} cells/s it could have driven {budget + noise:.1f}"), budget
         return Verdict(True), max(0.0, budget - max(0.0, d - noise))
 
+    def track(self, speed: float) -> Track:
+        """A new robot's track at top speed ``speed`` (not placed yet)."""
+        return Track(speed=speed, cap=self.capacity(speed))
+
+    def admit(self, tr: Track, x: float, y: float, sigma: float, now: float,
+              last: tuple[float, float, float] | None = None, away: bool = False) -> Verdict:
+        """Whether a robot on track ``tr`` can be at ``(x, y)`` (uncertainty ``sigma``) at time
+        ``now``; an admitted pose updates the track. ``last`` is the pose admitted last (x, y, sigma):
+        when the anchor's :data:`WINDOW` has passed it becomes the anchor first, so that a robot
+        admitted far from its anchor is not measured from there for good. A robot not placed yet may
+        be anywhere a robot can be; ``away``: it was away (a reconnect), so it may have driven all
+        the time since, not only the budget's capacity."""
+        if not tr.t:
+            here = self.where(x, y, sigma)
+            if here.ok:
+                self._anchor(tr, x, y, sigma, self.capacity(tr.speed), now)
+            return here
+        if last is not None and now - tr.t >= WINDOW and (last[0], last[1]) != (tr.x, tr.y):
+            _, left = self.step((tr.x, tr.y, tr.noise / 3.0), self.refill(tr.budget, now - tr.t, tr.speed),
+                                *last, tr.speed)
+            self._anchor(tr, *last, left, now)
+        budget = self.refill(tr.budget, now - tr.t, tr.speed)
+        if away:
+            budget = max(budget, tr.speed * (now - tr.t))
+        verdict, left = self.step((tr.x, tr.y, tr.noise / 3.0), budget, x, y, sigma, tr.speed)
+        if verdict.ok and now - tr.t >= WINDOW:  # the anchor's window has passed: this pose is the next
+            self._anchor(tr, x, y, sigma, left, now)
+        return verdict
+
+    @staticmethod
+    def _anchor(tr: Track, x: float, y: float, sigma: float, budget: float, now: float) -> None:
+        tr.x, tr.y, tr.noise, tr.budget, tr.t = x, y, 3.0 * min(sigma, MAX_SIGMA), budget, now
+
     def bears_out(self, tracked: tuple[float, float], sigma: float, since: float, speed: float,
                   claim: tuple[float, float]) -> Verdict:
         """Whether a claimed position agrees with the tracked one: no farther from it than the
@@ -134,4 +183,4 @@ class PoseGate:
         return best
 
 
-__all__ = ["CLAIM_SLACK", "LAG", "MAX_SIGMA", "WINDOW", "PoseGate", "SLACK", "Verdict", "WALL_SLACK"]
+__all__ = ["CLAIM_SLACK", "LAG", "MAX_SIGMA", "WINDOW", "Track", "PoseGate", "SLACK", "Verdict", "WALL_SLACK"]

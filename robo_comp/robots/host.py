@@ -28,7 +28,7 @@ import zmq
 
 from robo_comp import protocol as P
 from robo_comp.client import open_dealer
-from robo_comp.match.plausibility import WINDOW, PoseGate
+from robo_comp.match.plausibility import PoseGate, Track
 from robo_comp.protocol.curve import ClientKeys, load_public, secure_client
 from robo_comp.protocol.taskspec import check_args
 from robo_comp.errors import FieldError, RoboCompError
@@ -86,11 +86,10 @@ class SimRobot:
     inbox: deque[dict[str, Any]] = field(default_factory=lambda: deque(maxlen=100))
     last_report: float = 0.0
     last_sensed: float = 0.0
-    #: The anchor of camera fixes (x, y, sigma, monotonic time) and the driving budget left then: a fix
-    #: that the robot could not have driven to is refused (robo_comp.match.plausibility).
-    fix: tuple[float, float, float, float] | None = None
+    #: Its camera fixes' track and the fix taken last: a fix that the robot could not have driven to
+    #: is refused (robo_comp.match.plausibility).
+    fix: Track | None = None
     fix_last: tuple[float, float, float] | None = None
-    fix_budget: float = 0.0
 
     # RobotView for tasks -------------------------------------------------
     def cell(self) -> tuple[int, int]:
@@ -883,26 +882,18 @@ class RobotHost:
                 self.sock.send(P.request("reports", 0, self._pose_rows(rows, time.monotonic(), {}), self.session))
 
     def _fix_plausible(self, r: SimRobot, x: float, y: float, sigma: float) -> bool:
-        """Whether a camera fix of robot ``r`` is one it could have driven to since the last fix taken
-        (or since it started); a refused fix is counted and said once a second."""
+        """Whether a camera fix of robot ``r`` is one it could have driven to since the fixes taken
+        before (``PoseGate.admit``, the core's rule for reports; the first fix is measured from where
+        the robot started); a refused fix is counted and said once a second."""
         gate = self.fix_gate
         if gate is None:
             return True
         now = time.monotonic()
-        speed = gate.speed
-        if r.fix is None:  # the first fix: measured from where the robot started
+        if r.fix is None:  # placed where it started, with the budget of a robot at rest
+            r.fix = gate.track(gate.speed)
             x0, y0, _ = r.driver.pose
-            anchor, t0, budget = (x0, y0, 0.0), now, gate.capacity(speed)
-        else:
-            x0, y0, s0, t0 = r.fix
-            budget = gate.refill(r.fix_budget, now - t0, speed)
-            if now - t0 >= WINDOW and r.fix_last is not None and r.fix_last[:2] != (x0, y0):
-                # the window has passed: the fix taken last is the anchor now
-                _, budget = gate.step((x0, y0, s0), budget, *r.fix_last, speed)
-                x0, y0, s0, t0 = *r.fix_last, now
-                r.fix, r.fix_budget = (x0, y0, s0, t0), budget
-            anchor = (x0, y0, s0)
-        verdict, left = gate.step(anchor, budget, x, y, sigma, speed)
+            gate.admit(r.fix, x0, y0, 0.0, now)
+        verdict = gate.admit(r.fix, x, y, sigma, now, last=r.fix_last)
         if not verdict.ok:
             self.fixes_refused += 1
             if now - self._fix_warned > 1.0:
@@ -910,8 +901,6 @@ class RobotHost:
                 log.warning("positioning: a fix of %s was refused: %s (%d refused so far)", r.robot_id,
                             verdict.reason, self.fixes_refused)
             return False
-        if r.fix is None or now - t0 >= WINDOW:  # the anchor's window has passed: this fix is the next
-            r.fix, r.fix_budget = (x, y, sigma, now), left
         r.fix_last = (x, y, sigma)
         return True
 
