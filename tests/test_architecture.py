@@ -104,7 +104,7 @@ def _imports_of(prefixes: tuple[str, ...]) -> dict[str, set[str]]:
 
 def test_clients_reach_the_core_only_through_the_protocol():
     """UIs, robot hosts, the public client and the team bench never import robo_comp.core."""
-    outside = ("robo_comp.tui", "robo_comp.wall", "robo_comp.web", "robo_comp.robots", "robo_comp.client",
+    outside = ("robo_comp.match", "robo_comp.tui", "robo_comp.wall", "robo_comp.web", "robo_comp.robots", "robo_comp.client",
                "robo_comp.ctl", "robo_comp.testing", "robo_comp.world", "robo_comp.sandbox",
                "robo_comp.protocol", "robo_comp.plugins", "robo_comp.scoring", "robo_comp.teams",
                "robo_comp.league")
@@ -113,7 +113,8 @@ def test_clients_reach_the_core_only_through_the_protocol():
 
 
 def test_nothing_below_imports_a_ui():
-    below = ("robo_comp.core", "robo_comp.protocol", "robo_comp.robots", "robo_comp.world", "robo_comp.sandbox",
+    below = ("robo_comp.core", "robo_comp.match", "robo_comp.protocol", "robo_comp.robots", "robo_comp.world",
+             "robo_comp.sandbox",
              "robo_comp.plugins", "robo_comp.scoring", "robo_comp.teams", "robo_comp.client", "robo_comp.league",
              "robo_comp.testing")
     ui = ("robo_comp.tui", "robo_comp.wall", "robo_comp.web")
@@ -133,4 +134,12 @@ def test_the_sandbox_holds_no_trusted_parts():
     banned = ("robo_comp.core", "robo_comp.robots", "robo_comp.plugins", "robo_comp.tui", "robo_comp.wall",
               "robo_comp.web", "robo_comp.client")
     bad = {m: sorted(d for d in deps if d.startswith(banned)) for m, deps in _imports_of(("robo_comp.sandbox",)).items()}
+    assert {m: d for m, d in bad.items() if d} == {}
+
+
+def test_the_match_model_imports_nothing_of_robo_comp():
+    """``robo_comp.match`` is plain Python on plain data: it imports no other part of robo_comp
+    (the core, the hosts and the bench all ask it; it asks none of them)."""
+    bad = {m: sorted(d for d in deps if not d.startswith("robo_comp.match"))
+           for m, deps in _imports_of(("robo_comp.match",)).items()}
     assert {m: d for m, d in bad.items() if d} == {}
