@@ -29,11 +29,13 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import pathlib
 import shutil
 import sys
 import tempfile
 import time
+from collections.abc import Iterator
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
@@ -42,6 +44,22 @@ from robo_comp.league import season  # noqa: E402
 from robo_comp.league.ratings import kendall_tau  # noqa: E402
 from robo_comp.league.runner import LocalRunner, RayRunner  # noqa: E402
 from robo_comp.league.store import LeagueStore  # noqa: E402
+
+
+@contextlib.contextmanager
+def two_node_ray() -> Iterator[RayRunner]:
+    """A runner on a two-node Ray cluster of one CPU each on this machine, shut down afterwards."""
+    from ray.cluster_utils import Cluster
+
+    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1, "include_dashboard": False})
+    cluster.add_node(num_cpus=1)
+    cluster.wait_for_nodes()
+    runner = RayRunner(cluster.address)
+    try:
+        yield runner
+    finally:
+        runner.close()
+        cluster.shutdown()
 
 FULL = {"scenarios": ["office"], "robots": 4, "seconds": 300}
 SHORT = {"scenarios": ["demo_room"], "robots": 2, "seconds": 60}
@@ -138,17 +156,8 @@ def fair_figures(root: pathlib.Path, args: argparse.Namespace) -> None:
     ways = {"in one process": here, "1 worker": replays(LocalRunner(1), root, "one"),
             "2 workers": replays(LocalRunner(2), root, "two")}
     if not args.skip_ray:
-        from ray.cluster_utils import Cluster
-
-        cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1, "include_dashboard": False})
-        cluster.add_node(num_cpus=1)
-        cluster.wait_for_nodes()
-        runner = RayRunner(cluster.address)
-        try:
+        with two_node_ray() as runner:
             ways["Ray, 2 nodes"] = replays(runner, root, "ray")
-        finally:
-            runner.close()
-            cluster.shutdown()
     every = {d for v in ways.values() for d in v}
     for way, digests in ways.items():
         print(f"{way:>15}: {len(set(digests))} distinct log(s) in {len(digests)} plays ({digests[0][:12]})")
@@ -215,17 +224,8 @@ def throughput_figures(root: pathlib.Path, args: argparse.Namespace) -> None:
     print(f"2 workers: {two['wall_seconds']:.1f} s, {rate2:.0f} matches/hour, speed-up {rate2 / rate1:.2f}x, "
           f"efficiency {rate2 / rate1 / 2:.0%}; same results: {two['digests'] == one['digests']}")
     if not args.skip_ray:
-        from ray.cluster_utils import Cluster
-
-        cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1, "include_dashboard": False})
-        cluster.add_node(num_cpus=1)
-        cluster.wait_for_nodes()
-        runner = RayRunner(cluster.address)
-        try:
+        with two_node_ray() as runner:
             ray_fig = throughput(root, runner, args.matches, "ray")
-        finally:
-            runner.close()
-            cluster.shutdown()
         rate_r = 3600 * ray_fig["matches"] / ray_fig["wall_seconds"]
         print(f"Ray, 2 nodes x 1 CPU: {ray_fig['wall_seconds']:.1f} s, {rate_r:.0f} matches/hour, speed-up "
               f"{rate_r / rate1:.2f}x, efficiency {rate_r / rate1 / 2:.0%}; same results: "
