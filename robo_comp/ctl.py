@@ -37,24 +37,24 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     u = cmds.add_parser("upload", help="upload an extension or code module to robots",
                         description="Example: upload 101,102 square.py. The module is checked on each robot "
                                     "(docs/sandbox.md); a refusal names the file, line and rule.")
-    u.add_argument("tags", help="robot tag, or several separated by commas")
+    u.add_argument("tags", type=_tag_list, help="robot tag, or several separated by commas")
     u.add_argument("file", help="the module (.py)")
     u.add_argument("--run", action="store_true", help="run the module's first task now (code that runs now)")
     x = cmds.add_parser("extensions", help="the modules uploaded to a robot")
     x.add_argument("tag", type=int)
     un = cmds.add_parser("unload", help="take an uploaded module away from robots")
-    un.add_argument("tags", help="robot tag, or several separated by commas")
+    un.add_argument("tags", type=_tag_list, help="robot tag, or several separated by commas")
     un.add_argument("name", help="the module's MANIFEST name")
     sr = cmds.add_parser("sandbox-reset", help="referee: restart the team-code sandbox of robots now",
                          description="A sandbox whose code hit its limits too often rests (60 s, doubling) "
                                      "and restarts by itself; this restarts it at once.")
-    sr.add_argument("tags", help="robot tag, or several separated by commas")
+    sr.add_argument("tags", type=_tag_list, help="robot tag, or several separated by commas")
     cmds.add_parser("hosts", help="referee: the organiser's robot hosts and the robots each holds")
     ho = cmds.add_parser("handover", help="referee: hand robots to the next robot host that registers them",
                          description="Each robot is halted and let go by the host that holds it; the next host "
                                      "that registers it (with its robot id) runs it. For a host that hangs, or "
                                      "robots moving to a spare host.")
-    ho.add_argument("tags", help="robot tag, or several separated by commas")
+    ho.add_argument("tags", type=_tag_list, help="robot tag, or several separated by commas")
     m = cmds.add_parser("match", help="referee: start, pause, resume, finish or extend the match; "
                                       "or set the outage rule",
                         description="'outage --rule pause|count' chooses what a core outage (a crash, a restart) "
@@ -75,6 +75,17 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     e.add_argument("--skip", action="append", default=[], metavar="PREFIX",
                    help="leave out topics starting with PREFIX (repeatable), e.g. --skip robot.positions")
     p.set_defaults(func=run)
+
+
+def _tag_list(text: str) -> list[int]:
+    """``101`` or ``101,102``: robot tags (an argparse type: anything else is a usage error)."""
+    try:
+        tags = [int(t) for t in text.split(",") if t.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"tags must be numbers separated by commas, got {text!r}") from None
+    if not tags:
+        raise argparse.ArgumentTypeError("give at least one robot tag")
+    return tags
 
 
 def add_connection_args(p: argparse.ArgumentParser, required: bool = True) -> None:
@@ -212,12 +223,7 @@ def _run(c: Client, args: argparse.Namespace) -> int:
         if not args.json:
             _print_hosts(out)
     elif args.cmd == "handover":
-        try:
-            tags = [int(t) for t in args.tags.split(",") if t.strip()]
-        except ValueError:
-            print(f"error: tags must be numbers separated by commas, got {args.tags!r}", file=sys.stderr)
-            return 2
-        out = c.request("handover", tags=tags)
+        out = c.request("handover", tags=args.tags)
         if not args.json:
             print(f"handed over: {', '.join(map(str, out['released']))} (the next host that registers them runs them)")
     elif args.cmd == "give":
@@ -244,11 +250,7 @@ def _run(c: Client, args: argparse.Namespace) -> int:
             print(f"robot {out['tag']} halted at ({out['x']:.2f}, {out['y']:.2f}) in {out['ms']:.1f} ms; "
                   f"cancelled tasks: {out['cancelled'] or 'none'}")
     elif args.cmd in ("upload", "unload", "sandbox-reset"):
-        try:
-            tags = [int(t) for t in args.tags.split(",") if t.strip()]
-        except ValueError:
-            print(f"error: tags must be numbers separated by commas, got {args.tags!r}", file=sys.stderr)
-            return 2
+        tags = args.tags
         if args.cmd == "sandbox-reset":
             out = c.sandbox_reset(tags)
             if not args.json:
