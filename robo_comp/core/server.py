@@ -1092,8 +1092,7 @@ class Core:
         for tag in tags:
             r = self.registry.get(tag)
             old = r.session
-            if old is not None:
-                self._send_host(r, "stop", {"tag": tag})
+            if old is not None:  # the host halts the robot and lets it go (no separate stop)
                 self.send(old, P.request("release", 0, {"tag": tag, "message":
                                                          "the referee handed this robot over to another host"}))
                 if old in self.sessions:
