@@ -69,7 +69,7 @@ from robo_comp.errors import (
     TooLargeError,
     UnavailableError,
 )
-from robo_comp.match.plausibility import MAX_SIGMA, WINDOW, PoseGate
+from robo_comp.match.plausibility import WINDOW, PoseGate
 from robo_comp.plugins.manager import get_plugin_manager
 from robo_comp.scoring.config import ScoringConfig
 from robo_comp.scoring.match import CLOCK_PERIOD
@@ -1274,14 +1274,7 @@ class Core:
         moved = self._moved
         posed = self._posed
         connected = RobotStatus.CONNECTED
-        # the plausibility check (PoseGate.step) inlined for the common case: in the arena, on a free
-        # cell, within the driving budget; anything else takes the full check and its reason
-        gate = self.gate
-        walls, width = gate.wall_bytes, gate.width
-        xmax, ymax = width - 0.5, gate.height - 0.5
-        max_sigma = MAX_SIGMA
         window = WINDOW
-        floor = math.floor
         for tag, x, y, h, mv, sn, sg in zip(b["tags"], b["x"], b["y"], b["heading"], moving, sensors, sigmas):
             r = robots.get(tag)
             if r is None or r.session != ident:
@@ -1290,17 +1283,12 @@ class Core:
             if r.status is not connected:
                 self._mark_returned(r)
             tr = r.track
-            since = mono - tr.t
-            budget = tr.budget + since * tr.speed
-            if budget > tr.cap:
-                budget = tr.cap
-            lim = budget + tr.noise + (3.0 * sg if sg < max_sigma else 3.0 * max_sigma)
+            # PoseGate.admit inlined for the common case: a placed robot within its anchor's window and
+            # its reach (the budget it had at the anchor, clear of walls and edges: never more than admit
+            # would take); the rest (a new anchor once a second, refusals, longer moves) asks admit
             dx = x - tr.x
             dy = y - tr.y
-            # PoseGate.admit inlined for the common case (a placed robot within its anchor's window and
-            # budget, on a free cell); the rest (a new anchor once a second, refusals) takes admit itself
-            if not (tr.t and since < window and dx * dx + dy * dy <= lim * lim and -0.5 <= x < xmax
-                    and -0.5 <= y < ymax and not walls[floor(y + 0.5) * width + floor(x + 0.5)]):
+            if not (mono - tr.t < window and dx * dx + dy * dy <= tr.reach2):
                 why = self._pose_refusal(r, x, y, sg, mono)
                 if why:
                     refused.append((tag, why))

@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 #: Seconds of driving the budget may hold: reports delayed or bunched this long are still taken.
@@ -65,6 +66,10 @@ class Track:
     y: float = 0.0
     noise: float = 0.0
     budget: float = 0.0
+    #: The square of how far from the anchor a pose is taken without asking more: no farther than
+    #: the budget at the anchor plus its noise, nor than the nearest wall or edge (a hot path's test:
+    #: one comparison; anything else asks :meth:`PoseGate.admit`).
+    reach2: float = 0.0
 
 
 class PoseGate:
@@ -79,6 +84,11 @@ class PoseGate:
         self.speed = float(speed)
         self.lag = float(lag)
         self.slack = float(slack)
+        #: Per cell, how far any point of it is from every wall cell and the arena's edge (cells, at
+        #: least): the distance between cell centres, less one cell's diagonal.
+        free = np.pad(~self.walls, 1, constant_values=False).astype(np.uint8)
+        centre = cv2.distanceTransform(free, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)[1:-1, 1:-1]
+        self.clearance = np.maximum(0.0, centre - math.sqrt(2.0))
 
     def capacity(self, speed: float) -> float:
         """The most a robot of top speed ``speed`` may move in one burst (cells)."""
@@ -132,23 +142,27 @@ class PoseGate:
         if not tr.t:
             here = self.where(x, y, sigma)
             if here.ok:
-                self._anchor(tr, x, y, sigma, self.capacity(tr.speed), now)
+                self.anchor(tr, x, y, sigma, self.capacity(tr.speed), now)
             return here
         if last is not None and now - tr.t >= WINDOW and (last[0], last[1]) != (tr.x, tr.y):
             _, left = self.step((tr.x, tr.y, tr.noise / 3.0), self.refill(tr.budget, now - tr.t, tr.speed),
                                 *last, tr.speed)
-            self._anchor(tr, *last, left, now)
+            self.anchor(tr, *last, left, now)
         budget = self.refill(tr.budget, now - tr.t, tr.speed)
         if away:
             budget = max(budget, tr.speed * (now - tr.t))
         verdict, left = self.step((tr.x, tr.y, tr.noise / 3.0), budget, x, y, sigma, tr.speed)
         if verdict.ok and now - tr.t >= WINDOW:  # the anchor's window has passed: this pose is the next
-            self._anchor(tr, x, y, sigma, left, now)
+            self.anchor(tr, x, y, sigma, left, now)
         return verdict
 
-    @staticmethod
-    def _anchor(tr: Track, x: float, y: float, sigma: float, budget: float, now: float) -> None:
+    def anchor(self, tr: Track, x: float, y: float, sigma: float, budget: float, now: float) -> None:
+        """Make ``(x, y)`` (an admitted pose) the anchor of ``tr`` at ``now`` with ``budget`` left."""
         tr.x, tr.y, tr.noise, tr.budget, tr.t = x, y, 3.0 * min(sigma, MAX_SIGMA), budget, now
+        clear = float(self.clearance[min(self.height - 1, max(0, math.floor(y + 0.5))),
+                                     min(self.width - 1, max(0, math.floor(x + 0.5)))])
+        reach = min(clear, budget + tr.noise)
+        tr.reach2 = reach * reach
 
     def bears_out(self, tracked: tuple[float, float], sigma: float, since: float, speed: float,
                   claim: tuple[float, float]) -> Verdict:

@@ -259,6 +259,9 @@ class RobotHost:
         #: Robots another host still holds (E_HELD): asked for again once a heartbeat, quietly.
         self.held: set[str] = set()
         self._held_retry = 0.0
+        #: This host process, the same across its reconnects: its hello on a new connection ends the session
+        #: of its old one at once (whose late frames would otherwise keep its robots for three heartbeats).
+        self.instance = P.new_instance_id()
         #: Robots the referee handed over to another host: this host leaves them alone.
         self.released: set[str] = set()
         #: robot id -> its task.done not yet answered by the core (sent again on re-registering).
@@ -313,7 +316,7 @@ class RobotHost:
         self.poller.register(self.sock, zmq.POLLIN)
         self.replies.clear()
         self._set_state("hello")
-        self._send("hello", {"token": self.token, "client": "robots"}, self._on_hello)
+        self._send("hello", {"token": self.token, "client": "robots", "instance": self.instance}, self._on_hello)
 
     def _set_state(self, state: str) -> None:
         self.state = state
@@ -467,6 +470,10 @@ class RobotHost:
         if not ok and body.get("code") == "E_HELD":
             if r.robot_id not in self.held:  # said once; asked again quietly once a heartbeat
                 log.warning("robot %s: %s", r.robot_id, body.get("message"))
+                # another connection runs it for the core: it holds still and reports nothing (its task,
+                # if the core still has one, comes back with the registration that takes it)
+                self._halt(r)
+                self.by_tag.pop(r.tag, None)
             self.held.add(r.robot_id)
         elif not ok:
             log.error("robot %s was refused: %s", r.robot_id, body.get("message"))
