@@ -261,16 +261,19 @@ class LeagueStore:
         prior: dict[str, list[int]] = {}
         sides: dict[str, list[int]] = {}
         use = [0] * len(pool)
-        for m in self.matches():
-            if m.status == "cancelled" or m.scenario not in pool:
-                continue
-            k = pool.index(m.scenario)
+
+        def tally(teams: list[str], k: int) -> None:
+            """Count a match of ``teams`` (in side order) on scenario ``k``."""
             use[k] += 1
-            for i, team in enumerate(m.teams):
+            for i, team in enumerate(teams):
                 prior.setdefault(team, [0] * len(pool))[k] += 1
-                row = sides.setdefault(team, [0] * max(2, len(m.teams)))
+                row = sides.setdefault(team, [0] * max(2, len(teams)))
                 row.extend([0] * (i + 1 - len(row)))
                 row[i] += 1
+
+        for m in self.matches():
+            if m.status != "cancelled" and m.scenario in pool:
+                tally(m.teams, pool.index(m.scenario))
         flat = [g for _, groups in rounds for g in groups]
         for teams in flat:
             missing = [t for t in teams if t not in newest]
@@ -284,11 +287,7 @@ class LeagueStore:
                 got = balance(groups, len(pool), prior=prior, prior_sides=sides, prior_use=use,
                               scenario=(rnd - 1) % len(pool))
                 for g, k in got:
-                    use[k] += 1
-                    for i, team in enumerate(g):
-                        prior.setdefault(team, [0] * len(pool))[k] += 1
-                        row = sides.setdefault(team, [0] * max(2, len(g)))
-                        row[i] += 1
+                    tally(g, k)
                 placed_list += got
             placed = iter(placed_list)
         else:
