@@ -16,16 +16,11 @@ from typing import Any
 
 import numpy as np
 
-from robo_comp import protocol as P
 from robo_comp.wall.model import WallModel
 
 # The map is drawn in the wall's colours, from its pygame module: without pygame's greeting on stdout.
 os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
 
-#: Topics the core never publishes (they reach only the team and the referee).
-NEVER_PUBLIC = P.PRIVATE_TOPICS
-#: The fields of a ``picture`` event the core publishes (the logged record holds more).
-PUBLIC_PICTURE = P.PUBLIC_TOPICS["picture"] or ()
 #: The fields of a robot row and of a find that the public view shows (those the PUB feed carries).
 PUBLIC_ROBOT = ("tag", "team", "status", "x", "y", "heading", "moving")
 PUBLIC_FIND = ("id", "team", "tag", "x", "y", "kind", "state")
@@ -34,12 +29,6 @@ PUBLIC_FIND = ("id", "team", "tag", "x", "y", "kind", "state")
 ROBOT_FIELDS = ("tag", "team", "x", "y", "heading", "status", "moving", "task", "trail")
 #: Trail points per robot in a ``state`` message (a page that joins or seeks sees where robots were).
 TRAIL_SENT = 24
-
-
-def public_event(topic: str, data: dict[str, Any]) -> dict[str, Any] | None:
-    """The event as the core's PUB feed carries it (None: never published), for logged records:
-    :func:`robo_comp.protocol.topics.public_event`, the table the core's feed uses too."""
-    return P.public_event(topic, data)
 
 
 def public_snapshot(snap: dict[str, Any]) -> dict[str, Any]:
