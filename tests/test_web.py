@@ -25,7 +25,7 @@ from conftest import wait_for, wait_robots
 from robo_comp.core.eventlog import EventLog
 from robo_comp.testing import Match, start_match
 from robo_comp.wall.model import WallModel
-from robo_comp.web.state import public_event
+from robo_comp.protocol import public_event
 from robo_comp.world.public import arena_payload
 from robo_comp.world.scenario import bundled_scenario_path, load_scenario
 

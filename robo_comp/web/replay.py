@@ -25,7 +25,7 @@ from robo_comp.errors import AuthError, FieldError
 from robo_comp.protocol.logfile import read_recording
 from robo_comp.wall.model import WallModel
 from robo_comp.wall.replay import ScoreFold
-from robo_comp.web.state import TaskNames, jsonable, map_png, public_event, state_json
+from robo_comp.web.state import TaskNames, jsonable, map_png, state_json
 from robo_comp.web.story import Story
 
 #: Seconds of recording between two keyframes.
@@ -180,7 +180,7 @@ class Recording:
     def _filter(view: str, topic: str, team: str | None, data: dict[str, Any],
                 team_of: dict[int, str | None]) -> dict[str, Any] | None:
         if view == "public":
-            return public_event(topic, data)
+            return P.public_event(topic, data)
         if view == "referee" or topic == "core.started":
             return data
         if topic == "robot.positions" and team is None:  # the log's batch holds every team's robots

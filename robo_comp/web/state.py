@@ -16,16 +16,11 @@ from typing import Any
 
 import numpy as np
 
-from robo_comp import protocol as P
-from robo_comp.wall.model import WallModel
+from robo_comp.wall.model import WallModel, find_state
 
 # The map is drawn in the wall's colours, from its pygame module: without pygame's greeting on stdout.
 os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
 
-#: Topics the core never publishes (they reach only the team and the referee).
-NEVER_PUBLIC = P.PRIVATE_TOPICS
-#: The fields of a ``picture`` event the core publishes (the logged record holds more).
-PUBLIC_PICTURE = P.PUBLIC_TOPICS["picture"] or ()
 #: The fields of a robot row and of a find that the public view shows (those the PUB feed carries).
 PUBLIC_ROBOT = ("tag", "team", "status", "x", "y", "heading", "moving")
 PUBLIC_FIND = ("id", "team", "tag", "x", "y", "kind", "state")
@@ -36,12 +31,6 @@ ROBOT_FIELDS = ("tag", "team", "x", "y", "heading", "status", "moving", "task", 
 TRAIL_SENT = 24
 
 
-def public_event(topic: str, data: dict[str, Any]) -> dict[str, Any] | None:
-    """The event as the core's PUB feed carries it (None: never published), for logged records:
-    :func:`robo_comp.protocol.topics.public_event`, the table the core's feed uses too."""
-    return P.public_event(topic, data)
-
-
 def public_snapshot(snap: dict[str, Any]) -> dict[str, Any]:
     """A ``snapshot`` reply cut down to what the PUB feed would show anyone (the public view)."""
     out = dict(snap)
@@ -50,15 +39,6 @@ def public_snapshot(snap: dict[str, Any]) -> dict[str, Any]:
     out["finds"] = [{**{k: f[k] for k in PUBLIC_FIND if k in f}, "state": find_state(f)}
                     for f in snap.get("finds") or []]
     return out
-
-
-def find_state(f: dict[str, Any]) -> str:
-    """A find's state (``confirmed``, ``rejected``, ``duplicate``, ``reported``), from its
-    ``state`` or, in a snapshot's records, its verdict: the same in every view."""
-    if f.get("state"):
-        return str(f["state"])
-    v = f.get("verdict") or {}
-    return "confirmed" if v.get("valid") else ("duplicate" if v.get("duplicate") else ("rejected" if v else "reported"))
 
 
 def legend(model: WallModel) -> dict[str, Any]:
