@@ -115,6 +115,8 @@ def test_the_table_covers_every_topic_and_every_private_emit() -> None:
     assert set(P.TOPICS) == P.PUBLIC_TOPICS.keys() | P.PRIVATE_TOPICS
     assert not P.PUBLIC_TOPICS.keys() & P.PRIVATE_TOPICS
     assert P.public_event("not.a.topic", {"x": 1}) is None  # a topic nobody listed is private
+    # the referee's broadcast reaches the public feeds with its message, and with nothing else
+    assert P.public_event("broadcast", {"message": "hi", "by": "referee", "x": 1}) == {"message": "hi", "by": "referee"}
     root = Path(P.__file__).parents[1] / "core"
     seen = 0
     for f in root.glob("*.py"):

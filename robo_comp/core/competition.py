@@ -230,8 +230,7 @@ class Competition:
         who = self.access.session(ident).who
         check_referee(who, "broadcast messages")
         text = msg.body["message"][:500]
-        # "text" too: "message" is one of the keys the public feed leaves out (a verdict's reason)
-        self.out.emit("broadcast", EVERYONE, {"message": text, "text": text, "by": who.name})
+        self.out.emit("broadcast", EVERYONE, {"message": text, "by": who.name})
         return {}
 
     # ------------------------------------------------------------------ pictures and finds

@@ -306,7 +306,7 @@ def _on_picture(m: WallModel, d: dict[str, Any]) -> None:
 
 
 def _on_broadcast(m: WallModel, d: dict[str, Any]) -> None:
-    m.note(str(d.get("message") or d.get("text") or ""), "broadcast")  # the public feed carries "text"
+    m.note(str(d.get("message") or ""), "broadcast")
 
 
 def _on_storage(m: WallModel, d: dict[str, Any]) -> None:

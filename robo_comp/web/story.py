@@ -93,7 +93,7 @@ class Story:
             return [self._add("penalty", t, c, f"referee: penalty for {team}: {d.get('reason') or 'no reason given'}",
                               team, None, d)]
         if topic == "broadcast":
-            return [self._add("broadcast", t, c, f"referee: {d.get('message') or d.get('text') or ''}", None, None, d)]
+            return [self._add("broadcast", t, c, f"referee: {d.get('message') or ''}", None, None, d)]
         if topic == "disqualified":
             who = d.get("team") or ", ".join(str(x) for x in d.get("tags") or [])
             return [self._add("disqualified", t, c, f"referee disqualified {who}: {d.get('reason', '')}",
