@@ -14,6 +14,9 @@ tree's (``--tree DIR``, the child mode).
 - loop turn: a console's ``robots`` requests, one after the other, timed while a peer sends 20
   frames under 1 MiB that would each make 300,000 maps (the longest round trip is the longest
   loop turn plus a round trip; the same figure without the attack is printed beside it);
+- decoding alone: the tree's ``protocol.decode_envelope`` on one frame under 1 MiB of each shape
+  in :func:`decode_shapes` (worst cases for msgpack: many empty maps, lists, nils, short keys;
+  and a full 1,000-robot ``reports`` batch), best of 5, in the child process, no sockets;
 - throughput: single ``report`` messages absorbed per second from ``--robots`` connections
   (``bench_core.core_rate``).
 """
@@ -43,7 +46,7 @@ import zmq  # noqa: E402
 
 from robo_comp import protocol as P  # noqa: E402
 from robo_comp.launch import start_core, stop_all  # noqa: E402
-from bench_core import _export, core_rate, secure_plain_client  # noqa: E402
+from bench_core import _export, _many_robots, core_rate, secure_plain_client  # noqa: E402
 
 
 def _rss(pid: int) -> int:
@@ -139,13 +142,51 @@ def stall(state: Path, frames: int = 20) -> dict[str, float]:
     return {"turn_quiet_ms": quiet, "turn_attack_ms": result["worst"], "slow_answered": answered}
 
 
+def decode_shapes() -> dict[str, bytes]:
+    """Frames under 1 MiB that msgpack is slowest to decode, and the largest honest one (a
+    1,000-robot ``reports`` batch with a sensor map per robot), by name."""
+    n = 1000
+    reports = {"tags": list(range(1, n + 1)), "x": [2.5] * n, "y": [3.5] * n, "heading": [90.0] * n,
+               "moving": [True] * n, "sensors": [{"front": 1.25, "left": 0.5, "right": 2.0}] * n}
+    shapes: dict[str, tuple[str, dict[str, object]]] = {
+        "500,000 empty maps": ("radio", {"tag": 1, "data": [{}] * 500_000}),
+        "16 x 60,000 empty maps": ("radio", {"tag": 1, "data": [[{}] * 60_000 for _ in range(16)]}),
+        "500,000 empty lists": ("radio", {"tag": 1, "data": [[]] * 500_000}),
+        "900,000 nils": ("radio", {"tag": 1, "data": [None] * 900_000}),
+        "200,000 one-key maps": ("radio", {"tag": 1, "data": [{"a": 1}] * 200_000}),
+        "1,000-robot reports": ("reports", reports),
+    }
+    frames = {name: P.request(kind, 1, body) for name, (kind, body) in shapes.items()}
+    assert all(len(f) < P.MAX_FRAME for f in frames.values())
+    return frames
+
+
+def decode_times(reps: int = 5) -> dict[str, float]:
+    """Best of ``reps`` times (ms) of this tree's ``decode_envelope`` on each of
+    :func:`decode_shapes`, whether it decodes the frame or refuses it; ``*_refused`` says which."""
+    out: dict[str, float] = {}
+    for name, frame in decode_shapes().items():
+        best, refused = float("inf"), 0.0
+        for _ in range(reps):
+            t0 = time.perf_counter()
+            try:
+                P.decode_envelope(frame)
+                refused = 0.0
+            except Exception:  # a refusal (E_TOO_LARGE) is the outcome being timed
+                refused = 1.0
+            best = min(best, time.perf_counter() - t0)
+        out[f"decode {name}"] = best * 1000
+        out[f"decode {name} refused"] = refused
+    return out
+
+
 def child(a: argparse.Namespace) -> None:
     """Measure this process's tree and print one JSON line."""
     with tempfile.TemporaryDirectory() as tmp:
         state = Path(tmp) / "state"
-        proc = start_core(state, "--heartbeat", "1.0", "--teams", "red,blue", "--port", "0")
+        proc = start_core(state, *_many_robots(), "--heartbeat", "1.0", "--teams", "red,blue", "--port", "0")
         try:
-            out: dict[str, float] = {}
+            out: dict[str, float] = decode_times()
             out["rate"], _ = core_rate(state, a.robots, a.seconds)  # first: it counts the core's errors
             out.update(stall(state))
             out.update(memory_attack(state, a.attack_mib))  # last: the old core keeps what it took
@@ -190,6 +231,10 @@ def main() -> int:
         print(f"  {name:6s} longest console round trip: {r['turn_quiet_ms']:.1f} ms quiet, "
               f"{r['turn_attack_ms']:.1f} ms under 20 frames of 300,000 maps ({r['slow_answered']:.0f} answered; "
               "target < 50 ms)")
+    for key in (k for k in b if k.startswith("decode ") and not k.endswith(" refused")):
+        verdict = lambda r: "refused" if r[key + " refused"] else "decoded"  # noqa: E731
+        print(f"  {key} (best of 5, one frame): {b[key]:.2f} ms {verdict(b)} before, "
+              f"{n[key]:.2f} ms {verdict(n)} after")
     print(f"  reports absorbed ({a.robots} connections): {b['rate']:,.0f} -> {n['rate']:,.0f} msg/s "
           f"({n['rate'] / b['rate'] - 1:+.1%}); every run: "
           + "; ".join(f"{k} " + ", ".join(f"{r['rate']:,.0f}" for r in v) for k, v in runs.items()))

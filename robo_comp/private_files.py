@@ -30,7 +30,7 @@ def private_file(path: str | Path) -> None:
         os.chmod(path, FILE_MODE)
 
 
-def write_private(path: str | Path, data: bytes | str) -> Path:
+def write_private(path: str | Path, data: bytes | bytearray | str) -> Path:
     """Write ``data`` to ``path``, a file that is 0600 from its first byte (never readable by
     others in between), replacing what was there."""
     p = Path(path)

@@ -204,8 +204,10 @@ def test_pictures_and_finds_are_judged_where_the_robot_is_tracked(core: CoreHand
         find = red.request("find", tag=tag, x=vx, y=vy, kind="adult", evidence=[reply["body"]["id"]])
         assert find["state"] != "confirmed", find
     assert {r["team"]: r["score"] for r in red.request("score")["teams"]}["red"] <= before
+    wait_for(lambda: sum(r["count"] for r in _events(core, "integrity") if r["kind"] == "picture") == len(VICTIMS),
+             3.0, "the referee's integrity events, one line a beat")
     rows = [r for r in _events(core, "integrity") if r["kind"] == "picture"]
-    assert len(rows) == len(VICTIMS) and all("tracked" in r["message"] for r in rows)
+    assert all("tracked" in r["message"] for r in rows)
     # a robot that drives there (plausible reports) and takes the picture: judged there, the victim seen
     vx, vy = VICTIMS[2]  # (4, 10): down the free column x = 3 from (2, 2)
     path = [(2.0, 2.0 + k * 0.2) for k in range(0, 41)] + [(2.0 + k * 0.2, 10.0) for k in range(1, 5)]

@@ -27,6 +27,8 @@ from typing import Any
 import zmq
 import zmq.utils.monitor
 
+from robo_comp.protocol.curve import Tallies, Tally
+
 log = logging.getLogger("robo_comp.core.guard")
 
 #: Seconds a connection may take to complete its handshake (a valid credential) before libzmq closes it.
@@ -83,14 +85,6 @@ class GuardLimits:
 
 
 @dataclass(slots=True)
-class Tally:
-    """Connections cut or refused for one peer address since the last beat."""
-
-    count: int = 0
-    reason: str = ""
-
-
-@dataclass(slots=True)
 class ConnectionGuard:
     """Counts the ROUTER's connections (from its monitor) and cuts those over the limits."""
 
@@ -105,7 +99,7 @@ class ConnectionGuard:
     conns: dict[int, str] = field(default_factory=dict)
     per_address: dict[str, int] = field(default_factory=dict)
     cut_total: int = 0
-    _tally: dict[str, Tally] = field(default_factory=dict)
+    _tally: Tallies[str] = field(default_factory=Tallies)
 
     @classmethod
     def watch(cls, sock: zmq.Socket, port: int, limits: GuardLimits, inbound: int | None = None) -> ConnectionGuard:
@@ -216,9 +210,7 @@ class ConnectionGuard:
 
     def count(self, address: str, reason: str) -> None:
         """Count a cut or refused connection of ``address`` for the next bulk log."""
-        row = self._tally.setdefault(address, Tally())
-        row.count += 1
-        row.reason = reason
+        self._tally.add(address, reason)
 
     @property
     def cuts_waiting(self) -> bool:
@@ -227,8 +219,7 @@ class ConnectionGuard:
 
     def take_cut(self) -> dict[str, Tally]:
         """The cuts since the last call, per address, and start counting anew."""
-        rows, self._tally = self._tally, {}
-        return rows
+        return self._tally.take()
 
     def close(self) -> None:
         """Close the monitor socket (before the ROUTER)."""

@@ -55,9 +55,6 @@ class RobotRecord:
     radio_checked: float = 0.0
     #: Fair play: the robot's top speed, anchor and driving budget (robo_comp.match.plausibility).
     track: Track = field(default_factory=Track)
-    #: Poses refused since the last integrity event about this robot (reported once a beat).
-    refused_poses: int = 0
-    refused_why: str = ""
 
     def summary(self) -> dict[str, Any]:
         """One row of the ``robots`` listing."""

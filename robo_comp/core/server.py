@@ -149,7 +149,8 @@ class Core:
         self._default_speed = min(self.max_speed, scenario.kinematics.speed * fastest_zone)
         #: Fair play: which reported poses a robot could have reached (robo_comp.match.plausibility).
         self.gate = PoseGate(scenario.walls, self.max_speed)
-        self._implausible: set[int] = set()  # robots with refused poses not yet told to the referee
+        # claims about the world not believed since the last beat: (tag, kind) -> [count, the last reason]
+        self._implausible: dict[tuple[int, str], list[Any]] = {}
         self.tasks = TaskMachine(self._task_started, self._task_finished)
         self.sessions: dict[bytes, Session] = {}
         # Who watches what: team name -> routing ids, and the referee's under None.
@@ -793,9 +794,7 @@ class Core:
         since = time.time() - r.last_report if r.last_report else self.gate.lag
         verdict = self.gate.bears_out((r.x, r.y), r.sigma, since, r.track.speed, (x, y))
         if not verdict.ok:
-            self.emit("integrity", None, {"kind": what, "tag": r.tag, "team": r.team, "count": 1, "x": r.x,
-                                          "y": r.y, "message": f"{what} {verdict.reason}; judged where it is "
-                                                              "tracked"}, public=False)
+            self._disbelieve(r, what, f"{what} {verdict.reason}; judged where it is tracked")
             return tracked
         heading: Any = claim.get("heading")
         if type(heading) in (int, float) and math.isfinite(heading):
@@ -1093,8 +1092,7 @@ class Core:
         for tag in tags:
             r = self.registry.get(tag)
             old = r.session
-            if old is not None:
-                self._send_host(r, "stop", {"tag": tag})
+            if old is not None:  # the host halts the robot and lets it go (no separate stop)
                 self.send(old, P.request("release", 0, {"tag": tag, "message":
                                                          "the referee handed this robot over to another host"}))
                 if old in self.sessions:
@@ -1220,38 +1218,42 @@ class Core:
             if verdict.ok:
                 r.x, r.y = x, y
             else:
-                self._refuse_pose(r, verdict.reason)
+                self._disbelieve(r, "pose", verdict.reason)
 
-    def _refuse_pose(self, r: RobotRecord, why: str) -> None:
-        """A pose of robot ``r`` was not taken: counted, and told to the referee once a beat."""
-        r.refused_poses += 1
-        r.refused_why = why
-        self._implausible.add(r.tag)
+    def _disbelieve(self, r: RobotRecord, kind: str, why: str) -> None:
+        """A claim about robot ``r`` (a ``pose``, a ``picture``'s or a ``bump``'s place) was not
+        believed: counted, and told to the referee in one ``integrity`` event per robot and kind a beat."""
+        row = self._implausible.get((r.tag, kind))
+        if row is None:
+            self._implausible[(r.tag, kind)] = [1, why]
+        else:
+            row[0] += 1
+            row[1] = why
 
     def _log_implausible(self) -> None:
-        """One ``integrity`` event (referee only) per robot whose poses were refused since the last beat."""
-        tags, self._implausible = sorted(self._implausible), set()
-        for tag in tags:
+        """The ``integrity`` events (referee only) of the claims not believed since the last beat."""
+        rows, self._implausible = self._implausible, {}
+        for (tag, kind), (count, why) in sorted(rows.items()):
             r = self.registry.robots[tag]
-            self.emit("integrity", None, {"kind": "pose", "tag": tag, "team": r.team, "count": r.refused_poses,
-                                          "x": r.x, "y": r.y, "message": r.refused_why}, public=False)
-            r.refused_poses = 0
+            self.emit("integrity", None, {"kind": kind, "tag": tag, "team": r.team, "count": count,
+                                          "x": r.x, "y": r.y, "message": why}, public=False)
 
     def _on_report(self, ident: bytes, msg: P.Message) -> None:
         b = msg.body
         r = self.hosted(ident, b["tag"])
-        if not self._plausible(r, b["x"], b["y"], 0.0, time.monotonic()):
-            raise ImplausibleError(f"robot {r.tag}'s pose was not taken: {r.refused_why}")
+        why = self._pose_refusal(r, b["x"], b["y"], 0.0, time.monotonic())
+        if why:
+            raise ImplausibleError(f"robot {r.tag}'s pose was not taken: {why}")
         self._pose(r, b["x"], b["y"], b["heading"], b.get("moving", False), b.get("sensors"), time.time())
         return None
 
-    def _plausible(self, r: RobotRecord, x: float, y: float, sigma: float, now: float) -> bool:
-        """Whether robot ``r`` could be at ``(x, y)`` now (``PoseGate.admit``: then its track moves
-        on); a refused pose is counted for the referee's ``integrity`` event."""
+    def _pose_refusal(self, r: RobotRecord, x: float, y: float, sigma: float, now: float) -> str:
+        """Why robot ``r`` could not be at ``(x, y)`` now ("" when it could: ``PoseGate.admit``, and
+        its track moves on); a refused pose is counted for the referee's ``integrity`` event."""
         verdict = self.gate.admit(r.track, x, y, sigma, now, last=(r.x, r.y, r.sigma))
         if not verdict.ok:
-            self._refuse_pose(r, verdict.reason)
-        return verdict.ok
+            self._disbelieve(r, "pose", verdict.reason)
+        return verdict.reason
 
     def _on_reports(self, ident: bytes, msg: P.Message) -> None:
         """Many robots of one host in one message (a host reports its robots in batches).
@@ -1299,8 +1301,9 @@ class Core:
             # budget, on a free cell); the rest (a new anchor once a second, refusals) takes admit itself
             if not (tr.t and since < window and dx * dx + dy * dy <= lim * lim and -0.5 <= x < xmax
                     and -0.5 <= y < ymax and not walls[floor(y + 0.5) * width + floor(x + 0.5)]):
-                if not self._plausible(r, x, y, sg, mono):
-                    refused.append(tag)
+                why = self._pose_refusal(r, x, y, sg, mono)
+                if why:
+                    refused.append((tag, why))
                     continue
             r.x, r.y, r.heading, r.moving, r.sigma = x, y, h, mv, sg
             if sn is not None:
@@ -1314,8 +1317,8 @@ class Core:
         if foreign:  # the others' rows were taken
             raise NotYoursError(f"robots {foreign[:10]} are not hosted by this connection; register them first")
         if refused:
-            raise ImplausibleError(f"the poses of robots {refused[:10]} were not taken (the referee sees why): "
-                                   f"{robots[refused[0]].refused_why}")
+            raise ImplausibleError(f"the poses of robots {[t for t, _ in refused[:10]]} were not taken (the "
+                                   f"referee sees why): {refused[0][1]}")
         return None
 
     def _pose(self, r: RobotRecord, x: float, y: float, heading: float, moving: bool,
@@ -1420,7 +1423,8 @@ class Core:
             r.heading = float(body["heading"])
         x: Any = body.get("x")
         y: Any = body.get("y")
-        if type(x) in (int, float) and type(y) in (int, float) and self._plausible(r, x, y, r.sigma, time.monotonic()):
+        if type(x) in (int, float) and type(y) in (int, float) and not self._pose_refusal(r, x, y, r.sigma,
+                                                                                         time.monotonic()):
             r.x, r.y = float(x), float(y)  # where it halted, if it could be there (else where it is tracked)
         r.moving = False
         cancelled = self.tasks.cancel_all(r, "stopped", "cancelled by stop")

@@ -35,7 +35,7 @@ import tempfile
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import zmq
 import zmq.auth
@@ -60,6 +60,7 @@ ZAP_ENDPOINT = "inproc://zeromq.zap.01"
 ZAP_DOMAIN = b"robo_comp"
 #: The PLAIN user name every client presents (the password is its token).
 PLAIN_USER = b"robo_comp"
+K = TypeVar("K")
 
 
 @dataclass(frozen=True, slots=True)
@@ -149,11 +150,28 @@ def secure_plain_server(sock: zmq.Socket) -> None:
 
 
 @dataclass(slots=True)
-class ZapTally:
-    """Refused handshakes since the last :meth:`ZapHandler.take_refused`, per (mechanism, address)."""
+class Tally:
+    """Connections refused or cut for one peer since the last beat: how many, and the last reason
+    (the core logs them in bulk: :meth:`ZapHandler.take_refused`, ``ConnectionGuard.take_cut``)."""
 
     count: int = 0
     reason: str = ""
+
+
+class Tallies(dict[K, Tally]):
+    """:class:`Tally` rows per peer, counted until :meth:`take` hands them over."""
+
+    def add(self, key: K, reason: str) -> None:
+        """Count one more refusal or cut of ``key``."""
+        row = self.setdefault(key, Tally())
+        row.count += 1
+        row.reason = reason
+
+    def take(self) -> dict[K, Tally]:
+        """The rows so far, and start counting anew."""
+        rows = dict(self)
+        self.clear()
+        return rows
 
 
 class ZapHandler:
@@ -189,7 +207,7 @@ class ZapHandler:
             raise FieldError(f"cannot start the transport's credential check in this process: {e}") from None
         self.accepted = 0
         self.refused = 0
-        self._tally: dict[tuple[str, str], ZapTally] = {}
+        self._tally: Tallies[tuple[str, str]] = Tallies()
 
     def serve(self) -> int:
         """Answer every waiting ZAP request without blocking; return how many were answered."""
@@ -233,10 +251,7 @@ class ZapHandler:
             self.accepted += 1
             return [b"1.0", request_id, b"200", b"OK", who.encode(), b""]
         self.refused += 1
-        key = (mechanism.decode(errors="replace"), address.decode(errors="replace"))
-        row = self._tally.setdefault(key, ZapTally())
-        row.count += 1
-        row.reason = why
+        self._tally.add((mechanism.decode(errors="replace"), address.decode(errors="replace")), why)
         return [b"1.0", request_id, b"400", why.encode()[:200], b"", b""]
 
     @property
@@ -244,11 +259,10 @@ class ZapHandler:
         """Whether handshakes were refused since the last :meth:`take_refused`."""
         return bool(self._tally)
 
-    def take_refused(self) -> dict[tuple[str, str], ZapTally]:
+    def take_refused(self) -> dict[tuple[str, str], Tally]:
         """The refusals since the last call, per (mechanism, peer address), and start counting anew
         (the core logs them once a beat: a flood of bad handshakes never floods the log)."""
-        rows, self._tally = self._tally, {}
-        return rows
+        return self._tally.take()
 
     def close(self) -> None:
         """Close the ZAP socket (after the server sockets)."""
@@ -471,6 +485,6 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     k.set_defaults(func=run_keys)
 
 
-__all__ = ["HANDSHAKE_EVENTS", "ClientKeys", "ServerKeys", "ZapHandler", "ZapTally", "add_curve_args", "client_keys",
+__all__ = ["HANDSHAKE_EVENTS", "ClientKeys", "ServerKeys", "Tallies", "Tally", "ZapHandler", "add_curve_args", "client_keys",
            "create_keys", "handshake_error", "load_server_keys", "open_server", "secure_client", "secure_plain_client",
            "secure_plain_server", "secure_server"]

@@ -25,7 +25,6 @@ before any reply of that turn leaves (see docs/protocol.md, "Event log").
 """
 from __future__ import annotations
 
-import os
 import struct
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
@@ -36,6 +35,7 @@ import msgpack
 from crc32c import crc32c
 
 from robo_comp.errors import FieldError
+from robo_comp.private_files import write_private
 
 FORMAT = "robo_comp-eventlog"
 #: The format the core writes.
@@ -352,11 +352,7 @@ def write_log(path: Path, events: Iterable[tuple[str, str | None, dict[str, Any]
         put({"seq": seq, "t": t, "topic": topic, "team": team, "data": data})
     path.parent.mkdir(parents=True, exist_ok=True)
     # 0600 from the first byte, as the core's own log: a match log holds the teams' tasks and finds
-    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
-    with os.fdopen(fd, "wb") as f:
-        os.fchmod(fd, 0o600)
-        f.write(out)
-    return path
+    return write_private(path, out)
 
 
 def read_log(path: Path, strict: bool = True) -> Iterator[LogRecord]:

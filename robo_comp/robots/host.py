@@ -257,7 +257,7 @@ class RobotHost:
         self.foreign = Foreign()
         self._code_fd: int | None = None
         #: Robots another host still holds (E_HELD): asked for again once a heartbeat, quietly.
-        self.held: dict[str, str] = {}
+        self.held: set[str] = set()
         self._held_retry = 0.0
         #: Robots the referee handed over to another host: this host leaves them alone.
         self.released: set[str] = set()
@@ -467,11 +467,12 @@ class RobotHost:
         if not ok and body.get("code") == "E_HELD":
             if r.robot_id not in self.held:  # said once; asked again quietly once a heartbeat
                 log.warning("robot %s: %s", r.robot_id, body.get("message"))
-            self.held[r.robot_id] = str(body.get("message"))
+            self.held.add(r.robot_id)
         elif not ok:
             log.error("robot %s was refused: %s", r.robot_id, body.get("message"))
         else:
-            if self.held.pop(r.robot_id, None) is not None:
+            if r.robot_id in self.held:
+                self.held.discard(r.robot_id)
                 log.warning("robot %s: the other host let it go; this host runs it now", r.robot_id)
             self.unacked_done.pop(r.robot_id, None)  # the core has it (or had it already)
             if r.tag and r.tag != body["tag"]:

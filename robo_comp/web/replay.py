@@ -180,7 +180,7 @@ class Recording:
     def _filter(view: str, topic: str, team: str | None, data: dict[str, Any],
                 team_of: dict[int, str | None]) -> dict[str, Any] | None:
         if view == "public":
-            return P.public_event(topic, data)
+            return P.public_event(topic, data)  # the one table, as the core's PUB feed
         if view == "referee" or topic == "core.started":
             return data
         if topic == "robot.positions" and team is None:  # the log's batch holds every team's robots
