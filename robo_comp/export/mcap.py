@@ -52,8 +52,11 @@ class ExportSummary:
 
 
 def _stamp(t: float) -> dict[str, int]:
-    sec = int(math.floor(t))
-    return {"sec": sec, "nanosec": int(round((t - sec) * 1e9)) % 1_000_000_000}
+    """``t`` seconds as a ROS 2 time (the fraction to the nanosecond, rounding up into the next
+    second where it must)."""
+    sec = math.floor(t)
+    extra, nanosec = divmod(round((t - sec) * 1e9), 1_000_000_000)
+    return {"sec": int(sec + extra), "nanosec": int(nanosec)}
 
 
 def _header(t: float, frame: str = FRAME) -> dict[str, Any]:
