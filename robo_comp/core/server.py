@@ -69,7 +69,7 @@ from robo_comp.errors import (
     TooLargeError,
     UnavailableError,
 )
-from robo_comp.match.plausibility import WINDOW, PoseGate
+from robo_comp.match.plausibility import PoseGate
 from robo_comp.plugins.manager import get_plugin_manager
 from robo_comp.scoring.config import ScoringConfig
 from robo_comp.scoring.match import CLOCK_PERIOD
@@ -1277,37 +1277,42 @@ class Core:
         foreign = []
         refused = []
         robots = self.registry.robots
-        moved = self._moved
-        posed = self._posed
+        took: list[int] = []  # published in the next batch; all of the host's team (it registered them)
+        taken = took.append
         connected = RobotStatus.CONNECTED
-        window = WINDOW
-        for tag, x, y, h, mv, sn, sg in zip(b["tags"], b["x"], b["y"], b["heading"], moving, sensors, sigmas):
-            r = robots.get(tag)
-            if r is None or r.session != ident:
-                foreign.append(tag)
-                continue
-            if r.status is not connected:
-                self._mark_returned(r)
-            tr = r.track
-            # PoseGate.admit inlined for the common case: a placed robot within its anchor's window and
-            # its reach (the budget it had at the anchor, clear of walls and edges: never more than admit
-            # would take); the rest (a new anchor once a second, refusals, longer moves) asks admit
-            dx = x - tr.x
-            dy = y - tr.y
-            if not (mono - tr.t < window and dx * dx + dy * dy <= tr.reach2):
-                why = self._pose_refusal(r, x, y, sg, mono)
-                if why:
-                    refused.append((tag, why))
+        try:
+            for tag, x, y, h, mv, sn, sg in zip(b["tags"], b["x"], b["y"], b["heading"], moving, sensors, sigmas):
+                r = robots.get(tag)
+                if r is None or r.session != ident:
+                    foreign.append(tag)
                     continue
-            r.x, r.y, r.heading, r.moving, r.sigma = x, y, h, mv, sg
-            if sn is not None:
-                r.sensors = sn
-            r.last_report = now
-            moved.add(tag)
-            team = posed.get(r.team)
-            if team is None:
-                team = posed[r.team] = set()
-            team.add(tag)
+                if r.status is not connected:
+                    self._mark_returned(r)
+                # PoseGate.admit inlined for the common case: a placed robot within its anchor's window
+                # and its reach (the budget it had at the anchor, clear of walls and edges: never more
+                # than admit would take); the rest (a new anchor once a second, refusals, longer moves)
+                # asks admit
+                until, x_lo, x_hi, y_lo, y_hi = r.track.box
+                if not (mono < until and x_lo <= x <= x_hi and y_lo <= y <= y_hi):
+                    why = self._pose_refusal(r, x, y, sg, mono)
+                    if why:
+                        refused.append((tag, why))
+                        continue
+                r.x = x  # one store each: a five-way tuple assignment builds and unpacks a tuple a row
+                r.y = y
+                r.heading = h
+                r.moving = mv
+                r.sigma = sg
+                if sn is not None:
+                    r.sensors = sn
+                r.last_report = now
+                taken(tag)
+        finally:
+            if took:
+                self._moved.update(took)
+                team = self.sessions[ident].who.team
+                assert team is not None  # a host's session: register needs a team's host token
+                self._posed.setdefault(team, set()).update(took)
         if foreign:  # the others' rows were taken
             raise NotYoursError(f"robots {foreign[:10]} are not hosted by this connection; register them first")
         if refused:

@@ -42,6 +42,11 @@ WINDOW = 1.0
 CLAIM_SLACK = 0.5
 #: How far into a wall cell a pose may lie (cells, beyond 2 sigma): a noisy estimate near a wall.
 WALL_SLACK = 0.3
+#: Half the side of the square inside a circle of radius 1, a hair under: the square's corners stay
+#: inside the circle after rounding.
+SQRT_HALF = math.sqrt(0.5) * (1.0 - 1e-9)
+#: A :attr:`Track.box` that takes no pose (empty in both directions).
+NO_BOX = (0.0, 0.0, -1.0, 0.0, -1.0)
 
 
 @dataclass(slots=True)
@@ -66,10 +71,12 @@ class Track:
     y: float = 0.0
     noise: float = 0.0
     budget: float = 0.0
-    #: The square of how far from the anchor a pose is taken without asking more: no farther than
-    #: the budget at the anchor plus its noise, nor than the nearest wall or edge (a hot path's test:
-    #: one comparison; anything else asks :meth:`PoseGate.admit`).
-    reach2: float = 0.0
+    #: Where a pose is taken without asking more, ``(until, x_lo, x_hi, y_lo, y_hi)``: before the
+    #: anchor's window ends, in the square inside the circle the robot can reach from its anchor (its
+    #: budget there plus its noise, clear of the nearest wall or edge). A hot path's test is one
+    #: unpacking and chained comparisons; anything else asks :meth:`PoseGate.admit`. Not placed: an
+    #: empty box.
+    box: tuple[float, float, float, float, float] = NO_BOX
 
 
 class PoseGate:
@@ -161,8 +168,10 @@ class PoseGate:
         tr.x, tr.y, tr.noise, tr.budget, tr.t = x, y, 3.0 * min(sigma, MAX_SIGMA), budget, now
         clear = float(self.clearance[min(self.height - 1, max(0, math.floor(y + 0.5))),
                                      min(self.width - 1, max(0, math.floor(x + 0.5)))])
-        reach = min(clear, budget + tr.noise)
-        tr.reach2 = reach * reach
+        half = min(clear, budget + tr.noise) * SQRT_HALF  # the square inside the reachable circle
+        # at or by a wall (no clearance) every pose asks admit: even the anchor's own place may be
+        # refused there with a smaller sigma
+        tr.box = (now + WINDOW, x - half, x + half, y - half, y + half) if half > 0.0 else NO_BOX
 
     def bears_out(self, tracked: tuple[float, float], sigma: float, since: float, speed: float,
                   claim: tuple[float, float]) -> Verdict:
