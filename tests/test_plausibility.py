@@ -48,3 +48,29 @@ def test_a_robot_not_placed_has_an_empty_box_and_an_expired_box_asks_again() -> 
     # next to a wall the box shrinks to the clearance: never a way through the wall
     GATE.admit(tr2 := GATE.track(2.0), 9.0, 10.0, 0.0, 50.0)
     assert tr2.box[2] < 9.5
+
+
+def test_poses_that_hop_about_near_the_anchor_are_charged_for_the_driving_between() -> None:
+    """Each pose is within the anchor's reach, but 4 cells from the one before in a hundredth of a
+    second: the robot would have driven 4 cells each time. The hops use up the budget (7.5 cells at
+    2 cells/s) and the rest are refused, saying the hop; jitter within the noise costs nothing."""
+    tr = GATE.track(2.0)
+    assert GATE.admit(tr, 5.0, 5.0, 0.0, 10.0).ok
+    said = [GATE.admit(tr, 5.0 + (2.0 if k % 2 == 0 else -2.0), 5.0, 0.0, 10.0 + 0.01 * k) for k in range(1, 11)]
+    # taken: 3 (a hop of 2), 7 (of 4: 1.5 left); then every pose at 3 is refused (the ones at 7 are
+    # where the robot was taken last: it stays)
+    assert [v.ok for v in said] == [True, True] + [False, True] * 4, said
+    assert "a hop of 4.0 cells from the pose taken last (7.00, 5.00) to (3.00, 5.00)" in said[-2].reason
+    # a host that reports its noise: jitter of 3 sigma about one place is never charged
+    calm = GATE.track(2.0)
+    assert GATE.admit(calm, 5.0, 5.0, 0.3, 10.0).ok
+    assert all(GATE.admit(calm, 5.0 + (0.8 if k % 2 else -0.8), 5.0, 0.3, 10.0 + 0.01 * k).ok for k in range(1, 500))
+
+
+def test_a_robot_driving_at_its_top_speed_is_never_refused() -> None:
+    tr = GATE.track(2.0)
+    assert GATE.admit(tr, 1.0, 2.0, 0.0, 0.0).ok
+    for k in range(1, 131):  # 13 s along row 2 at 2 cells/s, reports at 10 Hz, every third one late
+        t = 0.1 * k
+        late = 0.25 if k % 3 == 0 else 0.0
+        assert GATE.admit(tr, 1.0 + 2.0 * t, 2.0, 0.0, t + late).ok, (k, tr)

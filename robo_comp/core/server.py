@@ -69,7 +69,7 @@ from robo_comp.errors import (
     TooLargeError,
     UnavailableError,
 )
-from robo_comp.match.plausibility import PoseGate
+from robo_comp.match.plausibility import MAX_SIGMA, PoseGate
 from robo_comp.plugins.manager import get_plugin_manager
 from robo_comp.scoring.config import ScoringConfig
 from robo_comp.scoring.match import CLOCK_PERIOD
@@ -1256,7 +1256,7 @@ class Core:
     def _pose_refusal(self, r: RobotRecord, x: float, y: float, sigma: float, now: float) -> str:
         """Why robot ``r`` could not be at ``(x, y)`` now ("" when it could: ``PoseGate.admit``, and
         its track moves on); a refused pose is counted for the referee's ``integrity`` event."""
-        verdict = self.gate.admit(r.track, x, y, sigma, now, last=(r.x, r.y, r.sigma))
+        verdict = self.gate.admit(r.track, x, y, sigma, now)
         if not verdict.ok:
             self._disbelieve(r, "pose", verdict.reason)
         return verdict.reason
@@ -1280,6 +1280,9 @@ class Core:
         took: list[int] = []  # published in the next batch; all of the host's team (it registered them)
         taken = took.append
         connected = RobotStatus.CONNECTED
+        sqrt = math.sqrt
+        max_sigma = MAX_SIGMA
+        max_noise = 3.0 * MAX_SIGMA
         try:
             for tag, x, y, h, mv, sn, sg in zip(b["tags"], b["x"], b["y"], b["heading"], moving, sensors, sigmas):
                 r = robots.get(tag)
@@ -1292,8 +1295,18 @@ class Core:
                 # and its reach (the budget it had at the anchor, clear of walls and edges: never more
                 # than admit would take); the rest (a new anchor once a second, refusals, longer moves)
                 # asks admit
-                until, x_lo, x_hi, y_lo, y_hi = r.track.box
-                if not (mono < until and x_lo <= x <= x_hi and y_lo <= y <= y_hi):
+                # and the hop from the pose taken last, charged beyond the noise of both ends (not
+                # refilled here: admit refills, at least once a window)
+                tr = r.track
+                until, x_lo, x_hi, y_lo, y_hi = tr.box
+                lx, ly, lnoise, left = tr.hop
+                dx = x - lx
+                dy = y - ly
+                noise = 3.0 * sg if sg < max_sigma else max_noise
+                hop = sqrt(dx * dx + dy * dy) - lnoise - noise
+                if mono < until and x_lo <= x <= x_hi and y_lo <= y <= y_hi and hop <= left:
+                    tr.hop = (x, y, noise, left - hop if hop > 0.0 else left)
+                else:
                     why = self._pose_refusal(r, x, y, sg, mono)
                     if why:
                         refused.append((tag, why))
