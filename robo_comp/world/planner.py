@@ -11,6 +11,7 @@ compiled kernels are cached on disk (``cache=True``) so later processes skip com
 from __future__ import annotations
 
 import math
+import mmap
 import threading
 from typing import Any
 
@@ -56,6 +57,21 @@ def obstacle_costs(walls: np.ndarray, near_cost: float = 10.0, radius: int = 1) 
     return costs
 
 
+def _lazy_zeros(n: int, dtype: type) -> np.ndarray:
+    """A zeroed array of ``n`` items whose pages the OS maps only when first touched.
+
+    Large numpy allocations ask the kernel for 2 MiB huge pages (``madvise``), so a search
+    that runs down a column of a big map would materialise 2 MiB for every few cells it
+    touches (hundreds of MiB for a search of thousands of cells); an anonymous ``mmap`` gets
+    4 KiB pages, zeroed by the OS on first touch.
+    """
+    dt = np.dtype(dtype)
+    size = n * dt.itemsize
+    if size < (1 << 20):
+        return np.zeros(n, dtype=dt)
+    return np.frombuffer(mmap.mmap(-1, size), dtype=dt)
+
+
 def _check_cell(cell: Cell, w: int, h: int, what: str) -> tuple[int, int]:
     try:
         x, y = int(cell[0]), int(cell[1])
@@ -97,15 +113,16 @@ class Planner:
         self.height, self.width = walls.shape
         self.diagonal = bool(diagonal)
         self.hierarchical = bool(hierarchical)
-        self._free = np.ascontiguousarray(~walls.astype(bool), dtype=np.uint8).reshape(-1)
+        # nonzero = blocked (as walls.astype(bool)), made in one pass without temporaries
+        self._free = np.ascontiguousarray(walls == 0).view(np.uint8).reshape(-1)
         self._cost = _prep_costs(costs, walls.shape)
         self._hmul = self._min_cost()
         n = self.width * self.height
-        # Work arrays reused by every query; np.zeros/np.empty map memory lazily, so only
-        # the pages a search touches are ever materialised.
-        self._g = np.empty(n, dtype=np.float64)
-        self._stamp = np.zeros(n, dtype=np.int32)
-        self._pdir = np.zeros(n, dtype=np.int8)
+        # Work arrays reused by every query, mapped lazily (see _lazy_zeros): only the pages
+        # a search touches are ever materialised.
+        self._g = _lazy_zeros(n, np.float64)
+        self._stamp = _lazy_zeros(n, np.int32)
+        self._pdir = _lazy_zeros(n, np.int8)
         self._epoch = 0
         self._rev: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         # Uniform cost, 4 directions: the bucket kernel's tiled work arrays (state, pdir)
@@ -248,8 +265,8 @@ class Planner:
     def _uni_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         if self._uni is None:
             size = _k().tiled_size(self.width, self.height)[1]
-            self._uni = (np.zeros(size, dtype=np.int64), np.zeros(size, dtype=np.int8),
-                         np.zeros(size, dtype=np.int64), np.zeros(size, dtype=np.int8))
+            self._uni = (_lazy_zeros(size, np.int64), _lazy_zeros(size, np.int8),
+                         _lazy_zeros(size, np.int64), _lazy_zeros(size, np.int8))
         return self._uni
 
     def _search_uniform(self, s: int, t: int, allow: np.ndarray, bsize: int, bw: int,
@@ -274,8 +291,8 @@ class Planner:
     def _reverse_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         if self._rev is None:
             n = self.width * self.height
-            self._rev = (np.empty(n, dtype=np.float64), np.zeros(n, dtype=np.int32),
-                         np.zeros(n, dtype=np.int8))
+            self._rev = (_lazy_zeros(n, np.float64), _lazy_zeros(n, np.int32),
+                         _lazy_zeros(n, np.int8))
         return self._rev
 
     def _path(self, s: int, t: int, pdir: np.ndarray) -> list[Cell]:
