@@ -1,7 +1,7 @@
 """The team console's main screen: robots, monitor, map and events of one team, live."""
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 from textual import events
 from textual.app import ComposeResult
@@ -22,6 +22,15 @@ from robo_comp.tui.widgets.score import MatchBar
 #: Below this width the panels stack and ``v`` switches between monitor, map and events.
 NARROW = 120
 PANELS = ("monitor", "map", "log")
+
+
+@runtime_checkable
+class GivesTasks(Protocol):
+    """A console with a give-task form (the team console: it imports this module, so it is not
+    named here)."""
+
+    def action_give_task(self, task: str | None = None) -> None:
+        """Open the give-task form for the selected robot."""
 
 
 class ConsoleScreen(Screen[None]):
@@ -123,10 +132,8 @@ class TeamScreen(ConsoleScreen):
     def on_data_table_row_selected(self, event: RobotsTable.RowSelected) -> None:
         """``enter`` on a robot opens the task form (the thesis's "3. Give task to a robot")."""
         event.stop()
-        from robo_comp.tui.team_app import TeamApp  # (it imports this module)
-
         app = self.app
-        assert isinstance(app, TeamApp), "the team screen is the team console's"
+        assert isinstance(app, GivesTasks), "the team screen is the team console's"
         app.action_give_task()
 
     def set_team(self, team: str) -> None:
