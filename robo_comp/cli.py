@@ -149,14 +149,14 @@ def _start_core(args: argparse.Namespace, state: Path) -> tuple[Any, bool]:
                 robots_per_team=settings.get("robots"), max_speed=settings.get("max_speed"),
                 max_connections=args.max_connections, max_per_address=args.max_per_address)
     try:
-        core.bind()
-        matchfile.write(state, {"teams": core.tokens.teams, "scenario": scenario_file,
-                                "scenario_sha256": settings.get("scenario_sha256"), "practice": practice,
-                                "approve_uploads": bool(settings.get("approve_uploads")),
-                                "rules": settings.get("rules"), "curve": bool(settings.get("curve")),
-                                "pose_hz": settings.get("pose_hz", 10.0), "heartbeat": core.heartbeat,
-                                "port": core.port, "robots": core.robots_per_team,
-                                "max_speed": settings.get("max_speed")})
+        core.bind(lambda: matchfile.write(state, {
+            "teams": core.tokens.teams, "scenario": scenario_file,
+            "scenario_sha256": settings.get("scenario_sha256"), "practice": practice,
+            "approve_uploads": bool(settings.get("approve_uploads")),
+            "rules": settings.get("rules"), "curve": bool(settings.get("curve")),
+            "pose_hz": settings.get("pose_hz", 10.0), "heartbeat": core.heartbeat,
+            "port": core.port, "robots": core.robots_per_team,
+            "max_speed": settings.get("max_speed")}))
     except OSError:
         core.close()
         raise

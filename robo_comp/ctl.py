@@ -394,7 +394,6 @@ def _jsonable(o: Any) -> Any:
 def _events(c: Client, args: argparse.Namespace) -> int:
     n = 0
     t_end = time.monotonic() + args.timeout if args.timeout else None
-    pictures: set[Any] = set()  # a picture comes twice (with what it shows, then its public copy)
     sub = None
     if args.public:
         sub = c.subscribe()
@@ -417,11 +416,6 @@ def _events(c: Client, args: argparse.Namespace) -> int:
             continue
         if any(topic.startswith(p) for p in args.skip):
             continue
-        if topic == "picture":
-            pid = (ev["data"] or {}).get("id")
-            if pid in pictures:
-                continue
-            pictures.add(pid)
         n += 1
         if args.json:
             print(json.dumps(ev, default=_jsonable), flush=True)

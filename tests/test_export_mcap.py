@@ -111,3 +111,11 @@ def test_bad_input_gets_a_clear_error(tmp_path, capsys):
     junk.write_bytes(b"this is not an event log at all")
     assert cli_main(["export", "mcap", str(junk), str(tmp_path / "o.mcap")]) == 2
     assert "is this a robo_comp event log?" in capsys.readouterr().err
+
+
+def test_a_stamp_rounds_into_the_next_second() -> None:
+    from robo_comp.export.mcap import _stamp
+
+    assert _stamp(1.9999999999) == {"sec": 2, "nanosec": 0}  # rounds up into the next second, not back to 1 s
+    assert _stamp(1764072000.25) == {"sec": 1764072000, "nanosec": 250_000_000}
+    assert _stamp(0.0) == {"sec": 0, "nanosec": 0} and _stamp(12.5) == {"sec": 12, "nanosec": 500_000_000}

@@ -349,3 +349,62 @@ def test_a_connection_flood_is_cut_and_the_match_goes_on(small_core: CoreHandle)
     finally:
         for s in flood:
             s.close()
+
+
+def test_a_valid_credential_refused_for_room_is_told_so_not_called_invalid() -> None:
+    """The ZAP handler's two refusals reach the client apart (real PLAIN sockets, the core's
+    handler): a made-up token is "not valid" (E_AUTH), a valid one the connection limits turn away
+    (the core full, or the team's share of sessions held) is told so (E_RATE), not sent to check
+    its token file."""
+    import threading
+
+    from robo_comp.errors import AuthError, RateLimitError
+    from robo_comp.protocol.curve import (HANDSHAKE_EVENTS, ZapHandler, handshake_error, secure_plain_client,
+                                          secure_plain_server)
+    from robo_comp.teams.tokens import Principal
+
+    def lookup(token: str) -> Principal:
+        if token != "a-valid-token-of-red":
+            raise AuthError("not valid")
+        return Principal("team", "red")
+
+    ctx = zmq.Context()
+    zap = ZapHandler(ctx, lookup=lookup, admit=lambda who: "the core is full")
+    router = ctx.socket(zmq.ROUTER)
+    secure_plain_server(router)
+    port = router.bind_to_random_port("tcp://127.0.0.1")
+    done = threading.Event()
+
+    def serve() -> None:
+        while not done.is_set():
+            if zap.sock.poll(50):
+                zap.serve()
+
+    server = threading.Thread(target=serve, daemon=True)
+    server.start()
+
+    def outcome(token: str) -> Exception | None:
+        d = ctx.socket(zmq.DEALER)
+        d.setsockopt(zmq.LINGER, 0)
+        secure_plain_client(d, token)
+        mon = d.get_monitor_socket(HANDSHAKE_EVENTS)
+        d.connect(f"tcp://127.0.0.1:{port}")
+        try:
+            assert mon.poll(10_000), "no handshake event"
+            return handshake_error(mon.recv_multipart(), curve=False)
+        finally:
+            d.disable_monitor()
+            mon.close(0)
+            d.close(0)
+
+    try:
+        no_room, invalid = outcome("a-valid-token-of-red"), outcome("a-made-up-token")
+    finally:
+        done.set()
+        server.join()
+        router.close(0)
+        zap.close()
+        ctx.term()
+    assert isinstance(no_room, RateLimitError) and "no room" in no_room.message, no_room
+    assert isinstance(invalid, AuthError) and "not valid" in invalid.message, invalid
+    assert sum(row.count for row in zap.take_refused().values()) == 2  # both logged by the core, in bulk

@@ -220,3 +220,31 @@ def test_a_damaged_page_is_a_sentence_and_repair_keeps_what_can_be_read(league):
     r = robo("league", "table", "lg", "--json", cwd=league)
     assert r.returncode == 0, r.stderr
     assert sorted(row["team"] for row in json.loads(r.stdout)["standings"]) == teams  # submissions kept
+
+
+def test_a_busy_league_db_is_not_called_damaged(league):
+    """Another program holding league.db's write lock (or a full disk, a file that cannot be
+    written) is not damage: the sentence says so and does not send the organiser to
+    'league repair'; bytes that are not a database still do."""
+    from robo_comp.league.store import LeagueDamaged, db_error
+
+    root = league / "lg"
+    holder = sqlite3.connect(root / "league.db", isolation_level=None)
+    holder.execute("BEGIN IMMEDIATE")
+    other = sqlite3.connect(root / "league.db", isolation_level=None, timeout=0)
+    try:
+        with pytest.raises(sqlite3.OperationalError) as busy:
+            other.execute("BEGIN IMMEDIATE")
+    finally:
+        other.close()
+        holder.execute("ROLLBACK")
+        holder.close()
+    err = db_error(root, busy.value, "damaged")
+    assert not isinstance(err, LeagueDamaged)
+    assert "not damaged" in str(err) and "repair" not in str(err) and "locked" in str(err)
+    junk = root / "junk.db"
+    junk.write_bytes(b"not a database " * 400)
+    with pytest.raises(sqlite3.DatabaseError) as notadb:
+        sqlite3.connect(junk).execute("SELECT * FROM sqlite_master")
+    damaged = db_error(root, notadb.value, f"SQLite says {notadb.value}")
+    assert isinstance(damaged, LeagueDamaged) and "league repair" in str(damaged)

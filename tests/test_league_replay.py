@@ -86,3 +86,24 @@ def test_the_web_replay_in_a_browser_ends_on_the_tables_scores(played, browser):
             page.close()
     finally:
         stop(web)
+
+
+def test_the_replay_fold_is_the_scoreboards_table():
+    """The fold reads a log's score lines with the core's own Scoreboard (the rows a live core
+    publishes), lets the match's final word fix lines a log lacks, and stops at a log's own tables."""
+    from robo_comp.wall.replay import ScoreFold
+
+    fold = ScoreFold()
+    fold.feed("core.started", {"teams": ["a", "b"]})
+    fold.feed("score.change", {"team": "a", "points": 10.0, "kind": "victim", "victim": "v1", "reason": "", "t": 3.0})
+    fold.feed("score.change", {"team": "b", "points": -1.0, "kind": "collision", "reason": "", "t": 4.0})
+    rows = {r["team"]: r for r in fold.feed("disqualified", {"team": "b"})["teams"]}
+    assert rows["a"] == {"team": "a", "score": 10.0, "victims": 1, "penalties": 0.0, "last_change": 3.0,
+                         "disqualified": False, "rank": 1}
+    assert rows["b"]["penalties"] == 1.0 and rows["b"]["disqualified"] and rows["b"]["rank"] == 2
+    end = fold.feed("match.phase", {"phase": "finished", "scores": {"a": 25.0, "b": -1.0},
+                                    "victims": {"a": ["v1", "v2"]}})
+    assert [(r["team"], r["score"], r["victims"]) for r in end["teams"]] == [("a", 25.0, 2), ("b", -1.0, 0)]
+    core = ScoreFold()
+    assert core.feed("score", {"teams": []}) is None  # a core's log: its own tables are shown
+    assert core.feed("score.change", {"team": "a", "points": 1.0}) is None

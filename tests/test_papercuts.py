@@ -70,23 +70,33 @@ def test_robots_into_head_ends_quietly(match) -> None:
 
 
 def test_events_filter_by_topic_and_each_picture_once(match) -> None:
+    """The core pushes each picture once: to the team with what it shows, to the public feed
+    without (``ctl events`` prints what it is sent, it does not de-duplicate)."""
     m, tag = match
-    ev = subprocess.Popen([*RC, "ctl", "--core", str(m.state), "--token-file", str(m.token_file("red")),
-                           "--json", "events", "--topic", "picture", "--count", "6", "--timeout", "40"],
-                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    base = [*RC, "ctl", "--core", str(m.state), "--token-file", str(m.token_file("red")), "--json", "events",
+            "--topic", "picture", "--timeout", "40"]
+    own = subprocess.Popen([*base, "--count", "6"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    pub = subprocess.Popen([*base, "--count", "6", "--public"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                           text=True)
     try:
         import time
 
-        time.sleep(1.5)  # the events command is watching before the task starts
+        time.sleep(1.5)  # the events commands are watching before the task starts
         assert ctl(m, "give", str(tag), "examineArea", "9", "6").returncode == 0
-        out, err = ev.communicate(timeout=60)
+        out, err = own.communicate(timeout=60)
+        pout, perr = pub.communicate(timeout=60)
     finally:
-        if ev.poll() is None:
-            ev.kill()
+        for p in (own, pub):
+            if p.poll() is None:
+                p.kill()
     rows = [json.loads(line) for line in out.splitlines() if line.strip()]
     assert rows and {r["topic"] for r in rows} == {"picture"}, out + err
     ids = [r["data"]["id"] for r in rows]
     assert len(ids) == len(set(ids)) == 4, ids  # examineArea's four pictures, each once
+    assert all("victims" in r["data"] for r in rows), rows  # the team's copy says what it shows
+    prow = [json.loads(line) for line in pout.splitlines() if line.strip()]
+    assert [r["data"]["id"] for r in prow] == ids, pout + perr
+    assert not any("victims" in r["data"] or "sha256" in r["data"] for r in prow), prow
 
 
 def test_core_takes_a_bundled_scenario_name(tmp_path: Path) -> None:

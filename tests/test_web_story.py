@@ -215,3 +215,20 @@ def test_replay_opens_on_the_match_and_tells_it(browser, played, tmp_path: Path)
             page.close()
     finally:
         stop(web)
+
+
+def test_a_score_line_joins_the_latest_item_it_explains_within_the_fold_window() -> None:
+    from robo_comp.web.story import FOLD_WITHIN, Story
+
+    s = Story(limit=None)
+    s.apply("penalty", {"team": "blue", "reason": "first"}, 0.0, None)
+    s.apply("penalty", {"team": "blue", "reason": "second"}, 1.0, None)
+    s.apply("robot.bump", {"team": "blue", "tag": 7}, 1.5, None)
+    (it,) = s.apply("score.change", {"team": "blue", "kind": "penalty", "points": -3}, 2.0, None)
+    assert (it.id, it.points) == (2, -3.0)  # the latest blue penalty, past the bump after it
+    (red,) = s.apply("score.change", {"team": "red", "kind": "penalty", "points": -2}, 2.5, None)
+    assert red.kind == "score"  # blue's penalty does not explain red's line
+    (late,) = s.apply("score.change", {"team": "blue", "kind": "penalty", "points": -1}, 1.0 + FOLD_WITHIN + 0.1,
+                      None)
+    assert late.kind == "score" and late.points == -1.0 and "−1" in late.text  # too late to explain it
+    assert [i.points for i in s.items if i.kind == "penalty"] == [0.0, -3.0]

@@ -230,8 +230,7 @@ class Competition:
         who = self.access.session(ident).who
         check_referee(who, "broadcast messages")
         text = msg.body["message"][:500]
-        # "text" too: "message" is one of the keys the public feed leaves out (a verdict's reason)
-        self.out.emit("broadcast", EVERYONE, {"message": text, "text": text, "by": who.name})
+        self.out.emit("broadcast", EVERYONE, {"message": text, "by": who.name})
         return {}
 
     # ------------------------------------------------------------------ pictures and finds
@@ -251,9 +250,10 @@ class Competition:
         meta = self.judge.picture(r.team, r.tag, x, y, heading, t=time.time(),
                                   sha256=hashlib.sha256(png).hexdigest()[:16], label=b.get("label", ""))
         seen = meta["victims"]
-        public = {k: meta[k] for k in ("id", "tag", "team", "x", "y", "heading", "t")}
-        self.out.emit("picture", r.team, dict(public, victims=seen, sha256=meta["sha256"]), public=False)
-        self.out.emit("picture", r.team, public, log_it=False)
+        # pushed once: the team and the referee get what it shows; the public feed only the fields
+        # the table of protocol/topics.py lets out (not the victims, not the hash)
+        self.out.emit("picture", r.team, {k: meta[k] for k in ("id", "tag", "team", "x", "y", "heading", "t",
+                                                                  "victims", "sha256")})
         return {"id": pid, "seen": self.judge.describe(seen)}
 
     def _on_picture_get(self, ident: bytes, msg: P.Message) -> dict[str, Any]:

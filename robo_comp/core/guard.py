@@ -21,6 +21,7 @@ import os
 import resource
 import socket
 import struct
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -116,22 +117,13 @@ class ConnectionGuard:
             return
         self.next_sweep = now + SWEEP_SECONDS
         for fd, address in list(self.conns.items()):
-            try:
-                sock = socket.socket(fileno=os.dup(fd))
-            except OSError:
-                continue
-            try:
-                if sock.getsockname()[1] != self.port:
+            with self._peek(fd) as sock:
+                if sock is None:
                     continue
                 info = sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_INFO, _TCP_INFO_LEN)
                 if len(info) >= _BYTES_RECEIVED + 8 and struct.unpack_from("=Q", info, _BYTES_RECEIVED)[0] > self.inbound:
                     self._cut(sock, address, f"a subscriber sent more than {self.inbound} bytes")
-                    del self.conns[fd]  # counted as gone now: a cut connection is not cut twice
-                    self._forget_address(address)
-            except OSError:
-                pass
-            finally:
-                sock.close()
+                    self._closed(fd)  # counted as gone now: a cut connection is not cut twice
 
     @property
     def sweeping(self) -> bool:
@@ -159,13 +151,31 @@ class ConnectionGuard:
             elif event["event"] == zmq.EVENT_DISCONNECTED:
                 self._closed(fd)
 
-    def _accepted(self, fd: int) -> None:
+    @contextlib.contextmanager
+    def _peek(self, fd: int) -> Iterator[socket.socket | None]:
+        """A duplicate of libzmq's descriptor ``fd`` while it is a connection to this socket's port
+        (None: closed again, or the number reused by another socket), closed afterwards; libzmq's
+        own descriptor stays until libzmq closes it. An ``OSError`` inside (the peer went away
+        meanwhile) ends the look quietly."""
         try:
             sock = socket.socket(fileno=os.dup(fd))
-        except OSError:  # already closed again
+        except OSError:
+            yield None
             return
         try:
-            if sock.getsockname()[1] != self.port:  # not (any more) a connection of our ROUTER
+            ours = sock.getsockname()[1] == self.port
+        except OSError:
+            ours = False
+        try:
+            yield sock if ours else None
+        except OSError:
+            pass
+        finally:
+            sock.close()
+
+    def _accepted(self, fd: int) -> None:
+        with self._peek(fd) as sock:
+            if sock is None:
                 return
             address = str(sock.getpeername()[0])
             self._closed(fd)  # a descriptor number reused before its close was seen
@@ -176,10 +186,6 @@ class ConnectionGuard:
                 self._cut(sock, address, f"more than {self.limits.per_address} connections from one address")
             elif len(self.conns) > self.limits.total:
                 self._cut(sock, address, f"the core holds its limit of {self.limits.total} connections")
-        except OSError:
-            pass
-        finally:
-            sock.close()  # the duplicate only: libzmq's descriptor stays until libzmq closes it
 
     def _cut(self, sock: socket.socket, address: str, reason: str) -> None:
         """End a connection (libzmq sees it close and reports it as disconnected)."""

@@ -179,8 +179,7 @@ class Replayer:
         self.clock_mark = None
 
     def _clock(self, team: str | None, d: dict[str, Any], t: float) -> None:
-        self.phase = (d["phase"], d["elapsed"], d.get("duration"), t)
-        self.outage_rule = d.get("outage", self.outage_rule)
+        self._phase(team, d, t)
         self.clock_mark = dict(d, t=t)
 
     def finish(self, outage: bool = False) -> None:

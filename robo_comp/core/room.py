@@ -23,11 +23,17 @@ def no_room(err: BaseException) -> bool:
     return isinstance(err, OSError) and err.errno in NO_ROOM
 
 
-def mount_point(path: Path) -> Path:
-    """The mount point of the file system that holds ``path`` (its nearest existing folder)."""
+def _existing(path: Path) -> Path:
+    """``path``, or its nearest existing parent (a state folder not made yet)."""
     p = Path(os.path.abspath(path))
     while not p.exists():
         p = p.parent
+    return p
+
+
+def mount_point(path: Path) -> Path:
+    """The mount point of the file system that holds ``path`` (its nearest existing folder)."""
+    p = _existing(path)
     while not os.path.ismount(p):
         p = p.parent
     return p
@@ -35,10 +41,7 @@ def mount_point(path: Path) -> Path:
 
 def free_bytes(path: Path) -> int:
     """Bytes free for us on the file system of ``path``."""
-    p = Path(os.path.abspath(path))
-    while not p.exists():
-        p = p.parent
-    return shutil.disk_usage(p).free
+    return shutil.disk_usage(_existing(path)).free
 
 
 def _size(n: float) -> str:

@@ -228,8 +228,12 @@ class Core:
             self.events = EventLog(log_path, fsync=fsync)
 
     # ------------------------------------------------------------------ sockets and loop
-    def bind(self) -> None:
-        """Bind the ROUTER and PUB sockets and write ``STATE/core.json``."""
+    def bind(self, before_announce: Callable[[], None] | None = None) -> None:
+        """Bind the ROUTER and PUB sockets and write ``STATE/core.json``.
+
+        ``before_announce`` runs once the ports are known and before ``core.json`` says the core is
+        up (the CLI writes ``match.json`` there: whoever waits for ``core.json`` reads the match's
+        file as this core runs it, never the one before an ``--override``)."""
         # the credential check is up before the first handshake can start: a CurveZMQ key from
         # STATE/keys, else a token as the PLAIN password (nothing of a peer without one is buffered)
         self._zap = ZapHandler(self.ctx, self.curve.allowed if self.curve is not None else None,
@@ -279,6 +283,8 @@ class Core:
                 "heartbeat": self.heartbeat, "arena": self.scenario.name}
         if self.curve is not None:
             info.update(curve=True, curve_public=self.curve.public.decode())
+        if before_announce is not None:
+            before_announce()
         tmp = self.state_dir / "core.json.tmp"
         tmp.write_text(json.dumps(info, indent=2))
         os.replace(tmp, self.state_dir / "core.json")

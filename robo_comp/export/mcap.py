@@ -34,6 +34,7 @@ from typing import Any
 
 from robo_comp.errors import FieldError, UnavailableError
 from robo_comp.export.ros2msgs import msgdef
+from robo_comp.protocol import unpack_walls
 from robo_comp.protocol.logfile import LogRecord, read_recording
 
 FRAME = "arena"
@@ -51,8 +52,11 @@ class ExportSummary:
 
 
 def _stamp(t: float) -> dict[str, int]:
-    sec = int(math.floor(t))
-    return {"sec": sec, "nanosec": int(round((t - sec) * 1e9)) % 1_000_000_000}
+    """``t`` seconds as a ROS 2 time (the fraction to the nanosecond, rounding up into the next
+    second where it must)."""
+    sec = math.floor(t)
+    extra, nanosec = divmod(round((t - sec) * 1e9), 1_000_000_000)
+    return {"sec": int(sec + extra), "nanosec": int(nanosec)}
 
 
 def _header(t: float, frame: str = FRAME) -> dict[str, Any]:
@@ -98,7 +102,6 @@ def export_mcap(log: Path, out: Path, pictures: Path | None = None) -> ExportSum
         from mcap_ros2.writer import Writer
     except ImportError:
         raise UnavailableError("the MCAP export needs mcap and mcap-ros2-support: pip install 'robo_comp[mcap]'") from None
-    from robo_comp.protocol import unpack_walls
 
     records, started = read_recording(log)
     arena = started["arena"]
@@ -127,14 +130,14 @@ def export_mcap(log: Path, out: Path, pictures: Path | None = None) -> ExportSum
                                      "cell_cm": str(arena.get("cell_cm", "")), "frame": FRAME,
                                      "teams": ",".join(map(str, started.get("teams", [])))})
         for rec in records:
-            _one(rec, put, frames, pictures, missing, unpack_walls)
+            _one(rec, put, frames, pictures, missing)
             put("/events", "std_msgs/String", _json({"seq": rec.seq, "topic": rec.topic, "team": rec.team,
                                                      "data": rec.data}), rec.t)
         w.finish()
     return ExportSummary(out, len(records), counts, missing)
 
 
-def _one(rec: LogRecord, put: Any, frames: _Frames, pictures: Path, missing: list[int], unpack_walls: Any) -> None:
+def _one(rec: LogRecord, put: Any, frames: _Frames, pictures: Path, missing: list[int]) -> None:
     """The messages of one record on their own topics."""
     d, t = rec.data, rec.t
     if rec.topic == "core.started" and "arena" in d:

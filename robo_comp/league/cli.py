@@ -101,8 +101,8 @@ def add_parser(sub: Any) -> None:
 
 
 def _guarded(func: Any) -> Any:
-    """``func`` with SQLite's own errors about a damaged ``league.db`` turned into a sentence
-    with the way out (instead of a traceback)."""
+    """``func`` with SQLite's own errors turned into a sentence with the way out (instead of a
+    traceback): ``league repair`` for a damaged ``league.db``, waiting for a busy one."""
     import functools
     import sqlite3
 
@@ -111,9 +111,9 @@ def _guarded(func: Any) -> Any:
         try:
             return int(func(args) or 0)
         except sqlite3.DatabaseError as e:
-            from robo_comp.league.store import LeagueDamaged
+            from robo_comp.league.store import db_error
 
-            raise LeagueDamaged(Path(args.league), f"SQLite says {e}") from None
+            raise db_error(Path(args.league), e, f"SQLite says {e}") from None
 
     return run
 

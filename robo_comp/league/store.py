@@ -115,7 +115,7 @@ class LeagueStore:
             if "last" not in columns:  # a league made before submissions kept their last time
                 self.db.execute("ALTER TABLE submissions ADD COLUMN last REAL")
         except sqlite3.DatabaseError as e:
-            raise LeagueDamaged(self.root, f"it cannot be read as a league database (SQLite says {e})") from None
+            raise db_error(self.root, e, f"it cannot be read as a league database (SQLite says {e})") from None
         if create:
             with self.transaction():
                 for k, v in DEFAULTS.items():
@@ -261,16 +261,19 @@ class LeagueStore:
         prior: dict[str, list[int]] = {}
         sides: dict[str, list[int]] = {}
         use = [0] * len(pool)
-        for m in self.matches():
-            if m.status == "cancelled" or m.scenario not in pool:
-                continue
-            k = pool.index(m.scenario)
+
+        def tally(teams: list[str], k: int) -> None:
+            """Count a match of ``teams`` (in side order) on scenario ``k``."""
             use[k] += 1
-            for i, team in enumerate(m.teams):
+            for i, team in enumerate(teams):
                 prior.setdefault(team, [0] * len(pool))[k] += 1
-                row = sides.setdefault(team, [0] * max(2, len(m.teams)))
+                row = sides.setdefault(team, [0] * max(2, len(teams)))
                 row.extend([0] * (i + 1 - len(row)))
                 row[i] += 1
+
+        for m in self.matches():
+            if m.status != "cancelled" and m.scenario in pool:
+                tally(m.teams, pool.index(m.scenario))
         flat = [g for _, groups in rounds for g in groups]
         for teams in flat:
             missing = [t for t in teams if t not in newest]
@@ -284,11 +287,7 @@ class LeagueStore:
                 got = balance(groups, len(pool), prior=prior, prior_sides=sides, prior_use=use,
                               scenario=(rnd - 1) % len(pool))
                 for g, k in got:
-                    use[k] += 1
-                    for i, team in enumerate(g):
-                        prior.setdefault(team, [0] * len(pool))[k] += 1
-                        row = sides.setdefault(team, [0] * max(2, len(g)))
-                        row[i] += 1
+                    tally(g, k)
                 placed_list += got
             placed = iter(placed_list)
         else:
@@ -422,6 +421,22 @@ class LeagueDamaged(FieldError):
                          "puts damaged matches back to be played again")
 
 
+#: SQLite errors that say nothing about the file's bytes (another program holds it, it cannot be
+#: opened or written, the disk is full): ``league repair`` would not help with them.
+NOT_DAMAGE = ("SQLITE_BUSY", "SQLITE_LOCKED", "SQLITE_CANTOPEN", "SQLITE_READONLY", "SQLITE_PERM", "SQLITE_FULL")
+
+
+def db_error(root: Path, e: sqlite3.Error, damaged: str) -> FieldError:
+    """The error to show for SQLite's ``e`` on the league at ``root``: :class:`LeagueDamaged`
+    (``damaged`` says what) when the file's bytes may be at fault; else a sentence that the
+    league is fine and what to wait for, since a repair would not help."""
+    if str(getattr(e, "sqlite_errorname", "")).startswith(NOT_DAMAGE):
+        return FieldError(f"{root / 'league.db'} cannot be used right now (SQLite says {e}): another program "
+                          "holds it, or the file or its disk cannot be written. The league is not damaged: try "
+                          "again when that is over")
+    return LeagueDamaged(root, damaged)
+
+
 def repair(root: str | Path) -> list[str]:
     """Recover the league at ``root`` from a damaged ``league.db``; returns what was done, one
     sentence each.
@@ -511,5 +526,5 @@ def match_seed(league_seed: int, mid: int) -> int:
     return int.from_bytes(hashlib.sha256(f"{league_seed}:{mid}".encode()).digest()[:4], "big")
 
 
-__all__ = ["DEFAULTS", "LeagueDamaged", "LeagueStore", "MatchRow", "Submission", "match_seed", "repair",
+__all__ = ["DEFAULTS", "LeagueDamaged", "NOT_DAMAGE", "db_error", "LeagueStore", "MatchRow", "Submission", "match_seed", "repair",
            "version_of"]

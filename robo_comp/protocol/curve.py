@@ -42,7 +42,7 @@ import zmq.auth
 import zmq.utils.monitor
 from zmq.utils import z85
 
-from robo_comp.errors import AuthError, ConnectionLostError, FieldError, RoboCompError
+from robo_comp.errors import AuthError, ConnectionLostError, FieldError, RateLimitError, RoboCompError
 from robo_comp.teams.tokens import ORGANISER, REFEREE, check_team_name
 
 log = logging.getLogger("robo_comp.protocol.curve")
@@ -60,6 +60,13 @@ ZAP_ENDPOINT = "inproc://zeromq.zap.01"
 ZAP_DOMAIN = b"robo_comp"
 #: The PLAIN user name every client presents (the password is its token).
 PLAIN_USER = b"robo_comp"
+#: ZAP status (RFC 27) of a handshake without a valid credential; the client's monitor reports it
+#: as HANDSHAKE_FAILED_AUTH with this value.
+ZAP_REFUSED = 400
+#: ZAP status of a valid credential the core cannot take now (its connection limits: full, or the
+#: principal holds its share). libzmq closes a 300 silently, so the client could not say why; a 500
+#: reaches it as HANDSHAKE_FAILED_AUTH with this value, and the client says what happened.
+ZAP_NO_ROOM = 500
 K = TypeVar("K")
 
 
@@ -128,14 +135,19 @@ HANDSHAKE_EVENTS = (zmq.EVENT_HANDSHAKE_SUCCEEDED | zmq.EVENT_HANDSHAKE_FAILED_A
 def handshake_error(frames: list[bytes], curve: bool) -> RoboCompError | None:
     """What a client tells its user about one monitor message (see :data:`HANDSHAKE_EVENTS`):
     None when the handshake succeeded (or the event says nothing about it), else the error."""
-    event = zmq.utils.monitor.parse_monitor_message(frames)["event"]
-    if event == zmq.EVENT_HANDSHAKE_FAILED_AUTH:
+    event = zmq.utils.monitor.parse_monitor_message(frames)
+    if event["event"] == zmq.EVENT_HANDSHAKE_FAILED_AUTH:
+        if event["value"] == ZAP_NO_ROOM:
+            return RateLimitError("the core accepts this token or key but has no room for another connection "
+                                  "now: it is full (the last connections are kept for the referee and the organiser's "
+                                  "hosts), or your team holds its share of sessions (close the clients you do "
+                                  "not use); try again later")
         if curve:
             return AuthError("the core refused this connection's CurveZMQ key: use the secret certificate "
                              "the organiser gave you (--curve-cert) and this core's core.key (--core-key)")
         return AuthError("the core refused this connection: the token is not valid for this core; use the "
                          "token file the organiser gave you")
-    if event in (zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL, zmq.EVENT_HANDSHAKE_FAILED_NO_DETAIL):
+    if event["event"] in (zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL, zmq.EVENT_HANDSHAKE_FAILED_NO_DETAIL):
         hint = ("it may not run with --curve (leave out --curve-cert and --core-key)" if curve else
                 "if it runs with --curve, give --curve-cert and --core-key")
         return ConnectionLostError(f"the connection to the core failed during its handshake: {hint}")
@@ -243,16 +255,17 @@ class ZapHandler:
             else:
                 who = f"{principal.role}:{principal.name}"
                 self.principals[who] = principal
+        status = ZAP_REFUSED
         if who is not None and self.admit is not None:
             full = self.admit(principal)
             if full is not None:
-                who, why = None, full
+                who, why, status = None, full, ZAP_NO_ROOM
         if who is not None:
             self.accepted += 1
             return [b"1.0", request_id, b"200", b"OK", who.encode(), b""]
         self.refused += 1
         self._tally.add((mechanism.decode(errors="replace"), address.decode(errors="replace")), why)
-        return [b"1.0", request_id, b"400", why.encode()[:200], b"", b""]
+        return [b"1.0", request_id, str(status).encode(), why.encode()[:200], b"", b""]
 
     @property
     def refusals_waiting(self) -> bool:
@@ -485,6 +498,6 @@ def add_parser(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None
     k.set_defaults(func=run_keys)
 
 
-__all__ = ["HANDSHAKE_EVENTS", "ClientKeys", "ServerKeys", "Tallies", "Tally", "ZapHandler", "add_curve_args", "client_keys",
+__all__ = ["HANDSHAKE_EVENTS", "ClientKeys", "ServerKeys", "Tallies", "Tally", "ZAP_NO_ROOM", "ZAP_REFUSED", "ZapHandler", "add_curve_args", "client_keys",
            "create_keys", "handshake_error", "load_server_keys", "open_server", "secure_client", "secure_plain_client",
            "secure_plain_server", "secure_server"]

@@ -36,8 +36,10 @@ PUBLIC_TOPICS: dict[str, tuple[str, ...] | None] = {
     "robot.registered": None, "robot.positions": None, "robot.lost": None, "robot.returned": None,
     "robot.left": None, "task.given": None, "task.started": None, "task.done": None, "robot.stopped": None,
     "core.started": None, "core.recovered": None, "core.storage": None, "match.phase": None, "score": None,
-    "score.change": None, "penalty": None, "disqualified": None, "broadcast": None, "find.reported": None,
+    "score.change": None, "penalty": None, "disqualified": None, "find.reported": None,
     "robot.bump": None, "robot.tasks": None,
+    # the referee's message is for everyone ("message" is a private key elsewhere: a verdict's reason)
+    "broadcast": ("message", "by"),
     # the logged record also names the victims in sight and the image's hash: the team's own
     "picture": ("id", "tag", "team", "x", "y", "heading", "t"),
     # the running match clock as the log records it (a replay shows it; the machine's boot clock is not public)

@@ -47,6 +47,14 @@ class Scoreboard:
         self.first_finder: dict[str, str] = {}
         self.disqualified: set[str] = set()
 
+    def add_team(self, team: str) -> None:
+        """Count ``team`` from now on (nothing if it is counted already): a replayed log names
+        its teams as it goes."""
+        if team not in self._totals:
+            self.teams.append(team)
+            self._totals[team] = [0.0, 0.0, 0.0, 0]
+            self.found[team] = set()
+
     def judge(self, find: dict[str, Any], truth: dict[str, Any]) -> dict[str, Any]:
         """Ask the rules whether a reported find counts."""
         truth = dict(truth, config=self.config, already_found=self.found.get(find["team"], set()))

@@ -573,7 +573,7 @@ class Bench:
         t0 = time.monotonic()
         recs = self.sandboxes[team].poll(0.05)
         now = time.monotonic()
-        used = self.used.setdefault(team, {"events": 0.0, "log_bytes": 0.0, "wall_seconds": 0.0})
+        used = self.used[team]  # every team of the bench has its counts from the start
         used["wall_seconds"] += now - t0
         limit = self.budget.wall_seconds
         if limit is not None and used["wall_seconds"] > limit:

@@ -26,6 +26,15 @@ MESSAGE_SECONDS = 12.0
 GREY = "#808080"
 
 
+def find_state(f: dict[str, Any]) -> str:
+    """A find's state (``confirmed``, ``rejected``, ``duplicate``, ``reported``), from its
+    ``state`` or, in a snapshot's records, its verdict: the same in every view (wall, web)."""
+    if f.get("state"):
+        return str(f["state"])
+    v = f.get("verdict") or {}
+    return "confirmed" if v.get("valid") else ("duplicate" if v.get("duplicate") else ("rejected" if v else "reported"))
+
+
 @dataclass
 class Arena:
     """The static map: size in cells, walls ``[y, x]``, zones, known objects and teams."""
@@ -221,12 +230,7 @@ class WallModel:
         self.match.heard_at = self.clock()
 
     def _find(self, f: dict[str, Any]) -> None:
-        state = f.get("state")
-        if not state:
-            verdict = f.get("verdict") or {}
-            state = "confirmed" if verdict.get("valid") else ("duplicate" if verdict.get("duplicate")
-                                                              else ("rejected" if verdict else "reported"))
-        t = Thing("find", f.get("id"), float(f.get("x", 0)), float(f.get("y", 0)), f.get("team"), str(state),
+        t = Thing("find", f.get("id"), float(f.get("x", 0)), float(f.get("y", 0)), f.get("team"), find_state(f),
                   {k: v for k, v in f.items() if k != "verdict"})
         if isinstance(f.get("verdict"), dict) and "message" not in t.info:
             t.info["message"] = f["verdict"].get("reason", "")
@@ -302,7 +306,7 @@ def _on_picture(m: WallModel, d: dict[str, Any]) -> None:
 
 
 def _on_broadcast(m: WallModel, d: dict[str, Any]) -> None:
-    m.note(str(d.get("message") or d.get("text") or ""), "broadcast")  # the public feed carries "text"
+    m.note(str(d.get("message") or ""), "broadcast")
 
 
 def _on_storage(m: WallModel, d: dict[str, Any]) -> None:

@@ -23,68 +23,55 @@ class ScoreFold:
     reading of a log's scores for every viewer that replays it (the wall, the web page).
 
     A league match's log (and any log without ``score`` tables) carries the score as
-    ``score.change`` lines and a final ``match.phase`` with ``scores``; :meth:`feed` turns
-    them into the ``score`` event a live core would have published (``{"teams": rows}``, rows
-    as :meth:`robo_comp.scoring.board.Scoreboard.table` makes them). A log that carries its own
-    ``score`` tables (a core's) is left to them: the fold stops at the first one.
+    ``score.change`` lines and a final ``match.phase`` with ``scores``; :meth:`feed` gives each
+    line to a :class:`~robo_comp.scoring.board.Scoreboard` (as the core's recovery does) and
+    returns the ``score`` event a live core would have published (``{"teams": board.table()}``).
+    A log that carries its own ``score`` tables (a core's) is left to them: the fold stops at
+    the first one.
     """
 
     def __init__(self) -> None:
-        self.teams: list[str] = []
-        self.totals: dict[str, list[float]] = {}  # team -> score, penalties, last change
-        self.victims: dict[str, set[Any]] = {}
-        self.disqualified: set[str] = set()
-        self.own_tables = False  # the log has ``score`` events of its own
+        from robo_comp.plugins.manager import get_plugin_manager
+        from robo_comp.scoring.board import Scoreboard
+        from robo_comp.scoring.config import ScoringConfig
 
-    def _row(self, team: str) -> list[float]:
-        if team not in self.totals:
-            self.totals[team] = [0.0, 0.0, 0.0]
-            self.victims[team] = set()
-            if team not in self.teams:
-                self.teams.append(team)
-        return self.totals[team]
+        # no rules: the lines are already scored; no rank plugin: the default order
+        self.board = Scoreboard([], get_plugin_manager(load_entry_points=False), ScoringConfig())
+        self.own_tables = False  # the log has ``score`` events of its own
 
     def feed(self, topic: str, data: dict[str, Any]) -> dict[str, Any] | None:
         """Take one record; returns the ``score`` event's data to show now, or None."""
+        from robo_comp.scoring.board import ScoreLine
+
         if topic == "score":
             self.own_tables = True
-            return None
         if self.own_tables:
             return None
+        board = self.board
         if topic == "core.started":
             for team in data.get("teams") or []:
-                self._row(str(team))
-            return self.table()
-        if topic == "score.change" and data.get("team") is not None:
-            row = self._row(str(data["team"]))
-            points = float(data.get("points") or 0.0)
-            row[0] += points
-            if points < 0:
-                row[1] -= points
-            row[2] = max(row[2], float(data.get("t") or 0.0))
-            if data.get("kind") == "victim" and data.get("victim"):
-                self.victims[str(data["team"])].add(data["victim"])
-            return self.table()
-        if topic == "disqualified" and data.get("team") is not None:
-            self.disqualified.add(str(data["team"]))
-            return self.table()
-        if topic == "match.phase" and isinstance(data.get("scores"), dict):
+                board.add_team(str(team))
+        elif topic == "score.change" and data.get("team") is not None:
+            team = str(data["team"])
+            board.add_team(team)
+            board.restore_line(ScoreLine(team, float(data.get("points") or 0.0), str(data.get("kind", "")),
+                                         str(data.get("reason", "")), float(data.get("t") or 0.0),
+                                         data.get("victim")))
+        elif topic == "disqualified" and data.get("team") is not None:
+            board.add_team(str(data["team"]))
+            board.disqualified.add(str(data["team"]))
+        elif topic == "match.phase" and isinstance(data.get("scores"), dict):
             for team, score in data["scores"].items():  # the match's own final word
-                self._row(str(team))[0] = float(score)
+                board.add_team(str(team))
+                if abs(float(score) - board.score_of(str(team))) > 1e-9:  # lines missing from the log
+                    board.restore_line(ScoreLine(str(team), float(score) - board.score_of(str(team)),
+                                                 "final", "the match's final score", 0.0))
             for team, found in (data.get("victims") or {}).items():
-                self.victims[str(team)] = set(found)
-            return self.table()
-        return None
-
-    def table(self) -> dict[str, Any]:
-        """The ``score`` event's data now: ranked rows."""
-        rows: list[dict[str, Any]] = [{"team": t, "score": round(v[0], 3), "victims": len(self.victims.get(t, ())),
-                 "penalties": round(v[1], 3), "last_change": v[2], "disqualified": t in self.disqualified}
-                for t, v in self.totals.items()]
-        rows.sort(key=lambda r: (r["disqualified"], -r["score"], r["team"]))
-        for i, r in enumerate(rows):
-            r["rank"] = i + 1
-        return {"teams": rows}
+                board.add_team(str(team))
+                board.found[str(team)] = set(found)
+        else:
+            return None
+        return {"teams": board.table()}
 
 
 class ReplaySource:

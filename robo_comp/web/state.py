@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from robo_comp.wall.model import WallModel
+from robo_comp.wall.model import WallModel, find_state
 
 # The map is drawn in the wall's colours, from its pygame module: without pygame's greeting on stdout.
 os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
@@ -39,15 +39,6 @@ def public_snapshot(snap: dict[str, Any]) -> dict[str, Any]:
     out["finds"] = [{**{k: f[k] for k in PUBLIC_FIND if k in f}, "state": find_state(f)}
                     for f in snap.get("finds") or []]
     return out
-
-
-def find_state(f: dict[str, Any]) -> str:
-    """A find's state (``confirmed``, ``rejected``, ``duplicate``, ``reported``), from its
-    ``state`` or, in a snapshot's records, its verdict: the same in every view."""
-    if f.get("state"):
-        return str(f["state"])
-    v = f.get("verdict") or {}
-    return "confirmed" if v.get("valid") else ("duplicate" if v.get("duplicate") else ("rejected" if v else "reported"))
 
 
 def legend(model: WallModel) -> dict[str, Any]:

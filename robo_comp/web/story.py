@@ -93,7 +93,7 @@ class Story:
             return [self._add("penalty", t, c, f"referee: penalty for {team}: {d.get('reason') or 'no reason given'}",
                               team, None, d)]
         if topic == "broadcast":
-            return [self._add("broadcast", t, c, f"referee: {d.get('message') or d.get('text') or ''}", None, None, d)]
+            return [self._add("broadcast", t, c, f"referee: {d.get('message') or ''}", None, None, d)]
         if topic == "disqualified":
             who = d.get("team") or ", ".join(str(x) for x in d.get("tags") or [])
             return [self._add("disqualified", t, c, f"referee disqualified {who}: {d.get('reason', '')}",
@@ -122,11 +122,12 @@ class Story:
     def _score_line(self, d: dict[str, Any], t: float, c: float | None, team: str | None) -> list[StoryItem]:
         points = float(d.get("points") or 0)
         item_kind = LINE_ITEM.get(str(d.get("kind")), "")
-        cand = [it for it in reversed(self.items) if it.kind == item_kind and it.team == team
-                and t - it.t <= FOLD_WITHIN]
-        if cand:
-            cand[0].points += points
-            return [cand[0]]
+        for it in reversed(self.items):  # in time order: look back only FOLD_WITHIN seconds
+            if t - it.t > FOLD_WITHIN:
+                break
+            if it.kind == item_kind and it.team == team:
+                it.points += points
+                return [it]
         sign = "+" if points >= 0 else "−"
         return [self._add("score", t, c, f"{team} {sign}{_n(abs(points))}: {d.get('reason', '')}", team, None, d,
                           points=points)]

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from typing import Any, Iterable
 
 import numpy as np
+import numpy.typing as npt
 
 from robo_comp.errors import FieldError, NoSuchRobotError
 from robo_comp.world import camera as _camera
@@ -78,6 +79,21 @@ class Arena:
     Build it from a :class:`~robo_comp.world.scenario.Scenario` (the default arena if
     none); ``seed`` overrides the scenario's seed.
     """
+
+    # Per-robot state, one entry per slot (index = slot), grown together by :meth:`_alloc`.
+    x: npt.NDArray[np.float64]
+    y: npt.NDArray[np.float64]
+    heading: npt.NDArray[np.float64]
+    active: npt.NDArray[np.bool_]
+    mode: npt.NDArray[np.int8]          # _IDLE / _TURN / _DRIVE
+    target: npt.NDArray[np.float64]     # signed degrees still to turn
+    remaining: npt.NDArray[np.float64]  # cells still to drive
+    sign: npt.NDArray[np.float64]       # +1 forwards, -1 backwards
+    bumped: npt.NDArray[np.bool_]
+    odo_dist: npt.NDArray[np.float64]
+    odo_turn: npt.NDArray[np.float64]
+    zone: npt.NDArray[np.int32]         # index into ``zones`` of the cell under the robot, -1 none
+    team_idx: npt.NDArray[np.int32]
 
     def __init__(self, scenario: Scenario | None = None, *, seed: int | None = None,
                  capacity: int = 16) -> None:
@@ -145,12 +161,21 @@ class Arena:
         grow("odo_turn", np.float64)
         grow("zone", np.int32, -1)
         grow("team_idx", np.int32, -1)
-        self._queues: list[deque] = getattr(self, "_queues", []) + [deque() for _ in range(cap - old)]
+        # A robot's queue: ("cmd", kind) marks where a command starts, then its motion
+        # primitives (op, value) with a number value (see _next_primitive).
+        self._queues: list[deque[tuple[str, Any]]] = getattr(self, "_queues", []) + [deque() for _ in range(cap - old)]
         self._cmd: list[str | None] = getattr(self, "_cmd", []) + [None] * (cap - old)
         self._team: list[str | None] = getattr(self, "_team", []) + [None] * (cap - old)
         self._tags += [None] * (cap - old)
         self._free.extend(range(cap - 1, old - 1, -1))
         self._cap = cap
+
+    def _tag(self, s: int) -> str:
+        """The tag of the robot in slot ``s``, which must hold one (an active slot always does:
+        add_robot/place set the tag with ``active``, remove_robot clears both)."""
+        tag = self._tags[s]
+        assert tag is not None, f"slot {s} holds no robot"
+        return tag
 
     def _slot_of(self, tag: str) -> int:
         try:
@@ -310,7 +335,7 @@ class Arena:
     def idle_tags(self) -> list[str]:
         """Tags of the robots that have no command to execute (idle or stopped by a bump)."""
         idx = np.flatnonzero(self.active[: self._cap] & (self.mode[: self._cap] == _IDLE))
-        return [self._tags[i] for i in idx.tolist()]
+        return [self._tag(i) for i in idx.tolist()]
 
     def odometry(self, tag: str, reset: bool = True) -> tuple[float, float]:
         """(cells driven, degrees turned) by ``tag`` since the last reset -- what its wheel
@@ -400,8 +425,9 @@ class Arena:
         while q:
             op, v = q.popleft()
             if op == "cmd":
-                if self._cmd[s] is not None:
-                    done.append(self._cmd[s])
+                prev = self._cmd[s]
+                if prev is not None:
+                    done.append(prev)
                 self._cmd[s] = v
                 continue
             if op == "drive":
@@ -435,14 +461,15 @@ class Arena:
                 q.extendleft(reversed(legs))
                 continue
         self.mode[s] = _IDLE
-        if self._cmd[s] is not None:
-            done.append(self._cmd[s])
+        prev = self._cmd[s]
+        if prev is not None:
+            done.append(prev)
         self._cmd[s] = None
         return done
 
     def _emit_done(self, s: int, kinds: list[str], now: float, events: list[Event]) -> None:
         for k in kinds:
-            events.append(Event("done", self._tags[s], now, {
+            events.append(Event("done", self._tag(s), now, {
                 "command": k, "x": float(self.x[s]), "y": float(self.y[s]),
                 "heading": float(self.heading[s])}))
 
@@ -550,7 +577,7 @@ class Arena:
             if self.drive == "grid4":
                 self._snap(s)
             self._cmd[s] = None
-            events.append(Event("bump", self._tags[s], now, {
+            events.append(Event("bump", self._tag(s), now, {
                 "x": float(self.x[s]), "y": float(self.y[s]), "heading": float(self.heading[s]),
                 "what": what, "cell": [int(pcx[j]), int(pcy[j])], "other": other}))
 
@@ -567,7 +594,7 @@ class Arena:
             zi = int(z[j])
             self.zone[s] = zi
             zone = self.zones[zi] if zi >= 0 else None
-            events.append(Event("zone", self._tags[s], self.time, {
+            events.append(Event("zone", self._tag(s), self.time, {
                 "kind": zone.kind if zone else None, "name": zone.name if zone else None,
                 "danger": zone.danger if zone else 0.0,
                 "speed_factor": zone.speed_factor if zone else 1.0,
@@ -595,7 +622,7 @@ class Arena:
         Returns (tags, readings) with one row per tag; used by the bench and the core."""
         if tags is None:
             idx = np.flatnonzero(self.active[: self._cap])
-            tl = [self._tags[i] for i in idx.tolist()]
+            tl = [self._tag(i) for i in idx.tolist()]
         else:
             tl = list(tags)
             idx = np.array([self._slot_of(t) for t in tl], dtype=np.int64)

@@ -55,7 +55,7 @@ def reachable(walls: np.ndarray, starts: list[tuple[int, int]]) -> np.ndarray:
     """Cells reachable (4-connected) from any of ``starts``: a bool grid like ``walls``."""
     h, w = walls.shape
     seen = np.zeros_like(walls, dtype=bool)
-    q = deque()
+    q: deque[tuple[int, int]] = deque()
     for x, y in starts:
         if not walls[y, x] and not seen[y, x]:
             seen[y, x] = True

@@ -22,12 +22,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import IO, Iterable, Sequence
+from typing import IO, TYPE_CHECKING, Iterable, Sequence
 
 import numpy as np
 
 from robo_comp.errors import ScenarioError
 from robo_comp.world.scenario import Drift, Positioning
+
+if TYPE_CHECKING:  # for the annotation only (the caller brings the arena)
+    from robo_comp.world.arena import Arena
 
 __all__ = ["Fix", "format_xyz", "parse_xyz_line", "parse_xyz", "write_xyz", "read_xyz",
            "PositioningSystem", "DeadReckoner", "Localization"]
@@ -248,7 +251,7 @@ class Localization:
     :func:`write_xyz` and report the estimates to the map service).
     """
 
-    def __init__(self, arena: "Arena", positioning: Positioning | None = None,  # noqa: F821
+    def __init__(self, arena: Arena, positioning: Positioning | None = None,
                  drift: Drift | None = None, rng: np.random.Generator | None = None, *,
                  external: bool = False) -> None:
         """``external``: fixes come from a real positioning system (:meth:`camera_fix`), not from

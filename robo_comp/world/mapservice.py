@@ -209,7 +209,7 @@ class MapService:
             self._next_disc += 1
         if ("discovery", disc_id) in self._ent:
             raise FieldError(f"discovery {disc_id!r} exists already")
-        rec = {"id": disc_id, "finder": finder, "team": team, "x": float(x), "y": float(y),
+        rec: dict[str, Any] = {"id": disc_id, "finder": finder, "team": team, "x": float(x), "y": float(y),
                "time": float(time), "kind": kind, "evidence": [str(e) for e in evidence], "note": note}
         self._touch(("discovery", disc_id), rec, None if self.shared_discoveries else team)
         return dict(rec, evidence=list(rec["evidence"]))

@@ -181,9 +181,9 @@ class Planner:
             # difference is final even when cells were blocked since the last labelling.
             return False
         if self._comp_dirty:
-            self._components()
-            return self._root(int(self._labels[ay * self.width + ax])) == self._root(
-                int(self._labels[by * self.width + bx]))
+            labels = self._components()
+            return self._root(int(labels[ay * self.width + ax])) == self._root(
+                int(labels[by * self.width + bx]))
         return True
 
     def _next_epoch(self) -> int:

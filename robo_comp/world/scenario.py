@@ -21,11 +21,14 @@ import tomllib
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import TYPE_CHECKING, Any, NoReturn
 
 import numpy as np
 
 from robo_comp.errors import ScenarioError
+
+if TYPE_CHECKING:  # for the annotation only; :attr:`Scenario.grid` imports it when used
+    from robo_comp.world.maps import GridMap
 
 __all__ = [
     "MAX_SIDE", "Rect", "Zone", "KnownObject", "Victim", "Team", "CostConfig",
@@ -263,7 +266,7 @@ class Scenario:
         return int(self.walls.shape[0])
 
     @property
-    def grid(self) -> "GridMap":  # noqa: F821 - robo_comp.world.maps.GridMap
+    def grid(self) -> GridMap:
         """The map (with the added walls) as a :class:`robo_comp.world.maps.GridMap`."""
         from robo_comp.world.maps import GridMap
 

@@ -218,7 +218,7 @@ const HANDLERS = {
     y: +d.y || 0, team: d.team ?? null, state: d.state || "discovered", info: { ...d } }),
   "picture": (m, d) => m.things.set(`picture:${d.id}`, { kind: "picture", id: d.id, x: +d.x || 0, y: +d.y || 0,
     team: d.team ?? null, state: "", info: { ...d } }),
-  "broadcast": (m, d, t) => m.note(String(d.message ?? d.text ?? ""), "broadcast", t),
+  "broadcast": (m, d, t) => m.note(String(d.message ?? ""), "broadcast", t),
   "penalty": (m, d, t) => m.note(`penalty ${d.team}: ${d.points} (${d.reason || ""})`, "error", t),
   "task.started": (m, d) => { if (d.tag != null) m.robot(d.tag, d.team).task = d.name || null; },
   "task.done": (m, d) => { const r = m.robots.get(d.tag); if (r) r.task = null; },

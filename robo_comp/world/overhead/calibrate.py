@@ -64,7 +64,7 @@ def load_calibration(path: str | Path) -> Calibration:
         h = np.array(d["homography"], dtype=np.float64)
         if h.shape != (3, 3):
             raise ValueError("homography is not 3x3")
-        return Calibration(h, float(d["error_cells"]), tuple(d["image_size"]),  # type: ignore[arg-type]
+        return Calibration(h, float(d["error_cells"]), tuple(d["image_size"]),
                            {int(k): (float(v[0]), float(v[1])) for k, v in d["reference"].items()},
                            None if d.get("camera_matrix") is None else np.array(d["camera_matrix"]),
                            None if d.get("distortion") is None else np.array(d["distortion"]))

@@ -41,7 +41,7 @@ def _calibrate(args: argparse.Namespace) -> int:
     if args.checkerboard:
         views = [im for f in sorted(Path(args.checkerboard).iterdir())
                  if (im := cv2.imread(str(f), cv2.IMREAD_GRAYSCALE)) is not None]
-        k, dist, rms = calibrate_intrinsics(views, tuple(args.board))  # type: ignore[arg-type]
+        k, dist, rms = calibrate_intrinsics(views, tuple(args.board))
         print(f"intrinsics from {len(views)} checkerboard views: {rms:.3f} pixels RMS reprojection error")
         frame = cv2.undistort(frame, k, dist)
     cal = calibrate(Detector().detect(frame), bindings.floor, (frame.shape[1], frame.shape[0]))

@@ -168,7 +168,7 @@ def run(bindings: Bindings, pub_url: str, *, sources: list[str] | None = None,
     socket is then a CurveZMQ server with that key, and hosts that pin its public half
     (``robots --camera-key``) know the fixes are the organiser's camera's. Without it the fixes
     go out in the clear and hosts refuse them."""
-    ctx = zmq.Context.instance()
+    ctx: zmq.Context[zmq.Socket[bytes]] = zmq.Context.instance()
     pub = ctx.socket(zmq.PUB)
     pub.setsockopt(zmq.LINGER, 0)
     pub.setsockopt(zmq.SNDHWM, 100)

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+import numpy.typing as npt
 
 from robo_comp.world.overhead.markers import marker_image
 
@@ -73,8 +74,7 @@ class SyntheticCamera:
         w, h = self.size
         rng = np.random.default_rng(degrade.seed)
         ppc = 8  # pixels per cell of the top-down floor picture that is warped into the view
-        top = np.where(walls, 70, 205).astype(np.uint8)
-        top = cv2.resize(top, (walls.shape[1] * ppc, walls.shape[0] * ppc), interpolation=cv2.INTER_NEAREST)
+        top = cv2.resize(np.where(walls, 70, 205).astype(np.uint8), (walls.shape[1] * ppc, walls.shape[0] * ppc), interpolation=cv2.INTER_NEAREST)
         scale = np.diag([1.0 / ppc, 1.0 / ppc, 1.0])
         frame = cv2.warpPerspective(top, self.to_image @ scale, (w, h), borderValue=30)
         for m, (x, y) in floor.items():
@@ -86,12 +86,12 @@ class SyntheticCamera:
                 c = self._corners(x, y, heading, marker_cells)
                 quarter = np.array([c[0], (c[0] + c[1]) / 2, (c[0] + c[1] + c[2] + c[3]) / 4, (c[0] + c[3]) / 2])
                 cv2.fillConvexPoly(frame, self.project(quarter).round().astype(np.int32), 120)
-        out = frame.astype(np.float32)
+        out: npt.NDArray[np.float32] = frame.astype(np.float32)
         if degrade.light:
             ramp = np.linspace(1.0 - degrade.light, 1.0, w, dtype=np.float32)
             out *= ramp[None, :]
         if degrade.blur:
-            out = cv2.GaussianBlur(out, (0, 0), degrade.blur)
+            out = cv2.GaussianBlur(out, (0, 0), degrade.blur).astype(np.float32, copy=False)  # stays float32
         if degrade.noise:
             out += rng.normal(0.0, degrade.noise, out.shape).astype(np.float32)
         return np.clip(out, 0, 255).astype(np.uint8)
