@@ -17,7 +17,7 @@ import sys
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Generator
+from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -35,7 +35,7 @@ from robo_comp.errors import FieldError, RoboCompError
 from robo_comp.plugins.manager import get_plugin_manager
 from robo_comp.robots.drivers import ArenaDriver
 from robo_comp.robots.oneworld import Foreign, is_real, merge_readings
-from robo_comp.robots.steps import Capture, Plan, Step, TaskFailed, TaskSpec
+from robo_comp.robots.steps import Answer, Capture, CellPath, Plan, TaskFailed, TaskRun, TaskSpec, no_steps
 from robo_comp.robots.teamcode import TeamCode, free_cell, in_bounds, stop_status
 from robo_comp.world.arena import Arena
 from robo_comp.world.localization import Localization
@@ -50,6 +50,15 @@ log = logging.getLogger("robo_comp.robots")
 MAX_STEP = 0.5
 
 Reply = Callable[[bool, dict[str, Any]], None]
+
+
+def _log_refusal(what: str) -> Reply:
+    """A reply handler that only logs the core's refusal of ``what``."""
+    def on_reply(ok: bool, body: dict[str, Any]) -> None:
+        if not ok:
+            log.warning("%s refused: %s", what, body.get("message"))
+    return on_reply
+
 #: Robots per ``reports`` message; the host looks at the core's socket between two messages
 #: (so a stop never waits long behind a big host's reports).
 REPORT_CHUNK = 100
@@ -67,10 +76,10 @@ class RunningTask:
 
     id: int
     name: str
-    gen: Generator[Step, Any, Any]
+    gen: TaskRun
     pictures: list[int] = field(default_factory=list)
-    plan: Future[list[tuple[int, int]] | None] | None = None
-    answer: Any = None
+    plan: Future[CellPath | None] | None = None
+    answer: Answer = None
 
 
 @dataclass(slots=True)
@@ -322,6 +331,11 @@ class RobotHost:
         self.state = state
         self.state_since = time.monotonic()
 
+    def _on_whole_map(self, ok: bool, body: dict[str, Any]) -> None:
+        """The whole map, asked for again after a delta that did not fit."""
+        if ok:
+            self.map.apply(body)
+
     def _on_hello(self, ok: bool, body: dict[str, Any]) -> None:
         if not ok:
             raise SystemExit(f"robots: the core refused us: {body.get('message')}")
@@ -354,7 +368,7 @@ class RobotHost:
         self._send("register", {"token": self.token, "robot_id": r.robot_id, "tasks": self.adverts(r.tag),
                                 "x": b.x, "y": b.y, "heading": b.heading, "speed": float(self.world.speed),
                                 "task_id": r.task.id if r.task else None, **self._resend(r)},
-                   lambda ok, body, r=r: self._on_registered(r, ok, body))
+                   lambda ok, body: self._on_registered(r, ok, body))
 
     def adverts(self, tag: int) -> list[dict[str, Any]]:
         """What robot ``tag`` advertises: the plugins' tasks, then its uploaded code's (which win)."""
@@ -381,7 +395,7 @@ class RobotHost:
         for tag in tags:
             if tag in self.by_tag:
                 self._send("advertise", {"tag": tag, "tasks": self.adverts(tag)},
-                           lambda ok, body: ok or log.warning("advertise refused: %s", body.get("message")))
+                           _log_refusal("advertise"))
 
     def team_log(self, tag: int | None, stream: str, text: str) -> None:
         """Forward a line team code printed (or a sandbox notice) to the team's consoles."""
@@ -571,7 +585,7 @@ class RobotHost:
                 self.map.apply(body)
             except Exception as e:  # a delta that does not fit our version: ask for all again
                 log.warning("map delta not applied (%s); fetching the whole map", e)
-                self._send("map.delta", {"since": 0}, lambda ok, b: ok and self.map.apply(b))
+                self._send("map.delta", {"since": 0}, self._on_whole_map)
             return
         if type_ in ("upload", "unload", "extensions", "sandbox.reset"):
             self._on_code_request(type_, rid, body)
@@ -613,7 +627,7 @@ class RobotHost:
             args = check_args(spec.advert(), task.get("args", []))
             r.task = RunningTask(task["task_id"], task["name"], spec.run(r, *args))
         except (TaskFailed, RoboCompError) as e:
-            r.task = RunningTask(task["task_id"], task["name"], iter(()))
+            r.task = RunningTask(task["task_id"], task["name"], no_steps())
             self._done(r, False, str(e))
             return
         self._advance(r)
@@ -652,8 +666,15 @@ class RobotHost:
         x, y, heading = r.driver.truth()
         self._send("picture", {"tag": r.tag, "x": x, "y": y, "heading": heading, "png": png,
                                "label": label[:64]},
-                   lambda ok, body, t=t: t.pictures.append(body["id"]) if ok else
-                   log.warning("picture refused: %s", body.get("message")))
+                   lambda ok, body: self._on_picture(t, ok, body))
+
+    @staticmethod
+    def _on_picture(t: RunningTask, ok: bool, body: dict[str, Any]) -> None:
+        """The core kept the picture: its id becomes evidence in the task's result."""
+        if ok:
+            t.pictures.append(body["id"])
+        else:
+            log.warning("picture refused: %s", body.get("message"))
 
     def _done(self, r: SimRobot, ok: bool, status: str, result: Any = None) -> None:
         t = r.task
@@ -669,7 +690,7 @@ class RobotHost:
         # kept until the core answers: a core that goes down before it does gets it again with
         # the robot's registration after the reconnect
         self.unacked_done[r.robot_id] = done
-        self._send("task.done", done, lambda ok_, body, r=r, tid=t.id: self._on_done_reply(r, tid, ok_, body))
+        self._send("task.done", done, lambda ok_, body: self._on_done_reply(r, t.id, ok_, body))
 
     def _on_done_reply(self, r: SimRobot, task_id: int, ok: bool, body: dict[str, Any]) -> None:
         held = self.unacked_done.get(r.robot_id)
@@ -963,7 +984,7 @@ class RobotHost:
             code_deadline = self.code.deadline()
             if code_deadline is not None:
                 wake = min(wake, code_deadline)
-            if self.poller.poll(max(0.0, wake - time.monotonic()) * 1000):
+            if self.poller.poll(int(max(0.0, wake - time.monotonic()) * 1000)):  # pyzmq truncates a float the same way
                 self._drain()
             if self.fix_sock is not None:
                 self._take_fixes()
