@@ -446,7 +446,7 @@ class RobotHost:
         self.fix_gate = PoseGate(self.walls, self.world.speed * float(self.world.speed_map.max(initial=1.0)))
 
     def _create_robots(self, arena: dict[str, Any]) -> None:
-        assert self.world is not None and self.team is not None
+        assert self.world is not None and self.team is not None and self.loc is not None  # made with the world
         start = [c for c in self.world.free_start_cells(self.team)] if any(
             t["name"] == self.team and t.get("start") for t in arena.get("teams", [])) else []
         taken = set(start)
@@ -466,7 +466,7 @@ class RobotHost:
             if driver is None:
                 raise SystemExit(f"robots: no plugin provides the driver {self.driver_kind!r}")
             self.robots[rid] = SimRobot(rid, driver, self)
-        self.loc.update()  # type: ignore[union-attr]
+        self.loc.update()
         if self.robots:  # compile/load the sensor kernels now, not in the middle of a report
             sensors_warm_up()
             self.world.sense_many([next(iter(self.robots))])
@@ -593,7 +593,8 @@ class RobotHost:
         r = self.by_tag.get(body.get("tag", -1))
         if type_ == "stop":
             if r is None:
-                self.sock.send(P.error_reply(rid, RoboCompError("no such robot on this host"),  # type: ignore[union-attr]
+                assert self.sock is not None  # the stop came in on it
+                self.sock.send(P.error_reply(rid, RoboCompError("no such robot on this host"),
                                              self.session))
                 return
             self._halt(r)
@@ -776,7 +777,8 @@ class RobotHost:
         if now - r.last_sensed >= self.sensor_interval:
             sensors = self._sense([r]).get(r.tag)
         body = self._pose_rows([r], now, {r.tag: sensors} if sensors is not None else {})
-        self.sock.send(P.request("reports", 0, body, self.session))  # type: ignore[union-attr]
+        assert self.sock is not None  # a task ends on a connected host (its task.done follows on this socket)
+        self.sock.send(P.request("reports", 0, body, self.session))
         self.last_tx = now
 
     def _pose_rows(self, robots: list[SimRobot], now: float,
@@ -835,6 +837,7 @@ class RobotHost:
         sensing = [r for r in due if now - r.last_sensed >= self.sensor_interval]
         readings = self._sense(sensing) if sensing else {}
         sock = self.sock
+        assert sock is not None  # reports go out while the host is up
         for start in range(0, len(due), REPORT_CHUNK):
             if start:
                 self._drain()  # many robots: let a stop in between, it must not wait for all reports
@@ -842,7 +845,7 @@ class RobotHost:
                     return
             chunk = due[start:start + REPORT_CHUNK]
             body = self._pose_rows(chunk, now, {r.tag: readings[r.tag] for r in chunk if r.tag in readings})
-            sock.send(P.request("reports", 0, body, self.session))  # type: ignore[union-attr]
+            sock.send(P.request("reports", 0, body, self.session))
         self.last_tx = now
 
     def _drain(self) -> None:
