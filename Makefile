@@ -16,7 +16,7 @@ demo: $(STAMP)
 	$(BIN)/robo-comp demo --web 8080
 
 test: $(STAMP)
-	$(BIN)/python -m mypy  # the packages in pyproject's [tool.mypy]: core, protocol, sandbox, plugins
+	$(BIN)/python -m mypy  # the packages in pyproject's [tool.mypy]: every package and the top-level modules
 	$(BIN)/python -m pytest -n 4  # four workers: most tests wait on real processes, not on a core
 
 bench: $(STAMP)

@@ -176,12 +176,13 @@ def _robots(args: argparse.Namespace) -> int:
 
         truth = load_scenario(resolve_scenario(args.scenario))  # a file or a bundled scenario's name
     token = read_token(args.token, args.token_file)
-    options = {}
+    options: dict[str, object] = {}
     if args.driver == "er1":
-        options["rcc"] = [a.strip() for a in (args.rcc or "").split(",") if a.strip()]
-        if len(options["rcc"]) != args.count:
+        rcc = [a.strip() for a in (args.rcc or "").split(",") if a.strip()]
+        if len(rcc) != args.count:
             raise FieldError(f"--driver er1 needs one --rcc HOST:PORT per robot ({args.count}), "
-                             f"got {len(options['rcc'])}")
+                             f"got {len(rcc)}")
+        options["rcc"] = rcc
     elif args.driver == "ros2":
         options.update(_ros2_options(args))
     host = RobotHost(resolve_core(args.core), token, args.count,

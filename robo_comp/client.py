@@ -16,7 +16,7 @@ import json
 import time
 from collections import deque
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 from urllib.parse import urlparse
 
 import zmq
@@ -74,8 +74,12 @@ def pub_url(router_url: str, pub_port: int) -> str:
 
 
 
-def open_dealer(ctx: zmq.Context, url: str, curve: Any = None, token: str | None = None, *,
-                connect: bool = True, **options: int) -> zmq.Socket:
+#: The socket class of a context: a plain one's, or an asyncio one's (the consoles').
+SocketT = TypeVar("SocketT", bound=zmq.Socket)
+
+
+def open_dealer(ctx: zmq.Context[SocketT], url: str, curve: Any = None, token: str | None = None, *,
+                connect: bool = True, **options: int) -> SocketT:
     """A DEALER socket connected to the core at ``url`` with a fresh random routing id (see
     :func:`robo_comp.protocol.new_routing_id`), its credential for the transport (CurveZMQ keys
     when given, else ``token`` as the PLAIN password: the core lets in no connection without
@@ -156,7 +160,7 @@ class Client:
         try:
             self.sock.connect(self.url)
             deadline = time.monotonic() + self.timeout
-            while (left := deadline - time.monotonic()) > 0 and mon.poll(left * 1000):
+            while (left := deadline - time.monotonic()) > 0 and mon.poll(int(left * 1000)):
                 err = handshake_error(mon.recv_multipart(), self.curve is not None)
                 if err is not None:
                     self.sock.close(0)
@@ -211,7 +215,7 @@ class Client:
         deadline = time.monotonic() + self.timeout
         while True:
             left = deadline - time.monotonic()
-            if left <= 0 or not self.sock.poll(left * 1000):
+            if left <= 0 or not self.sock.poll(int(left * 1000)):
                 raise TimeoutError_(
                     f"the core at {self.url} did not answer {type_!r} within {self.timeout:.1f} s; is it running?")
             msg = P.unpack(self.sock.recv())

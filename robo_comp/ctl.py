@@ -402,14 +402,15 @@ def _events(c: Client, args: argparse.Namespace) -> int:
     while (not args.count or n < args.count) and (t_end is None or time.monotonic() < t_end):
         left = 1.0 if t_end is None else max(0.0, min(1.0, t_end - time.monotonic()))
         if sub is not None:
-            if not sub.poll(left * 1000):
+            if not sub.poll(int(left * 1000)):
                 continue
             topic, data = recv_event(sub)
-            ev = {"topic": topic, "data": data}
+            ev: dict[str, Any] = {"topic": topic, "data": data}
         else:
-            ev = c.next_event(left)
-            if ev is None:
+            got = c.next_event(left)
+            if got is None:
                 continue
+            ev = got
         topic = str(ev["topic"])
         if args.topic and not any(topic.startswith(p) for p in args.topic):
             continue

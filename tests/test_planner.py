@@ -285,3 +285,137 @@ def test_import_is_lazy():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.split() == ["False", "True"]
     assert pl.warm_up() >= 0.0
+
+
+def bfs_all(walls, start):
+    """Steps from ``start`` to every cell over 4-connected free cells (-1: unreachable)."""
+    h, w = walls.shape
+    dist = np.full((h, w), -1, dtype=np.int64)
+    dist[start[1], start[0]] = 0
+    front = [start]
+    while front:
+        nxt = []
+        for x, y in front:
+            for nx, ny, _ in moves(walls, x, y, False):
+                if dist[ny, nx] < 0:
+                    dist[ny, nx] = dist[y, x] + 1
+                    nxt.append((nx, ny))
+        front = nxt
+    return dist
+
+
+def _free_cells(walls, rng, k):
+    ys, xs = np.nonzero(~walls)
+    pick = rng.choice(len(xs), size=min(k, len(xs)), replace=False)
+    return [(int(xs[i]), int(ys[i])) for i in pick]
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_uniform_kernel_optimal_on_tiled_maps(seed):
+    """Cost 1 and 4 directions run on the bucket-queue kernel with 32×32-tiled work arrays:
+    maps larger than a tile and not multiples of it, many queries on one prepared planner
+    (earlier queries' marks left in the arrays) and one-off ``find_path``, against BFS."""
+    rng = np.random.default_rng(seed)
+    h, w = 70 + 13 * seed, 45 + 29 * seed
+    walls = rng.random((h, w)) < [0.0, 0.25, 0.4, 0.3][seed]
+    p = Planner(walls)
+    if seed % 2:
+        p.prepare()
+    for start in _free_cells(walls, rng, 12):
+        dist = bfs_all(walls, start)
+        for goal in _free_cells(walls, rng, 8):
+            want = int(dist[goal[1], goal[0]])
+            res = p.find(start, goal)
+            fp = find_path(walls, start, goal)
+            if want < 0:
+                assert res.path is None and fp is None
+                continue
+            assert res.cost == want
+            assert res.path[0] == start and res.path[-1] == goal
+            assert path_cost(walls, None, res.path, False) == want
+            assert fp[0] == start and fp[-1] == goal and path_cost(walls, None, fp, False) == want
+
+
+def test_uniform_kernel_marks_wrap_around():
+    """The epoch counter wrapping resets the tiled work arrays too (no stale 'closed')."""
+    m = thesis_map(5, 80)
+    p = Planner(m.walls)
+    p._epoch = 2**30 - 4
+    for _ in range(6):
+        assert p.find((0, 0), (79, 79)).cost == 158
+        assert p.find((79, 79), (0, 0)).cost == 158
+
+
+def test_one_shot_no_path_answered_by_flood_fill(monkeypatch):
+    """A one-off ``find_path`` whose short first search does not finish asks a flood fill
+    from the start before searching on: "no path" comes from the fill, without the
+    exhaustive search; with a path the full search still returns an optimal one."""
+    k = pl._k()
+    real_fill = k.connected
+    fills: list[bool] = []
+    searches: list[bool] = []
+    real_search = Planner._search
+
+    def fill(*a):
+        fills.append(bool(real_fill(*a)))
+        return fills[-1]
+
+    def search(self, *a, **kw):
+        searches.append(bool(kw.get("probe", False)))
+        return real_search(self, *a, **kw)
+
+    monkeypatch.setattr(k, "connected", fill)
+    monkeypatch.setattr(Planner, "_search", search)
+    n = 300  # the first search's budget (64 + 2 * 598 expansions) is far below the start's component
+    assert find_path(thesis_map(2, n).walls, (0, 0), (n - 1, n - 1)) is None
+    assert fills == [False] and searches == [True]
+    fills.clear()
+    searches.clear()
+    walls = thesis_map(5, n).walls
+    path = find_path(walls, (0, 0), (n - 1, n - 1))
+    assert fills == [True] and searches == [True, False]
+    assert path_cost(walls, None, path, False) == 2 * (n - 1)
+    fills.clear()
+    searches.clear()
+    walls = np.zeros((n, n), dtype=bool)
+    walls[:, n // 2] = True  # a wall from top to bottom: the fill must exhaust the left half
+    assert find_path(walls, (0, 0), (n - 1, 0)) is None
+    path = find_path(walls, (0, 0), (n // 2 - 1, n - 1), diagonal=True)
+    assert path_cost(walls, None, path, True) == pytest.approx((n // 2 - 1) * SQ2 + n // 2)
+    assert fills == [False, True] and searches == [True, True, False]
+
+
+@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.integers(1, 40), st.integers(1, 40), st.sampled_from([0.0, 0.3, 0.45, 0.6]),
+       st.integers(0, 2**32 - 1))
+def test_flood_fill_agrees_with_labels(w, h, density, seed):
+    """The one-off query's flood fill (``connected``) against the component labels."""
+    rng = np.random.default_rng(seed)
+    walls = rng.random((h, w)) < density
+    free = np.ascontiguousarray(~walls, dtype=np.uint8).reshape(-1)
+    labels, _ = pl._k().label(free, w, h, max(w, h))
+    cells = np.flatnonzero(free)
+    if len(cells) == 0:
+        return
+    for _ in range(10):
+        s, t = (int(c) for c in rng.choice(cells, size=2))
+        assert pl._k().connected(free, w, h, s, t) == (labels[s] == labels[t])
+
+
+def test_flood_fill_grows_its_stack():
+    """Free rows between rows of one-cell gaps leave ~w/2 pending runs per row pair: the
+    fill outgrows its first stack, grows it and still answers right."""
+    h, w = 400, 401
+    walls = np.zeros((h, w), dtype=bool)
+    walls[1::2, 1::2] = True
+    free = np.ascontiguousarray(~walls, dtype=np.uint8).reshape(-1)
+    k = pl._k()
+    seen = np.zeros(w * h, dtype=np.uint8)
+    sx = np.zeros(4 * w + 64, dtype=np.int32)
+    sy = np.zeros(4 * w + 64, dtype=np.int32)
+    assert k._fill_spans(free, w, h, w * h - 1, seen, sx, sy, 1)[0] == 2  # the first stack is too small
+    assert k.connected(free, w, h, 0, w * h - 1)
+    walls[h // 2, :] = True
+    free = np.ascontiguousarray(~walls, dtype=np.uint8).reshape(-1)
+    assert not k.connected(free, w, h, 0, w * h - 1)
+    assert k.connected(free, w, h, 0, (h // 2 - 1) * w + w - 1)

@@ -25,7 +25,7 @@ def test_upload_dialog_shows_each_verdict(tmp_path: Path) -> None:
     async def scenario() -> None:
         app = TeamApp(link=link, upload_dir=tmp_path, **FIXED)  # type: ignore[arg-type]
         async with app.run_test(size=(80, 24)) as pilot:
-            await until(pilot, lambda: app.features.get("upload"), 15, "feature detection")
+            await until(pilot, lambda: app.core_features.get("upload"), 15, "feature detection")
             await pilot.press("u")
             dlg = await until(pilot, lambda: isinstance(app.screen, UploadScreen) and app.screen, 15, "the dialog")
             await pilot.press("ctrl+u")  # nothing picked yet
@@ -83,7 +83,7 @@ def test_referee_approves_a_pending_upload_and_disqualifies_with_confirmation() 
     async def scenario() -> None:
         app = RefereeApp(link=link, **FIXED)  # type: ignore[arg-type]
         async with app.run_test(size=(120, 40)) as pilot:
-            await until(pilot, lambda: app.features.get("approve"), 15, "feature detection")
+            await until(pilot, lambda: app.core_features.get("approve"), 15, "feature detection")
             link.on_event("upload.pending", "red", {"upload_id": 4, "team": "red", "filename": "square.py"})
             await until(pilot, lambda: any("press a to approve" in n for n in notifications(app)), 15, "the toast")
             await pilot.press("a")

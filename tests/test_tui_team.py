@@ -123,7 +123,7 @@ def test_upload_a_bad_module_shows_the_checked_error(core: CoreHandle, tmp_path:
         app = team_app(core, upload_dir=tmp_path)
         async with app.run_test(size=(100, 30)) as pilot:
             await robots_shown(pilot, app, 1)
-            assert app.features.get("upload"), "the core serves uploads"
+            assert app.core_features.get("upload"), "the core serves uploads"
             await pilot.press("u")
             dlg = await until(pilot, lambda: isinstance(app.screen, UploadScreen) and app.screen, 15, "the dialog")
             dlg.query_one("#path").value = str(tmp_path / "bad_ext.py")
@@ -142,8 +142,8 @@ def test_upload_greyed_out_when_the_core_lacks_it() -> None:
     async def scenario() -> None:
         app = TeamApp(link=CannedLink("team", "red", upload=False))  # type: ignore[arg-type]
         async with app.run_test() as pilot:
-            await until(pilot, lambda: "upload" in app.features, 20, "feature detection")
-            assert app.features["upload"] is False
+            await until(pilot, lambda: "upload" in app.core_features, 20, "feature detection")
+            assert app.core_features["upload"] is False
             assert app.check_action("upload", ()) is None  # shown disabled in the footer
             await pilot.press("u")
             assert not isinstance(app.screen, UploadScreen)

@@ -1,13 +1,17 @@
 """The predefined tasks of the thesis (3.4.1): goTo, followPath, examineArea."""
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Generator
 from typing import Any
 
-from robo_comp.robots.steps import Capture, Move, Plan, RobotView, Step, TaskFailed, TaskSpec, Turn
+from robo_comp.robots.steps import Answer, Capture, Move, Plan, RobotView, Step, TaskFailed, TaskSpec, Turn
+
+#: A built-in task's generator: steps out, the runtime's :data:`Answer` in, a result dict at the end.
+#: A task of your own can be typed the same way.
+BuiltinRun = Generator[Step, Answer, dict[str, Any]]
 
 
-def _walk(robot: RobotView, goal: tuple[int, int]) -> Iterator[Step]:
+def _walk(robot: RobotView, goal: tuple[float, float]) -> Generator[Step, Answer, None]:
     gx, gy = int(round(goal[0])), int(round(goal[1]))
     if not robot.in_bounds(gx, gy):
         raise TaskFailed(f"({gx}, {gy}) is a wall or outside the arena")
@@ -18,13 +22,13 @@ def _walk(robot: RobotView, goal: tuple[int, int]) -> Iterator[Step]:
         yield Move(x, y)
 
 
-def go_to(robot: RobotView, x: int, y: int) -> Iterator[Step]:
+def go_to(robot: RobotView, x: int, y: int) -> BuiltinRun:
     """Drive to cell (x, y) along a planned path."""
     yield from _walk(robot, (x, y))
     return {"reached": [x, y]}
 
 
-def follow_path(robot: RobotView, points: list[list[float]]) -> Iterator[Step]:
+def follow_path(robot: RobotView, points: list[list[float]]) -> BuiltinRun:
     """Visit the points in order, planning between them."""
     for i, p in enumerate(points):
         try:
@@ -34,7 +38,7 @@ def follow_path(robot: RobotView, points: list[list[float]]) -> Iterator[Step]:
     return {"visited": len(points)}
 
 
-def examine_area(robot: RobotView, x: int, y: int) -> Iterator[Step]:
+def examine_area(robot: RobotView, x: int, y: int) -> BuiltinRun:
     """Go to (x, y), turn 360° in four quarter turns and take a picture at each.
 
     The runtime adds the uploaded pictures' ids to the result as ``pictures``: cite them as
@@ -64,4 +68,4 @@ def builtin_tasks() -> dict[str, TaskSpec]:
     return {t.name: t for t in BUILTIN_TASKS}
 
 
-__all__: list[Any] = ["BUILTIN_TASKS", "builtin_tasks", "examine_area", "follow_path", "go_to"]
+__all__ = ["BUILTIN_TASKS", "BuiltinRun", "builtin_tasks", "examine_area", "follow_path", "go_to"]

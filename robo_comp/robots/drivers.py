@@ -20,9 +20,13 @@ class PoseReadings:
     """``x``, ``y``, ``heading`` and ``cell()`` of a driver, from its ``pose`` (what it believes),
     and the end of a step, which every driver decides the same way."""
 
-    pose: tuple[float, float, float]
     step: Step | None
     _timer: float
+
+    @property
+    def pose(self) -> tuple[float, float, float]:
+        """The believed ``(x, y, heading)``; each driver says where it takes it from."""
+        raise NotImplementedError
 
     @property
     def moving(self) -> bool:
@@ -84,7 +88,7 @@ class ArenaDriver(PoseReadings):
 
     # what the robot believes (estimate) ------------------------------------
     @property
-    def pose(self) -> tuple[float, float, float]:  # type: ignore[override]  -- a read-only pose property where the protocol has plain attributes
+    def pose(self) -> tuple[float, float, float]:
         """Estimated (x, y, heading): what the robot and its team see."""
         return self.loc.estimate(self.tag)
 

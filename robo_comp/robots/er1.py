@@ -104,7 +104,7 @@ class ER1Driver(PoseReadings):
 
     # what the robot believes ----------------------------------------------------------
     @property
-    def pose(self) -> tuple[float, float, float]:  # type: ignore[override]  -- a read-only pose property where the protocol has plain attributes
+    def pose(self) -> tuple[float, float, float]:
         """Dead-reckoned (x, y, heading)."""
         return self._pose[0], self._pose[1], self._pose[2]
 

@@ -17,7 +17,7 @@ import sys
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Generator
+from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -35,7 +35,7 @@ from robo_comp.errors import FieldError, RoboCompError
 from robo_comp.plugins.manager import get_plugin_manager
 from robo_comp.robots.drivers import ArenaDriver
 from robo_comp.robots.oneworld import Foreign, is_real, merge_readings
-from robo_comp.robots.steps import Capture, Plan, Step, TaskFailed, TaskSpec
+from robo_comp.robots.steps import Answer, Capture, CellPath, Plan, TaskFailed, TaskRun, TaskSpec, no_steps
 from robo_comp.robots.teamcode import TeamCode, free_cell, in_bounds, stop_status
 from robo_comp.world.arena import Arena
 from robo_comp.world.localization import Localization
@@ -50,6 +50,15 @@ log = logging.getLogger("robo_comp.robots")
 MAX_STEP = 0.5
 
 Reply = Callable[[bool, dict[str, Any]], None]
+
+
+def _log_refusal(what: str) -> Reply:
+    """A reply handler that only logs the core's refusal of ``what``."""
+    def on_reply(ok: bool, body: dict[str, Any]) -> None:
+        if not ok:
+            log.warning("%s refused: %s", what, body.get("message"))
+    return on_reply
+
 #: Robots per ``reports`` message; the host looks at the core's socket between two messages
 #: (so a stop never waits long behind a big host's reports).
 REPORT_CHUNK = 100
@@ -67,10 +76,10 @@ class RunningTask:
 
     id: int
     name: str
-    gen: Generator[Step, Any, Any]
+    gen: TaskRun
     pictures: list[int] = field(default_factory=list)
-    plan: Future[list[tuple[int, int]] | None] | None = None
-    answer: Any = None
+    plan: Future[CellPath | None] | None = None
+    answer: Answer = None
 
 
 @dataclass(slots=True)
@@ -321,6 +330,11 @@ class RobotHost:
         self.state = state
         self.state_since = time.monotonic()
 
+    def _on_whole_map(self, ok: bool, body: dict[str, Any]) -> None:
+        """The whole map, asked for again after a delta that did not fit."""
+        if ok:
+            self.map.apply(body)
+
     def _on_hello(self, ok: bool, body: dict[str, Any]) -> None:
         if not ok:
             raise SystemExit(f"robots: the core refused us: {body.get('message')}")
@@ -353,7 +367,7 @@ class RobotHost:
         self._send("register", {"token": self.token, "robot_id": r.robot_id, "tasks": self.adverts(r.tag),
                                 "x": b.x, "y": b.y, "heading": b.heading, "speed": float(self.world.speed),
                                 "task_id": r.task.id if r.task else None, **self._resend(r)},
-                   lambda ok, body, r=r: self._on_registered(r, ok, body))
+                   lambda ok, body: self._on_registered(r, ok, body))
 
     def adverts(self, tag: int) -> list[dict[str, Any]]:
         """What robot ``tag`` advertises: the plugins' tasks, then its uploaded code's (which win)."""
@@ -380,7 +394,7 @@ class RobotHost:
         for tag in tags:
             if tag in self.by_tag:
                 self._send("advertise", {"tag": tag, "tasks": self.adverts(tag)},
-                           lambda ok, body: ok or log.warning("advertise refused: %s", body.get("message")))
+                           _log_refusal("advertise"))
 
     def team_log(self, tag: int | None, stream: str, text: str) -> None:
         """Forward a line team code printed (or a sandbox notice) to the team's consoles."""
@@ -431,7 +445,7 @@ class RobotHost:
         self.fix_gate = PoseGate(self.walls, self.world.speed * float(self.world.speed_map.max(initial=1.0)))
 
     def _create_robots(self, arena: dict[str, Any]) -> None:
-        assert self.world is not None and self.team is not None
+        assert self.world is not None and self.team is not None and self.loc is not None  # made with the world
         start = [c for c in self.world.free_start_cells(self.team)] if any(
             t["name"] == self.team and t.get("start") for t in arena.get("teams", [])) else []
         taken = set(start)
@@ -451,7 +465,7 @@ class RobotHost:
             if driver is None:
                 raise SystemExit(f"robots: no plugin provides the driver {self.driver_kind!r}")
             self.robots[rid] = SimRobot(rid, driver, self)
-        self.loc.update()  # type: ignore[union-attr]
+        self.loc.update()
         if self.robots:  # compile/load the sensor kernels now, not in the middle of a report
             sensors_warm_up()
             self.world.sense_many([next(iter(self.robots))])
@@ -570,7 +584,7 @@ class RobotHost:
                 self.map.apply(body)
             except Exception as e:  # a delta that does not fit our version: ask for all again
                 log.warning("map delta not applied (%s); fetching the whole map", e)
-                self._send("map.delta", {"since": 0}, lambda ok, b: ok and self.map.apply(b))
+                self._send("map.delta", {"since": 0}, self._on_whole_map)
             return
         if type_ in ("upload", "unload", "extensions", "sandbox.reset"):
             self._on_code_request(type_, rid, body)
@@ -578,7 +592,8 @@ class RobotHost:
         r = self.by_tag.get(body.get("tag", -1))
         if type_ == "stop":
             if r is None:
-                self.sock.send(P.error_reply(rid, RoboCompError("no such robot on this host"),  # type: ignore[union-attr]
+                assert self.sock is not None  # the stop came in on it
+                self.sock.send(P.error_reply(rid, RoboCompError("no such robot on this host"),
                                              self.session))
                 return
             self._halt(r)
@@ -612,7 +627,7 @@ class RobotHost:
             args = check_args(spec.advert(), task.get("args", []))
             r.task = RunningTask(task["task_id"], task["name"], spec.run(r, *args))
         except (TaskFailed, RoboCompError) as e:
-            r.task = RunningTask(task["task_id"], task["name"], iter(()))
+            r.task = RunningTask(task["task_id"], task["name"], no_steps())
             self._done(r, False, str(e))
             return
         self._advance(r)
@@ -651,8 +666,15 @@ class RobotHost:
         x, y, heading = r.driver.truth()
         self._send("picture", {"tag": r.tag, "x": x, "y": y, "heading": heading, "png": png,
                                "label": label[:64]},
-                   lambda ok, body, t=t: t.pictures.append(body["id"]) if ok else
-                   log.warning("picture refused: %s", body.get("message")))
+                   lambda ok, body: self._on_picture(t, ok, body))
+
+    @staticmethod
+    def _on_picture(t: RunningTask, ok: bool, body: dict[str, Any]) -> None:
+        """The core kept the picture: its id becomes evidence in the task's result."""
+        if ok:
+            t.pictures.append(body["id"])
+        else:
+            log.warning("picture refused: %s", body.get("message"))
 
     def _done(self, r: SimRobot, ok: bool, status: str, result: Any = None) -> None:
         t = r.task
@@ -668,7 +690,7 @@ class RobotHost:
         # kept until the core answers: a core that goes down before it does gets it again with
         # the robot's registration after the reconnect
         self.unacked_done[r.robot_id] = done
-        self._send("task.done", done, lambda ok_, body, r=r, tid=t.id: self._on_done_reply(r, tid, ok_, body))
+        self._send("task.done", done, lambda ok_, body: self._on_done_reply(r, t.id, ok_, body))
 
     def _on_done_reply(self, r: SimRobot, task_id: int, ok: bool, body: dict[str, Any]) -> None:
         held = self.unacked_done.get(r.robot_id)
@@ -754,7 +776,8 @@ class RobotHost:
         if now - r.last_sensed >= self.sensor_interval:
             sensors = self._sense([r]).get(r.tag)
         body = self._pose_rows([r], now, {r.tag: sensors} if sensors is not None else {})
-        self.sock.send(P.request("reports", 0, body, self.session))  # type: ignore[union-attr]
+        assert self.sock is not None  # a task ends on a connected host (its task.done follows on this socket)
+        self.sock.send(P.request("reports", 0, body, self.session))
         self.last_tx = now
 
     def _pose_rows(self, robots: list[SimRobot], now: float,
@@ -813,6 +836,7 @@ class RobotHost:
         sensing = [r for r in due if now - r.last_sensed >= self.sensor_interval]
         readings = self._sense(sensing) if sensing else {}
         sock = self.sock
+        assert sock is not None  # reports go out while the host is up
         for start in range(0, len(due), REPORT_CHUNK):
             if start:
                 self._drain()  # many robots: let a stop in between, it must not wait for all reports
@@ -820,7 +844,7 @@ class RobotHost:
                     return
             chunk = due[start:start + REPORT_CHUNK]
             body = self._pose_rows(chunk, now, {r.tag: readings[r.tag] for r in chunk if r.tag in readings})
-            sock.send(P.request("reports", 0, body, self.session))  # type: ignore[union-attr]
+            sock.send(P.request("reports", 0, body, self.session))
         self.last_tx = now
 
     def _drain(self) -> None:
@@ -961,7 +985,7 @@ class RobotHost:
             code_deadline = self.code.deadline()
             if code_deadline is not None:
                 wake = min(wake, code_deadline)
-            if self.poller.poll(max(0.0, wake - time.monotonic()) * 1000):
+            if self.poller.poll(int(max(0.0, wake - time.monotonic()) * 1000)):  # pyzmq truncates a float the same way
                 self._drain()
             if self.fix_sock is not None:
                 self._take_fixes()

@@ -55,6 +55,12 @@ class Plan:
 
 Step = Move | Turn | Capture | Wait | Plan
 
+#: A planned path: cells from the robot's cell to the goal, both included.
+CellPath = list[tuple[int, int]]
+#: What the runtime sends back into a task for the step it yielded: the path (or None when
+#: there is none) for a :class:`Plan`, None for every other step.
+Answer = CellPath | None
+
 
 class TaskFailed(Exception):
     """Raised by a task to end with ``ok = False`` and this message as its status."""
@@ -68,14 +74,23 @@ class RobotView(Protocol):
     def cell(self) -> tuple[int, int]:
         """The robot's current cell."""
 
-    def plan_to(self, goal: tuple[int, int]) -> list[tuple[int, int]] | None:
+    def plan_to(self, goal: tuple[int, int]) -> CellPath | None:
         """A path from the current cell to ``goal`` (inclusive), or None."""
 
     def in_bounds(self, x: int, y: int) -> bool:
         """True when ``(x, y)`` is a free cell of the arena."""
 
 
-TaskFn = Callable[..., Generator[Step, Any, Any]]
+#: A task's generator: it yields steps, gets an :data:`Answer` back for each, and returns its
+#: result (a dict for the built-in tasks, anything plain for team code's).
+TaskRun = Generator[Step, Answer, Any]
+TaskFn = Callable[..., TaskRun]
+
+
+def no_steps() -> TaskRun:
+    """A task run with no steps at all: it ends at once, and can be closed like any other."""
+    return
+    yield
 
 
 @dataclass(slots=True)

@@ -152,7 +152,9 @@ class CallSite(Protocol):
     The robot call table (:data:`ROBOT_CALLS`, :func:`movement_steps`) answers team code through
     this interface only, so a host and the seeded bench give the same answers."""
 
-    walls: Any  # the arena's wall grid ``[y, x]``
+    @property
+    def walls(self) -> Any:
+        """The arena's wall grid ``[y, x]`` (read only: a host's robot reads its host's)."""
 
     def pose(self) -> tuple[float, float, float]:
         """The robot's believed ``(x, y, heading)``."""

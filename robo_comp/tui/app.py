@@ -23,7 +23,7 @@ from textual.css.query import NoMatches
 from textual.screen import Screen
 
 from robo_comp.errors import RoboCompError
-from robo_comp.tui.connection import CoreLink, LinkState
+from robo_comp.tui.connection import CoreLink, EventSink, LinkState, StateSink
 from robo_comp.tui.messages import CoreEvent, LinkChanged
 from robo_comp.tui.model import ConsoleModel, LogEntry
 
@@ -56,6 +56,8 @@ class Link(Protocol):
 
     info: dict[str, Any]
     state: LinkState
+    on_event: EventSink  # the console sets both to its own sinks
+    on_state: StateSink
 
     def start(self) -> None: ...
     async def close(self) -> None: ...
@@ -111,10 +113,12 @@ class ConsoleApp(App[None]):
             self.model.wall_clock = wall_clock
         self.link: Link = link or CoreLink(core, token, client=self.CLIENT_NAME, on_event=self._post_event,
                                            on_state=self._post_state, curve_cert=curve_cert, core_key=core_key)
-        if link is not None and hasattr(link, "on_event"):
-            link.on_event = self._post_event  # type: ignore[attr-defined]  -- CoreLink's callbacks are set by its owner
-            link.on_state = self._post_state  # type: ignore[attr-defined]  -- CoreLink's callbacks are set by its owner
-        self.features: dict[str, bool] = {}
+        if link is not None:
+            link.on_event = self._post_event
+            link.on_state = self._post_state
+        #: What the core serves (request type -> True/False), as far as the console found out.
+        #: Not ``features``: Textual's App keeps its own flags (``TEXTUAL=debug,devtools``) there.
+        self.core_features: dict[str, bool] = {}
         self.selected: int | None = None
         self.poll = poll
         self._drawn = -1
@@ -202,7 +206,7 @@ class ConsoleApp(App[None]):
             return
         self.model.load_snapshot(snap)
         await self.detect_features()
-        if self.features.get("score"):
+        if self.core_features.get("score"):
             score = await self.call("score", quiet=True)
             if score:
                 self.model.set_scores(score.get("teams") or [])
@@ -220,14 +224,14 @@ class ConsoleApp(App[None]):
         known = self.link.info.get("requests")
         names = OPTIONAL_REQUESTS.get(self.model.role, ())
         if isinstance(known, list):
-            self.features.update({n: n in known for n in names})
+            self.core_features.update({n: n in known for n in names})
             return
         for name in names:
             self._probing.add(name)
             try:
-                self.features[name] = await self.link.available(name)
+                self.core_features[name] = await self.link.available(name)
             except RoboCompError:
-                self.features[name] = False
+                self.core_features[name] = False
 
     def _own_probe(self, topic: str, data: dict[str, Any]) -> bool:
         """Is this ``refused`` event the echo of our own feature probe (an empty request)?"""
@@ -267,7 +271,7 @@ class ConsoleApp(App[None]):
             return await self.link.request(type_, **body)
         except RoboCompError as e:
             if e.code == "E_UNKNOWN_TYPE":
-                self.features[type_] = False
+                self.core_features[type_] = False
                 self.refresh_bindings()
                 if not quiet:
                     self.notify(f"this core does not offer '{type_}' yet", title="Not available", severity="warning")
@@ -391,5 +395,5 @@ class ConsoleApp(App[None]):
 
     def feature(self, name: str) -> bool | None:
         """``check_action`` helper: None (greyed out) when the core lacks request ``name``."""
-        return None if self.features.get(name) is False else True
+        return None if self.core_features.get(name) is False else True
 

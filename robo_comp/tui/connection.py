@@ -80,8 +80,8 @@ class CoreLink:
         self.curve_cert = curve_cert
         self.core_key = core_key
         self.client_name = client
-        self.on_event = on_event or (lambda *_: None)
-        self.on_state = on_state or (lambda *_: None)
+        self.on_event: EventSink = on_event or (lambda *_: None)
+        self.on_state: StateSink = on_state or (lambda *_: None)
         self.ctx = ctx or zmq.asyncio.Context.instance()
         self.sock: zmq.asyncio.Socket | None = None
         self.url = ""

@@ -21,6 +21,8 @@ from robo_comp.scoring.match import HeardClock
 MAX_EVENTS = 2000
 #: Topics too chatty for the event log.
 QUIET_TOPICS = frozenset({"robot.positions"})
+#: Topics about one robot that change its row (when the model knows the robot).
+ROW_TOPICS = frozenset({"robot.lost", "robot.left", "robot.stopped", "task.given", "task.started", "task.done"})
 
 
 @dataclass
@@ -125,14 +127,14 @@ class ConsoleModel:
     def apply(self, topic: str, team: str | None, data: dict[str, Any]) -> LogEntry | None:
         """Fold one pushed event into the model; return the log entry (None for quiet topics)."""
         tag = data.get("tag")
-        row = self.robots.get(tag) if isinstance(tag, int) else None
         if topic in ("robot.registered", "robot.returned"):
-            row = self.robots.setdefault(tag, {"tag": tag, "team": data.get("team", team), "task": None,
-                                               "queue": 0, "heading": 0.0})
-            row.update({k: data[k] for k in ("x", "y", "heading", "robot_id") if k in data})
-            row["status"] = "connected"
-            if "tasks" in data and tag in self.details:
-                self.details[tag]["advertised"] = data["tasks"]
+            if isinstance(tag, int):  # what the core sends; an event without one names no robot
+                row = self.robots.setdefault(tag, {"tag": tag, "team": data.get("team", team), "task": None,
+                                                   "queue": 0, "heading": 0.0})
+                row.update({k: data[k] for k in ("x", "y", "heading", "robot_id") if k in data})
+                row["status"] = "connected"
+                if "tasks" in data and tag in self.details:
+                    self.details[tag]["advertised"] = data["tasks"]
         elif topic == "robot.positions":
             cols = [(k, data[k]) for k in ("x", "y", "heading", "moving", "sigma") if k in data]  # once a batch
             for i, t in enumerate(data.get("tags") or ()):
@@ -140,30 +142,8 @@ class ConsoleModel:
                 if pose is not None:
                     for k, col in cols:
                         pose[k] = col[i]
-        elif topic == "robot.lost" and row is not None:
-            row.update(status="lost", moving=False)
-        elif topic == "robot.left" and row is not None:
-            row.update(status="left", moving=False)
-        elif topic == "robot.stopped" and row is not None:
-            self.queued_ids.pop(tag, None)
-            row.update(moving=False, task=None, queue=0)
-            row.update({k: data[k] for k in ("x", "y") if k in data})
-        elif topic == "task.given" and row is not None and data.get("mode") == "queue":
-            self.queued_ids.setdefault(tag, set()).add(data.get("task_id"))
-            row["queue"] = int(row.get("queue") or 0) + 1
-        elif topic == "task.started" and row is not None:
-            if data.get("task_id") in self.queued_ids.get(tag, ()):
-                self.queued_ids[tag].discard(data.get("task_id"))
-                row["queue"] = max(0, int(row.get("queue") or 0) - 1)
-            row["task"] = {"task_id": data.get("task_id"), "name": data.get("name"), "args": data.get("args"),
-                           "state": "running"}
-        elif topic == "task.done" and row is not None:
-            cur = row.get("task")
-            if cur and cur.get("task_id") == data.get("task_id"):
-                row["task"] = None
-            if data.get("task_id") in self.queued_ids.get(tag, ()):  # cancelled while queued
-                self.queued_ids[tag].discard(data.get("task_id"))
-                row["queue"] = max(0, int(row.get("queue") or 0) - 1)
+        elif topic in ROW_TOPICS and isinstance(tag, int) and tag in self.robots:
+            self._apply_to_row(topic, tag, self.robots[tag], data)
         elif topic == "match.phase":
             self.set_match(data)
         elif topic == "score":
@@ -190,6 +170,33 @@ class ConsoleModel:
         entry = LogEntry(self.wall_clock(), topic, team, data)
         self.events.append(entry)
         return entry
+
+    def _apply_to_row(self, topic: str, tag: int, row: dict[str, Any], data: dict[str, Any]) -> None:
+        """Fold an event of :data:`ROW_TOPICS` about robot ``tag`` into its row."""
+        if topic == "robot.lost":
+            row.update(status="lost", moving=False)
+        elif topic == "robot.left":
+            row.update(status="left", moving=False)
+        elif topic == "robot.stopped":
+            self.queued_ids.pop(tag, None)
+            row.update(moving=False, task=None, queue=0)
+            row.update({k: data[k] for k in ("x", "y") if k in data})
+        elif topic == "task.given" and data.get("mode") == "queue":
+            self.queued_ids.setdefault(tag, set()).add(data.get("task_id"))
+            row["queue"] = int(row.get("queue") or 0) + 1
+        elif topic == "task.started":
+            if data.get("task_id") in self.queued_ids.get(tag, ()):
+                self.queued_ids[tag].discard(data.get("task_id"))
+                row["queue"] = max(0, int(row.get("queue") or 0) - 1)
+            row["task"] = {"task_id": data.get("task_id"), "name": data.get("name"), "args": data.get("args"),
+                           "state": "running"}
+        elif topic == "task.done":
+            cur = row.get("task")
+            if cur and cur.get("task_id") == data.get("task_id"):
+                row["task"] = None
+            if data.get("task_id") in self.queued_ids.get(tag, ()):  # cancelled while queued
+                self.queued_ids[tag].discard(data.get("task_id"))
+                row["queue"] = max(0, int(row.get("queue") or 0) - 1)
 
     def _detail_task(self, tag: int, topic: str, data: dict[str, Any]) -> None:
         d = self.details[tag]

@@ -155,7 +155,11 @@ class RefereeApp(ConsoleApp):
             body["team"] = name
         self.push_screen(ConfirmScreen(f"Disqualify {kind if kind == 'team' else 'robot'} {name}? "
                                        "This cannot be undone.", yes="Disqualify", danger=True),
-                         lambda yes: yes and self.spawn(self._request("disqualify", "Disqualified", **body)))
+                         partial(self._disqualify_confirmed, body))
+
+    def _disqualify_confirmed(self, body: dict[str, Any], yes: bool | None) -> None:
+        if yes:
+            self.spawn(self._request("disqualify", "Disqualified", **body))
 
     def action_broadcast(self) -> None:
         """Send a message to every console."""

@@ -83,7 +83,7 @@ class TeamApp(ConsoleApp):
         """Open the upload dialog (file picker, extension or code, the checked verdict)."""
         tags = sorted(t for t, r in self.model.robots.items() if r.get("status") == "connected")
         self.push_screen(UploadScreen(self.upload, self.selected, tags, self.upload_dir,
-                                      available=self.features.get("upload", True)))
+                                      available=self.core_features.get("upload", True)))
 
     async def upload(self, body: dict[str, Any]) -> dict[str, Any]:
         """The ``upload`` request (raises on refusal; the dialog shows the message)."""
@@ -91,7 +91,7 @@ class TeamApp(ConsoleApp):
             return await self.link.request("upload", timeout=30.0, **body)
         except RoboCompError as e:
             if e.code == "E_UNKNOWN_TYPE":
-                self.features["upload"] = False
+                self.core_features["upload"] = False
                 self.refresh_bindings()
                 raise UnknownTypeError("uploads are not available on this core yet") from None
             raise

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from robo_comp.errors import UnknownTypeError, error_from_code
-from robo_comp.tui.connection import LinkState
+from robo_comp.tui.connection import EventSink, LinkState, StateSink
 
 GO_TO = {"name": "goTo", "description": "drive to a cell along a planned path",
          "args": [{"name": "x", "type": "int", "description": "target column"},
@@ -96,8 +96,8 @@ class CannedLink:
         self.data = demo_data(role, team)
         self.info: dict[str, Any] = {}
         self.state = LinkState.CLOSED
-        self.on_event: Callable[..., None] = lambda *_: None
-        self.on_state: Callable[..., None] = lambda *_: None
+        self.on_event: EventSink = lambda *_: None
+        self.on_state: StateSink = lambda *_: None
         self.sent: list[tuple[str, dict[str, Any]]] = []
         self.upload = upload
 

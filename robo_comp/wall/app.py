@@ -127,7 +127,7 @@ class WallApp:
         self._monitor_at = 0.0
         self._monitor_asks: dict[int, tuple[int, float]] = {}  # tag -> (request id, sent at)
         self._view_sent: tuple[Any, float] = (None, 0.0)
-        self._ctx = zmq.Context.instance()
+        self._ctx: zmq.Context = zmq.Context.instance()
         self.view_pub = self.view_sub = None
         self.view_pub_url = ""
         if view_pub:
@@ -194,7 +194,7 @@ class WallApp:
                 break
             if not self.poller.sockets:
                 time.sleep(left)
-            elif self.poller.poll(left * 1000):
+            elif self.poller.poll(int(left * 1000)):
                 self.pump()
         self.pump()
         now = self.clock()
@@ -299,6 +299,7 @@ class WallApp:
         assert isinstance(self.source, LiveSource)
         client = self.source.client
         for tag, (rid, sent) in list(self._monitor_asks.items()):
+            data: dict[str, Any] | str | None
             try:
                 data = client.answer(rid)
             except AuthError:  # the core forgot this idle session: say hello again, ask anew

@@ -84,7 +84,8 @@ class Interaction:
         if geom is None or not _inside(geom.clip, px, py):
             return Hit("none")
         rad = self.radius(geom)
-        best, best_d = None, (rad + max(3, rad // 2)) ** 2
+        best: int | None = None
+        best_d: float = (rad + max(3, rad // 2)) ** 2
         for r in self.model.robots.values():
             if r.status == "left":
                 continue

@@ -375,11 +375,11 @@ class PublicHub(LinkedHub):
                     batch.append(_event(await sub.recv_multipart()))
             except zmq.ZMQError:
                 return
-            batch = [e for e in batch if e is not None]
+            events = [e for e in batch if e is not None]
             if self._buffer is not None:
-                self._buffer.extend(batch)
-            elif self.loaded and batch:
-                self.publish(batch)
+                self._buffer.extend(events)
+            elif self.loaded and events:
+                self.publish(events)
 
     async def close(self) -> None:
         """Close the feed and leave the core."""

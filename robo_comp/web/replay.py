@@ -137,7 +137,9 @@ class Recording:
                 self._keyframe(v, model, tasks, maps, next_key, now)
                 next_key += KEYFRAME_EVERY
             if rec.topic == "robot.registered":
-                team_of[rec.data.get("tag")] = rec.data.get("team")
+                tag = rec.data.get("tag")
+                if isinstance(tag, int):  # what the core logs; a record without one names no robot
+                    team_of[tag] = rec.data.get("team")
             if rec.topic == "picture" and isinstance(rec.data.get("id"), int):
                 v.pictures[rec.data["id"]] = rec.data.get("team") or rec.team
             table = fold.feed(rec.topic, rec.data)  # every view: the core publishes its table to everyone

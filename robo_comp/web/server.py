@@ -192,18 +192,21 @@ class LiveGateway:
             token = self.private_tokens[view]
         if token is not None and not isinstance(token, str):
             raise FieldError("'token' must be text")
+        hub: Hub
         if not token:
-            hub: Hub = self.public  # type: ignore[assignment]  -- both gateways' hubs answer the same calls
+            assert self.public is not None, "start() makes the public hub before the server takes a page"
+            hub = self.public
         else:
             token = token.strip()
-            hub = self.private.get(token)  # type: ignore[assignment]  -- both gateways' hubs answer the same calls
-            if hub is None:
+            known = self.private.get(token)
+            if known is None:
                 th = TeamHub("private", self.core, token, **self.keys)
                 if self.public is not None:  # the story so far (public events: every team saw them)
                     th.adopt_story(self.public)
                 self.private[token] = th
                 th.start()
-                hub = th
+                known = th
+            hub = known
         try:
             await asyncio.wait_for(hub.ready.wait(), JOIN_TIMEOUT)
         except asyncio.TimeoutError:

@@ -372,7 +372,7 @@ def _grow(a, size):
 
 @njit(cache=True, nogil=True)
 def astar_both(free, cost, w, h, s, t, diagonal, hmul, allow, bsize, bw,
-               g, stamp, pdir, g2, stamp2, pdir2, epoch, first_budget):
+               g, stamp, pdir, g2, stamp2, pdir2, epoch, first_budget, probe=False):
     """Exact A* s→t that hedges against a bad search direction.
 
     The forward search runs alone for ``first_budget`` expansions (enough for most
@@ -380,7 +380,9 @@ def astar_both(free, cost, w, h, s, t, diagonal, hmul, allow, bsize, bw,
     starts and both advance in turns, each resuming where it stopped, with a doubling
     budget, until one finishes. Each search is exact, so either answer is optimal, and the
     work is at most about twice that of the better direction (plus ``first_budget``).
-    Returns (cost or inf, total expanded, 1 if the reverse search answered else 0).
+    Returns (cost or inf, total expanded, 1 if the reverse search answered else 0); with
+    ``probe``, a forward search that has not finished within ``first_budget`` stops there
+    and returns (-1, expanded, 2).
     """
     fhf, fhh, fhv, fseq = _heap_init(s, t, w, diagonal, hmul, g, stamp, epoch)
     fsize = 1
@@ -397,6 +399,8 @@ def astar_both(free, cost, w, h, s, t, diagonal, hmul, allow, bsize, bw,
             continue
         if st == 0:
             return res, fexp, 0
+        if probe:
+            return -1.0, fexp, 2
         break
     rhf, rhh, rhv, rseq = _heap_init(t, s, w, diagonal, hmul, g2, stamp2, epoch)
     rsize = 1
@@ -429,3 +433,257 @@ def astar_both(free, cost, w, h, s, t, diagonal, hmul, allow, bsize, bw,
             break
         if st == 0:
             return res, fexp + rexp, 0
+
+
+@njit(cache=True, nogil=True)
+def _fill_spans(free, w, h, t, seen, sx, sy, top):
+    """Scanline flood fill over 4-connected free cells, resumable: pops seeds from the
+    stack ``sx``/``sy`` (``top`` entries) and marks whole runs of a row at once in ``seen``.
+    Returns (status, top): 1 when ``t`` was reached, 0 when the fill ran out (``t`` not
+    reachable), 2 when the stack is full (grow it and call again)."""
+    cap = sx.shape[0]
+    while top > 0:
+        if top + w + 2 > cap:  # one run pushes at most w + 2 seeds (both rows)
+            return 2, top
+        top -= 1
+        x = sx[top]
+        y = sy[top]
+        row = y * w
+        if seen[row + x] != 0:
+            continue
+        lo = x
+        while lo > 0 and free[row + lo - 1] != 0 and seen[row + lo - 1] == 0:
+            lo -= 1
+        hi = x
+        while hi + 1 < w and free[row + hi + 1] != 0 and seen[row + hi + 1] == 0:
+            hi += 1
+        for i in range(row + lo, row + hi + 1):
+            seen[i] = 1
+        if row + lo <= t <= row + hi:
+            return 1, top
+        for ny in (y - 1, y + 1):
+            if ny < 0 or ny >= h:
+                continue
+            nrow = ny * w
+            inrun = False
+            for nx in range(lo, hi + 1):
+                ok = free[nrow + nx] != 0 and seen[nrow + nx] == 0
+                if ok and not inrun:
+                    sx[top] = nx
+                    sy[top] = ny
+                    top += 1
+                inrun = ok
+    return 0, top
+
+
+@njit(cache=True, nogil=True)
+def connected(free, w, h, s, t):
+    """Whether free cell ``t`` is reachable from free cell ``s`` over 4-connected free cells
+    (the same components as 8-connectivity without corner cutting; see :func:`label`).
+
+    A scanline flood fill from ``s`` that stops as soon as it reaches ``t``: the "no path"
+    answer of a one-off query without labelling the whole map. Needs one byte a cell.
+    """
+    seen = np.zeros(w * h, dtype=np.uint8)
+    sx = np.empty(4 * w + 64, dtype=np.int32)
+    sy = np.empty(4 * w + 64, dtype=np.int32)
+    sx[0] = s % w
+    sy[0] = s // w
+    top = 1
+    while True:
+        st, top = _fill_spans(free, w, h, t, seen, sx, sy, top)
+        if st != 2:
+            return st == 1
+        sx = _grow(sx, top)
+        sy = _grow(sy, top)
+
+
+# -- uniform cost, 4-connected: a bucket queue over a tiled layout ---------------------
+# With unit steps and the Manhattan heuristic every f is the current f or the current f + 2,
+# so the open list is two buckets: ``cur`` (f = fcur) and ``nxt`` (f = fcur + 2). Inside a
+# bucket the order is that of the heap kernel (smaller h, then most recently pushed): a node
+# popped from ``cur`` has the smallest h there, and its successors in ``cur`` have h one
+# less, so ``cur`` is a plain stack; ``nxt`` is sorted once when it becomes ``cur``.
+# The work array ``state`` holds (mark << 32) | (g << 1) | closed per cell in one int64,
+# indexed by 32×32 tiles so that a search that runs down a column touches one page per 32
+# cells instead of one per cell.
+TILE_SHIFT = 5
+TILE = 1 << TILE_SHIFT
+
+
+@njit(cache=True, inline="always", nogil=True)
+def _tix(x, y, tw):
+    return ((((y >> TILE_SHIFT) * tw + (x >> TILE_SHIFT)) << (2 * TILE_SHIFT))
+            | ((y & (TILE - 1)) << TILE_SHIFT) | (x & (TILE - 1)))
+
+
+def tiled_size(w: int, h: int) -> tuple[int, int]:
+    """(tiles per row, entries) of a work array in the tiled layout of a w×h map."""
+    tw = (w + TILE - 1) >> TILE_SHIFT
+    th = (h + TILE - 1) >> TILE_SHIFT
+    return tw, tw * th * TILE * TILE
+
+
+@njit(cache=True, nogil=True)
+def _uni_core(free, w, h, tw, t, allow, bsize, bw, state, pdir, mark, budget,
+              cur, ncur, nxt, nnext, fcur, expanded):
+    """The uniform-cost A* loop, resumable like :func:`_astar_core`: returns (status, cost,
+    ncur, nnext, fcur, expanded), status 0 done (cost, or -1 when there is no path), 1 a
+    bucket is full (grow both and call again), 2 ``budget`` expansions reached."""
+    restrict = allow.shape[0] > 0
+    tx = t % w
+    ty = t // w
+    hi = np.int64(mark) << 32
+    ccap = cur.shape[0]
+    ncap = nxt.shape[0]
+    while True:
+        if ncur == 0:
+            if nnext == 0:
+                return 0, -1, ncur, nnext, fcur, expanded
+            if nnext > ccap:
+                return 1, 0, ncur, nnext, fcur, expanded
+            # nxt becomes cur: smaller h on top, and the later pushed first among equal h
+            key = np.empty(nnext, dtype=np.int64)
+            for i in range(nnext):
+                u = nxt[i]
+                key[i] = -(abs(u % w - tx) + abs(u // w - ty))
+            order = np.argsort(key, kind="mergesort")
+            for i in range(nnext):
+                cur[i] = nxt[order[i]]
+            ncur = nnext
+            nnext = 0
+            fcur += 2
+            continue
+        if ncur + 4 > ccap or nnext + 4 > ncap:
+            return 1, 0, ncur, nnext, fcur, expanded
+        if budget > 0 and expanded >= budget:
+            return 2, 0, ncur, nnext, fcur, expanded
+        ncur -= 1
+        v = cur[ncur]
+        y = v // w
+        x = v - y * w
+        iv = _tix(x, y, tw)
+        sv = state[iv]
+        if sv & 1:
+            continue  # closed (a stale entry): only this search's marks are ever read here
+        gv = (sv & 0xFFFFFFFF) >> 1
+        state[iv] = sv | 1
+        expanded += 1
+        if v == t:
+            return 0, gv, ncur, nnext, fcur, expanded
+        ng = gv + 1
+        for d in range(4):
+            nx = x + DX[d]
+            ny = y + DY[d]
+            if nx < 0 or ny < 0 or nx >= w or ny >= h:
+                continue
+            u = ny * w + nx
+            if free[u] == 0:
+                continue
+            if restrict and allow[(ny // bsize) * bw + nx // bsize] == 0:
+                continue
+            iu = _tix(nx, ny, tw)
+            su = state[iu]
+            if (su >> 32) == mark and (su & 1 or ((su & 0xFFFFFFFF) >> 1) <= ng):
+                continue
+            state[iu] = hi | (ng << 1)
+            pdir[iu] = d
+            if ng + abs(nx - tx) + abs(ny - ty) == fcur:
+                cur[ncur] = u
+                ncur += 1
+            else:
+                nxt[nnext] = u
+                nnext += 1
+
+
+@njit(cache=True, nogil=True)
+def _uni_init(s, t, w, tw, state, mark):
+    cur = np.empty(4096, dtype=np.int32)
+    nxt = np.empty(4096, dtype=np.int32)
+    state[_tix(s % w, s // w, tw)] = np.int64(mark) << 32
+    cur[0] = s
+    return cur, nxt, abs(s % w - t % w) + abs(s // w - t // w)
+
+
+@njit(cache=True, nogil=True)
+def _uni_run(free, w, h, tw, t, allow, bsize, bw, state, pdir, mark, budget,
+             cur, ncur, nxt, nnext, fcur, expanded):
+    """Run :func:`_uni_core` until done or out of budget, growing the buckets as needed;
+    returns (status, cost, cur, ncur, nxt, nnext, fcur, expanded)."""
+    while True:
+        st, res, ncur, nnext, fcur, expanded = _uni_core(
+            free, w, h, tw, t, allow, bsize, bw, state, pdir, mark, budget,
+            cur, ncur, nxt, nnext, fcur, expanded)
+        if st != 1:
+            return st, res, cur, ncur, nxt, nnext, fcur, expanded
+        cap = max(cur.shape[0], nxt.shape[0], ncur + 8, nnext + 8)
+        if cur.shape[0] < 2 * cap:
+            c2 = np.empty(2 * cap, dtype=np.int32)
+            c2[:ncur] = cur[:ncur]
+            cur = c2
+        if nxt.shape[0] < 2 * cap:
+            n2 = np.empty(2 * cap, dtype=np.int32)
+            n2[:nnext] = nxt[:nnext]
+            nxt = n2
+
+
+@njit(cache=True, nogil=True)
+def astar_uniform_both(free, w, h, s, t, allow, bsize, bw, state, pdir, state2, pdir2,
+                       mark, first_budget, probe=False):
+    """:func:`astar_both` for uniform cost 1 and 4 directions, on the bucket queue and the
+    tiled work arrays (``state``/``pdir`` forward, ``state2``/``pdir2`` reverse, each
+    :func:`tiled_size` entries; ``mark`` > every mark already in them). Same turns, same
+    answers: returns (cost or -1, total expanded, 0 forward / 1 reverse / 2 probe stopped)."""
+    tw = (w + TILE - 1) >> TILE_SHIFT
+    cur, nxt, fcur = _uni_init(s, t, w, tw, state, mark)
+    ncur = 1
+    nnext = 0
+    fexp = 0
+    budget = first_budget
+    st, res, cur, ncur, nxt, nnext, fcur, fexp = _uni_run(
+        free, w, h, tw, t, allow, bsize, bw, state, pdir, mark, budget,
+        cur, ncur, nxt, nnext, fcur, fexp)
+    if st == 0:
+        return res, fexp, 0
+    if probe:
+        return -1, fexp, 2
+    rcur, rnxt, rfcur = _uni_init(t, s, w, tw, state2, mark)
+    rncur = 1
+    rnnext = 0
+    rexp = 0
+    rbudget = 0
+    while True:
+        rbudget = max(rbudget * 2, fexp)
+        st, res, rcur, rncur, rnxt, rnnext, rfcur, rexp = _uni_run(
+            free, w, h, tw, s, allow, bsize, bw, state2, pdir2, mark, rbudget,
+            rcur, rncur, rnxt, rnnext, rfcur, rexp)
+        if st == 0:
+            return res, fexp + rexp, 1
+        budget = 2 * budget if budget >= rexp else rexp
+        st, res, cur, ncur, nxt, nnext, fcur, fexp = _uni_run(
+            free, w, h, tw, t, allow, bsize, bw, state, pdir, mark, budget,
+            cur, ncur, nxt, nnext, fcur, fexp)
+        if st == 0:
+            return res, fexp + rexp, 0
+
+
+@njit(cache=True, nogil=True)
+def trace_tiled(s, t, w, pdir):
+    """:func:`trace` for a ``pdir`` in the tiled layout."""
+    tw = (w + TILE - 1) >> TILE_SHIFT
+    n = 1
+    v = t
+    while v != s:
+        d = pdir[_tix(v % w, v // w, tw)]
+        v = v - DY[d] * w - DX[d]
+        n += 1
+    out = np.empty(n, dtype=np.int64)
+    v = t
+    i = n - 1
+    out[i] = v
+    while v != s:
+        d = pdir[_tix(v % w, v // w, tw)]
+        v = v - DY[d] * w - DX[d]
+        i -= 1
+        out[i] = v
+    return out

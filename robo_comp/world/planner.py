@@ -11,6 +11,7 @@ compiled kernels are cached on disk (``cache=True``) so later processes skip com
 from __future__ import annotations
 
 import math
+import mmap
 import threading
 from typing import Any
 
@@ -31,6 +32,8 @@ def warm_up() -> float:
     p = Planner(walls, hierarchical=True, block=2)
     p.find((0, 0), (3, 3))
     p.reachable((0, 0), (3, 3))
+    find_path(walls, (0, 0), (3, 3))
+    _k().connected(p._free, 4, 4, 0, 15)
     return time.perf_counter() - t0
 
 
@@ -52,6 +55,21 @@ def obstacle_costs(walls: np.ndarray, near_cost: float = 10.0, radius: int = 1) 
     costs = np.ones(walls.shape, dtype=np.float64)
     costs[near & ~walls] = float(near_cost)
     return costs
+
+
+def _lazy_zeros(n: int, dtype: type) -> np.ndarray:
+    """A zeroed array of ``n`` items whose pages the OS maps only when first touched.
+
+    Large numpy allocations ask the kernel for 2 MiB huge pages (``madvise``), so a search
+    that runs down a column of a big map would materialise 2 MiB for every few cells it
+    touches (hundreds of MiB for a search of thousands of cells); an anonymous ``mmap`` gets
+    4 KiB pages, zeroed by the OS on first touch.
+    """
+    dt = np.dtype(dtype)
+    size = n * dt.itemsize
+    if size < (1 << 20):
+        return np.zeros(n, dtype=dt)
+    return np.frombuffer(mmap.mmap(-1, size), dtype=dt)
 
 
 def _check_cell(cell: Cell, w: int, h: int, what: str) -> tuple[int, int]:
@@ -95,17 +113,21 @@ class Planner:
         self.height, self.width = walls.shape
         self.diagonal = bool(diagonal)
         self.hierarchical = bool(hierarchical)
-        self._free = np.ascontiguousarray(~walls.astype(bool), dtype=np.uint8).reshape(-1)
+        # nonzero = blocked (as walls.astype(bool)), made in one pass without temporaries
+        self._free = np.ascontiguousarray(walls == 0).view(np.uint8).reshape(-1)
         self._cost = _prep_costs(costs, walls.shape)
         self._hmul = self._min_cost()
         n = self.width * self.height
-        # Work arrays reused by every query; np.zeros/np.empty map memory lazily, so only
-        # the pages a search touches are ever materialised.
-        self._g = np.empty(n, dtype=np.float64)
-        self._stamp = np.zeros(n, dtype=np.int32)
-        self._pdir = np.zeros(n, dtype=np.int8)
+        # Work arrays reused by every query, mapped lazily (see _lazy_zeros): only the pages
+        # a search touches are ever materialised.
+        self._g = _lazy_zeros(n, np.float64)
+        self._stamp = _lazy_zeros(n, np.int32)
+        self._pdir = _lazy_zeros(n, np.int8)
         self._epoch = 0
         self._rev: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        # Uniform cost, 4 directions: the bucket kernel's tiled work arrays (state, pdir)
+        # forward and reverse, made on its first query.
+        self._uni: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
         self._labels: np.ndarray | None = None
         self._alias: list[int] = []
         self._comp_dirty = False
@@ -130,7 +152,9 @@ class Planner:
             if self.hierarchical:
                 self._hierarchy()
             # Fault the work arrays in now so the first query does not pay for it.
-            for arr in (self._g, self._stamp, self._pdir, *self._reverse_arrays()):
+            arrays = self._uni_arrays() if self._uniform() else (
+                self._g, self._stamp, self._pdir, *self._reverse_arrays())
+            for arr in arrays:
                 arr.fill(0)
         return self
 
@@ -192,12 +216,19 @@ class Planner:
             self._stamp[:] = 0
             if self._rev is not None:
                 self._rev[1][:] = 0
+            if self._uni is not None:
+                self._uni[0][:] = 0
+                self._uni[2][:] = 0
             self._epoch = 1
         return self._epoch
 
     def _search(self, s: int, t: int, allow: np.ndarray, bsize: int, bw: int,
-                first: int | None = None) -> tuple[float, int, list[Cell] | None]:
+                first: int | None = None,
+                probe: bool = False) -> tuple[float, int, list[Cell] | None]:
         """Exact A* s→t (within ``allow`` blocks); returns (cost or inf, expanded, path).
+
+        With ``probe`` only the first, forward part runs: a search that has not finished
+        within ``first`` expansions returns (-1, expanded, None) at once.
 
         Large plateaus of equal f (open areas, or walls the heuristic cannot see) make the
         expansion count depend heavily on the search direction, so when the forward search
@@ -209,12 +240,16 @@ class Planner:
         if first is None:
             first = 64 + 2 * (abs(s % self.width - t % self.width)
                               + abs(s // self.width - t // self.width))
+        if self._uniform():
+            return self._search_uniform(s, t, allow, bsize, bw, epoch, first, probe)
         g2, stamp2, pdir2 = self._reverse_arrays()
         cost, expanded, rev = _k().astar_both(
             self._free, self._cost, self.width, self.height, s, t, self.diagonal,
             self._hmul, allow, bsize, bw, self._g, self._stamp, self._pdir,
-            g2, stamp2, pdir2, epoch, first)
+            g2, stamp2, pdir2, epoch, first, probe)
         cost = float(cost)
+        if rev == 2:
+            return -1.0, int(expanded), None
         if math.isinf(cost):
             return cost, int(expanded), None
         if rev:
@@ -223,11 +258,41 @@ class Planner:
             path = self._path(s, t, self._pdir)
         return cost, int(expanded), path
 
+    def _uniform(self) -> bool:
+        """Whether queries run on the bucket kernel (cost 1 everywhere, 4 directions)."""
+        return not self.diagonal and self._cost.shape[0] == 0
+
+    def _uni_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        if self._uni is None:
+            size = _k().tiled_size(self.width, self.height)[1]
+            self._uni = (_lazy_zeros(size, np.int64), _lazy_zeros(size, np.int8),
+                         _lazy_zeros(size, np.int64), _lazy_zeros(size, np.int8))
+        return self._uni
+
+    def _search_uniform(self, s: int, t: int, allow: np.ndarray, bsize: int, bw: int,
+                        epoch: int, first: int,
+                        probe: bool) -> tuple[float, int, list[Cell] | None]:
+        state, pdir, state2, pdir2 = self._uni_arrays()
+        cost, expanded, rev = _k().astar_uniform_both(
+            self._free, self.width, self.height, s, t, allow, bsize, bw,
+            state, pdir, state2, pdir2, epoch, first, probe)
+        if rev == 2:
+            return -1.0, int(expanded), None
+        if cost < 0:
+            return math.inf, int(expanded), None
+        trace = _k().trace_tiled
+        if rev:
+            flat = trace(t, s, self.width, pdir2)[::-1]
+        else:
+            flat = trace(s, t, self.width, pdir)
+        w = self.width
+        return float(cost), int(expanded), list(zip((flat % w).tolist(), (flat // w).tolist()))
+
     def _reverse_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         if self._rev is None:
             n = self.width * self.height
-            self._rev = (np.empty(n, dtype=np.float64), np.zeros(n, dtype=np.int32),
-                         np.zeros(n, dtype=np.int8))
+            self._rev = (_lazy_zeros(n, np.float64), _lazy_zeros(n, np.int32),
+                         _lazy_zeros(n, np.int8))
         return self._rev
 
     def _path(self, s: int, t: int, pdir: np.ndarray) -> list[Cell]:
@@ -343,6 +408,14 @@ def find_path(walls: np.ndarray, start: Cell, goal: Cell, *, diagonal: bool = Fa
         return None
     if (sx, sy) == (gx, gy):
         return [(sx, sy)]
-    # One-off query: skip the component labelling a Planner would do and just search.
+    # One-off query: no component labelling of the whole map. A short search answers
+    # most queries; when it has not, a flood fill from the start (stopping at the goal)
+    # answers "no path" before the full search would exhaust the start's component.
     p = Planner(walls, costs=costs, diagonal=diagonal)
-    return p._search(sy * w + sx, gy * w + gx, p._no_restrict, 1, 1)[2]
+    s, t = sy * w + sx, gy * w + gx
+    cost, _, path = p._search(s, t, p._no_restrict, 1, 1, probe=True)
+    if cost >= 0:
+        return path
+    if not _k().connected(p._free, w, h, s, t):
+        return None
+    return p._search(s, t, p._no_restrict, 1, 1)[2]

@@ -96,7 +96,7 @@ class ROS2Driver(PoseReadings):
 
     # ------------------------------------------------------------------ what the robot believes
     @property
-    def pose(self) -> tuple[float, float, float]:  # type: ignore[override]  # read-only, where the protocol has an attribute
+    def pose(self) -> tuple[float, float, float]:
         """Odometry's pose in arena coordinates (cells, degrees)."""
         return self._pose
 

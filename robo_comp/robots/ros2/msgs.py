@@ -9,6 +9,8 @@ and writes the same bytes. Only what the driver needs is here: ``Twist`` (comman
 ``Odometry`` (odometry) and ``LaserScan`` (range).
 
 No ``from __future__ import annotations`` here: Cyclone DDS reads the annotations as types.
+Its ``array[T, n]`` and ``sequence[T]`` are runtime descriptions of IDL types, which its type
+hints do not declare generic: the fields that use them carry a coded ``type: ignore``.
 """
 
 from dataclasses import dataclass, field
@@ -82,7 +84,7 @@ class PoseWithCovariance(IdlStruct, typename="geometry_msgs::msg::dds_::PoseWith
     """``geometry_msgs/PoseWithCovariance``."""
 
     pose: Pose = field(default_factory=Pose)
-    covariance: array[float64, 36] = field(default_factory=lambda: [0.0] * 36)  # type: ignore
+    covariance: array[float64, 36] = field(default_factory=lambda: [0.0] * 36)  # type: ignore[type-arg, valid-type, assignment]  # cyclonedds IDL type
 
 
 @dataclass
@@ -90,7 +92,7 @@ class TwistWithCovariance(IdlStruct, typename="geometry_msgs::msg::dds_::TwistWi
     """``geometry_msgs/TwistWithCovariance``."""
 
     twist: Twist = field(default_factory=Twist)
-    covariance: array[float64, 36] = field(default_factory=lambda: [0.0] * 36)  # type: ignore
+    covariance: array[float64, 36] = field(default_factory=lambda: [0.0] * 36)  # type: ignore[type-arg, valid-type, assignment]  # cyclonedds IDL type
 
 
 @dataclass
@@ -116,8 +118,8 @@ class LaserScan(IdlStruct, typename="sensor_msgs::msg::dds_::LaserScan_"):
     scan_time: float32 = 0.0
     range_min: float32 = 0.0
     range_max: float32 = 0.0
-    ranges: sequence[float32] = field(default_factory=list)  # type: ignore
-    intensities: sequence[float32] = field(default_factory=list)  # type: ignore
+    ranges: sequence[float32] = field(default_factory=list)  # type: ignore[type-arg, assignment]  # cyclonedds IDL type
+    intensities: sequence[float32] = field(default_factory=list)  # type: ignore[type-arg, assignment]  # cyclonedds IDL type
 
 
 def stamp(t: float) -> Time:

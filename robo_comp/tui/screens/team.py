@@ -1,7 +1,7 @@
 """The team console's main screen: robots, monitor, map and events of one team, live."""
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 from textual import events
 from textual.app import ComposeResult
@@ -10,6 +10,7 @@ from textual.containers import Horizontal, Vertical
 from textual.screen import Screen
 from textual.widgets import Footer
 
+from robo_comp.tui.app import ConsoleApp
 from robo_comp.tui.messages import RobotSelected
 from robo_comp.tui.model import ConsoleModel, LogEntry
 from robo_comp.tui.widgets.event_log import EventLog
@@ -23,6 +24,15 @@ NARROW = 120
 PANELS = ("monitor", "map", "log")
 
 
+@runtime_checkable
+class GivesTasks(Protocol):
+    """A console with a give-task form (the team console: it imports this module, so it is not
+    named here)."""
+
+    def action_give_task(self, task: str | None = None) -> None:
+        """Open the give-task form for the selected robot."""
+
+
 class ConsoleScreen(Screen[None]):
     """Shared behaviour of the main screens: narrow layout, selection, redraw, logging."""
 
@@ -32,6 +42,13 @@ class ConsoleScreen(Screen[None]):
         self.panel = "monitor"
         #: True once composed and mounted (the app draws only then).
         self.ready = False
+
+    @property
+    def console_app(self) -> ConsoleApp:
+        """The console this screen belongs to (Textual types ``self.app`` as any App)."""
+        app = self.app
+        assert isinstance(app, ConsoleApp), "a console screen is pushed by a console"
+        return app
 
     def on_resize(self, event: events.Resize) -> None:
         self._narrow(event.size.width < NARROW)
@@ -45,9 +62,10 @@ class ConsoleScreen(Screen[None]):
         self._narrow(self.app.size.width < NARROW)
         self.add_class(f"-panel-{self.panel}")
         self.ready = True
-        self.app.connected(self.app.link.info)  # type: ignore[attr-defined]  -- self.app is the TeamApp (Textual types it as App)
-        self.query_one(MatchBar).link = self.app.link_state  # type: ignore[attr-defined]  -- self.app is the TeamApp (Textual types it as App)
-        self.app.call_later(self.app._redraw, True)  # type: ignore[attr-defined]  -- self.app is the TeamApp (Textual types it as App)
+        app = self.console_app
+        app.connected(app.link.info)
+        self.query_one(MatchBar).link = app.link_state
+        app.call_later(app._redraw, True)
 
     def on_unmount(self) -> None:
         self.ready = False
@@ -60,7 +78,7 @@ class ConsoleScreen(Screen[None]):
         self.notify(f"showing the {'event log' if self.panel == 'log' else self.panel}", timeout=1.5)
 
     def on_robot_selected(self, msg: RobotSelected) -> None:
-        self.app.select_robot(msg.tag)  # type: ignore[attr-defined]  -- self.app is the TeamApp (Textual types it as App)
+        self.console_app.select_robot(msg.tag)
 
     def robot_selected(self, tag: int | None) -> None:
         """The app's selection changed: show it."""
@@ -75,7 +93,7 @@ class ConsoleScreen(Screen[None]):
     def refresh_views(self) -> None:
         """Redraw everything from the model."""
         self.query_one(RobotsTable).update_from(self.model)
-        self.query_one(MonitorPanel).show(self.model, self.app.selected)  # type: ignore[attr-defined]  -- self.app is the TeamApp (Textual types it as App)
+        self.query_one(MonitorPanel).show(self.model, self.console_app.selected)
         self.query_one(MapView).refresh()
         self.query_one(MatchBar).refresh()
 
@@ -114,7 +132,9 @@ class TeamScreen(ConsoleScreen):
     def on_data_table_row_selected(self, event: RobotsTable.RowSelected) -> None:
         """``enter`` on a robot opens the task form (the thesis's "3. Give task to a robot")."""
         event.stop()
-        self.app.action_give_task()  # type: ignore[attr-defined]  -- self.app is the TeamApp (Textual types it as App)
+        app = self.app
+        assert isinstance(app, GivesTasks), "the team screen is the team console's"
+        app.action_give_task()
 
     def set_team(self, team: str) -> None:
         """The hello told us the team's name."""

@@ -106,9 +106,10 @@ class ScoreTable(DataTable[object]):
             counts[r.get("team", "?")] = counts.get(r.get("team", "?"), 0) + 1
         rows = model.scores or [{"team": t, "rank": i + 1, "score": 0, "victims": 0, "penalties": 0}
                                 for i, t in enumerate(model.teams)]
-        new = [(r.get("rank", "?"), r.get("team", "?"), f"{r.get('score', 0):g}", r.get("victims", 0),
-                f"{r.get('penalties', 0):g}", counts.get(r.get("team", ""), 0),
-                Text("DQ", style="bold magenta") if r.get("disqualified") else "") for r in rows]
+        new: list[tuple[object, ...]] = [
+            (r.get("rank", "?"), r.get("team", "?"), f"{r.get('score', 0):g}", r.get("victims", 0),
+             f"{r.get('penalties', 0):g}", counts.get(r.get("team", ""), 0),
+             Text("DQ", style="bold magenta") if r.get("disqualified") else "") for r in rows]
         if new == self._last:
             return
         cursor = self.cursor_row

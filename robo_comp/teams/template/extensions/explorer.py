@@ -43,7 +43,7 @@ MANIFEST = {
 # A find may cite at most 32 picture ids; the explorer cites its latest 16.
 MAX_EVIDENCE = 16
 
-pictures = []
+pictures = []  # type: list[int]
 
 
 def init(robot):

@@ -33,8 +33,8 @@ MANIFEST = {
 }
 
 SPACING = 6
-reported = []
-done = {}
+reported = []  # type: list[list[int]]
+done = {}  # type: dict[int, int]
 
 
 def look_and_report(robot):
