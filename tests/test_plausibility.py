@@ -34,8 +34,28 @@ def test_a_pose_inside_the_box_is_one_admit_takes(ax: float, ay: float, sigma: f
     assume(x_lo <= x_hi)  # by a wall the box is empty: every pose asks admit
     assert until == 100.0 + WINDOW
     x, y, now = x_lo + fx * (x_hi - x_lo), y_lo + fy * (y_hi - y_lo), 100.0 + dt
-    assert now < until and x_lo <= x <= x_hi and y_lo <= y <= y_hi  # the hot path takes it ...
-    assert GATE.admit(copy.copy(tr), x, y, psigma, now).ok  # ... and so does the rule itself
+    assert now < until and x_lo <= x <= x_hi and y_lo <= y <= y_hi
+    assert GATE.admit(copy.copy(tr), x, y, psigma, now).ok  # the rule itself takes it ...
+    assert GATE.quick(copy.copy(tr), x, y, psigma, now)  # ... and so does its shortcut (no hop yet)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.tuples(st.floats(-2.0, 2.0), st.floats(-2.0, 2.0), st.floats(0.0, 0.1), st.floats(0.0, 0.3)),
+                min_size=1, max_size=40))
+def test_whatever_the_shortcut_takes_admit_takes(steps: list[tuple[float, float, float, float]]) -> None:
+    """A robot placed in the open, then poses hopping about: each one ``PoseGate.quick`` takes, the
+    full rule takes on the same track; each one it leaves goes to the full rule, as the core does."""
+    tr = GATE.track(2.0)
+    assert GATE.admit(tr, 25.0, 4.0, 0.0, 100.0).ok
+    now = 100.0
+    for ox, oy, dt, sigma in steps:  # about where it was placed, at most 10 poses a second
+        now += dt
+        x, y = 25.0 + ox, 4.0 + oy
+        full = copy.copy(tr)
+        if GATE.quick(tr, x, y, sigma, now):
+            assert GATE.admit(full, x, y, sigma, now).ok, (x, y, sigma, now, full)
+        else:
+            GATE.admit(tr, x, y, sigma, now)
 
 
 def test_a_robot_not_placed_has_an_empty_box_and_an_expired_box_asks_again() -> None:
@@ -69,8 +89,8 @@ def test_poses_that_hop_about_near_the_anchor_are_charged_for_the_driving_betwee
 
 def test_a_robot_driving_at_its_top_speed_is_never_refused() -> None:
     tr = GATE.track(2.0)
-    assert GATE.admit(tr, 1.0, 2.0, 0.0, 0.0).ok
+    assert GATE.admit(tr, 1.0, 2.0, 0.0, 100.0).ok
     for k in range(1, 131):  # 13 s along row 2 at 2 cells/s, reports at 10 Hz, every third one late
-        t = 0.1 * k
+        t = 100.0 + 0.1 * k
         late = 0.25 if k % 3 == 0 else 0.0
-        assert GATE.admit(tr, 1.0 + 2.0 * t, 2.0, 0.0, t + late).ok, (k, tr)
+        assert GATE.admit(tr, 1.0 + 2.0 * (t - 100.0), 2.0, 0.0, t + late).ok, (k, tr)

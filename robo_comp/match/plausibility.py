@@ -46,6 +46,8 @@ WINDOW = 1.0
 CLAIM_SLACK = 0.5
 #: How far into a wall cell a pose may lie (cells, beyond 2 sigma): a noisy estimate near a wall.
 WALL_SLACK = 0.3
+#: The most noise a pose's sigma counts for (3 sigma, sigma capped at :data:`MAX_SIGMA`).
+MAX_NOISE = 3.0 * MAX_SIGMA
 #: Half the side of the square inside a circle of radius 1, a hair under: the square's corners stay
 #: inside the circle after rounding.
 SQRT_HALF = math.sqrt(0.5) * (1.0 - 1e-9)
@@ -187,6 +189,24 @@ class PoseGate:
         if now - tr.t >= WINDOW:  # the anchor's window has passed: this pose is the next
             self.anchor(tr, x, y, sigma, kept, now)
         return verdict
+
+    @staticmethod
+    def quick(tr: Track, x: float, y: float, sigma: float, now: float) -> bool:
+        """Whether the pose is one :meth:`admit` would take without a question, taken then and there:
+        a placed robot within its anchor's box before the window ends, and a hop from the pose taken
+        last within the driving left (charged beyond the noise of both ends; not refilled here, so
+        never more than admit would allow). False: ask :meth:`admit`. The core's ``reports`` loop
+        inlines these lines (``Core._take_rows``)."""
+        until, x_lo, x_hi, y_lo, y_hi = tr.box
+        lx, ly, lnoise, left = tr.hop
+        noise = 3.0 * sigma if sigma < MAX_SIGMA else MAX_NOISE
+        dx = x - lx
+        dy = y - ly
+        hop = math.sqrt(dx * dx + dy * dy) - lnoise - noise
+        if now < until and x_lo <= x <= x_hi and y_lo <= y <= y_hi and hop <= left:
+            tr.hop = (x, y, noise, left - hop if hop > 0.0 else left)
+            return True
+        return False
 
     def anchor(self, tr: Track, x: float, y: float, sigma: float, budget: float, now: float) -> None:
         """Make ``(x, y)`` (an admitted pose) the anchor of ``tr`` at ``now`` with ``budget`` left."""
