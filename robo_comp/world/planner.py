@@ -416,6 +416,6 @@ def find_path(walls: np.ndarray, start: Cell, goal: Cell, *, diagonal: bool = Fa
     cost, _, path = p._search(s, t, p._no_restrict, 1, 1, probe=True)
     if cost >= 0:
         return path
-    if not _k().connected(p._free, w, h, s, t):
+    if not _k().connected(p._free, w, h, s, t):  # marks p._free (private to this query)
         return None
     return p._search(s, t, p._no_restrict, 1, 1)[2]
