@@ -189,6 +189,28 @@ def test_teleports_wall_poses_and_creeping_jumps_are_refused_and_shown_to_the_re
     h.close()
 
 
+def test_poses_hopping_about_near_where_the_robot_stands_are_refused(core: CoreHandle) -> None:
+    """Defence: the hop rule of ``PoseGate.admit`` and the core's ``reports`` loop. Every pose lies
+    two cells from where the robot stood, but four from the pose before, twenty times in a burst:
+    a robot that drives 2 cells/s cannot, and a host that claims it gets the first hops only."""
+    h = _host(core)
+    tag = _register(h, core, "red-1", 8.0, 2.0)
+    ref = core.referee()
+    for k in range(20):
+        x = 6.0 if k % 2 == 0 else 10.0
+        h.send("reports", {"tags": [tag], "x": [x], "y": [2.0], "heading": [0.0]}, secret=h.session)
+    time.sleep(0.3)
+    refused = [m for m in h.listen(0.5) if m.get("type") == "reply" and not m.get("ok")]
+    # taken: 6 (a hop of 2), 10 (of 4: 1.5 cells left); then each pose at 6 is refused, and each at 10
+    # is where the robot was taken last
+    assert len(refused) >= 8 and "a hop of 4.0 cells" in refused[-1]["error"]["message"], refused[-1:]
+    assert all(code(m) == "E_IMPLAUSIBLE" for m in refused)
+    wait_for(lambda: any(r["tag"] == tag and r["kind"] == "pose" for r in _events(core, "integrity")), 3.0,
+             "the referee's integrity event")
+    assert ref.monitor(tag)["x"] == 10.0
+    h.close()
+
+
 def test_pictures_and_finds_are_judged_where_the_robot_is_tracked(core: CoreHandle) -> None:
     """Defence: ``Core.judged_pose``: a picture is judged at the host's claimed pose only where the
     tracked pose bears it out (3 sigma + driving since the last report); a claim next to a victim

@@ -69,7 +69,7 @@ from robo_comp.errors import (
     TooLargeError,
     UnavailableError,
 )
-from robo_comp.match.plausibility import WINDOW, PoseGate
+from robo_comp.match.plausibility import MAX_SIGMA, PoseGate
 from robo_comp.plugins.manager import get_plugin_manager
 from robo_comp.scoring.config import ScoringConfig
 from robo_comp.scoring.match import CLOCK_PERIOD
@@ -1256,7 +1256,7 @@ class Core:
     def _pose_refusal(self, r: RobotRecord, x: float, y: float, sigma: float, now: float) -> str:
         """Why robot ``r`` could not be at ``(x, y)`` now ("" when it could: ``PoseGate.admit``, and
         its track moves on); a refused pose is counted for the referee's ``integrity`` event."""
-        verdict = self.gate.admit(r.track, x, y, sigma, now, last=(r.x, r.y, r.sigma))
+        verdict = self.gate.admit(r.track, x, y, sigma, now)
         if not verdict.ok:
             self._disbelieve(r, "pose", verdict.reason)
         return verdict.reason
@@ -1277,37 +1277,55 @@ class Core:
         foreign = []
         refused = []
         robots = self.registry.robots
-        moved = self._moved
-        posed = self._posed
+        took: list[int] = []  # published in the next batch; all of the host's team (it registered them)
+        taken = took.append
         connected = RobotStatus.CONNECTED
-        window = WINDOW
-        for tag, x, y, h, mv, sn, sg in zip(b["tags"], b["x"], b["y"], b["heading"], moving, sensors, sigmas):
-            r = robots.get(tag)
-            if r is None or r.session != ident:
-                foreign.append(tag)
-                continue
-            if r.status is not connected:
-                self._mark_returned(r)
-            tr = r.track
-            # PoseGate.admit inlined for the common case: a placed robot within its anchor's window and
-            # its reach (the budget it had at the anchor, clear of walls and edges: never more than admit
-            # would take); the rest (a new anchor once a second, refusals, longer moves) asks admit
-            dx = x - tr.x
-            dy = y - tr.y
-            if not (mono - tr.t < window and dx * dx + dy * dy <= tr.reach2):
-                why = self._pose_refusal(r, x, y, sg, mono)
-                if why:
-                    refused.append((tag, why))
+        sqrt = math.sqrt
+        max_sigma = MAX_SIGMA
+        max_noise = 3.0 * MAX_SIGMA
+        try:
+            for tag, x, y, h, mv, sn, sg in zip(b["tags"], b["x"], b["y"], b["heading"], moving, sensors, sigmas):
+                r = robots.get(tag)
+                if r is None or r.session != ident:
+                    foreign.append(tag)
                     continue
-            r.x, r.y, r.heading, r.moving, r.sigma = x, y, h, mv, sg
-            if sn is not None:
-                r.sensors = sn
-            r.last_report = now
-            moved.add(tag)
-            team = posed.get(r.team)
-            if team is None:
-                team = posed[r.team] = set()
-            team.add(tag)
+                if r.status is not connected:
+                    self._mark_returned(r)
+                # PoseGate.admit inlined for the common case: a placed robot within its anchor's window
+                # and its reach (the budget it had at the anchor, clear of walls and edges: never more
+                # than admit would take); the rest (a new anchor once a second, refusals, longer moves)
+                # asks admit
+                # and the hop from the pose taken last, charged beyond the noise of both ends (not
+                # refilled here: admit refills, at least once a window)
+                tr = r.track
+                until, x_lo, x_hi, y_lo, y_hi = tr.box
+                lx, ly, lnoise, left = tr.hop
+                dx = x - lx
+                dy = y - ly
+                noise = 3.0 * sg if sg < max_sigma else max_noise
+                hop = sqrt(dx * dx + dy * dy) - lnoise - noise
+                if mono < until and x_lo <= x <= x_hi and y_lo <= y <= y_hi and hop <= left:
+                    tr.hop = (x, y, noise, left - hop if hop > 0.0 else left)
+                else:
+                    why = self._pose_refusal(r, x, y, sg, mono)
+                    if why:
+                        refused.append((tag, why))
+                        continue
+                r.x = x  # one store each: a five-way tuple assignment builds and unpacks a tuple a row
+                r.y = y
+                r.heading = h
+                r.moving = mv
+                r.sigma = sg
+                if sn is not None:
+                    r.sensors = sn
+                r.last_report = now
+                taken(tag)
+        finally:
+            if took:
+                self._moved.update(took)
+                team = self.sessions[ident].who.team
+                assert team is not None  # a host's session: register needs a team's host token
+                self._posed.setdefault(team, set()).update(took)
         if foreign:  # the others' rows were taken
             raise NotYoursError(f"robots {foreign[:10]} are not hosted by this connection; register them first")
         if refused:

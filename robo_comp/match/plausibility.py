@@ -15,7 +15,11 @@ anchors less that noise. Noise is forgiven once a window, not once a report, so 
 reports ten times a second pays nothing for jitter and gains at most 6 sigma a window by lying:
 over any stretch of time a robot's anchors move at most ``speed * t + capacity`` cells plus that,
 however the claims are timed: a teleport is refused whether it comes in one report or in many
-small ones.
+small ones. Each hop from the pose taken last is charged too (from a second bucket of the same
+size), beyond the noise of its two ends: poses that hop about within a window, each near the
+anchor and far from the one before, cost the driving between them, so no pose is taken that the
+robot could not have driven to from the one before (a true path is never shorter than the hops'
+lengths less the noise of their ends, so an honest robot is never charged more than it drove).
 
 Coordinates are in cells; cell ``(cx, cy)`` holds the points with ``floor(x + 0.5) == cx`` (the
 arena's convention), so the arena spans ``-0.5 <= x < width - 0.5``.
@@ -42,6 +46,11 @@ WINDOW = 1.0
 CLAIM_SLACK = 0.5
 #: How far into a wall cell a pose may lie (cells, beyond 2 sigma): a noisy estimate near a wall.
 WALL_SLACK = 0.3
+#: Half the side of the square inside a circle of radius 1, a hair under: the square's corners stay
+#: inside the circle after rounding.
+SQRT_HALF = math.sqrt(0.5) * (1.0 - 1e-9)
+#: A :attr:`Track.box` that takes no pose (empty in both directions).
+NO_BOX = (0.0, 0.0, -1.0, 0.0, -1.0)
 
 
 @dataclass(slots=True)
@@ -66,10 +75,18 @@ class Track:
     y: float = 0.0
     noise: float = 0.0
     budget: float = 0.0
-    #: The square of how far from the anchor a pose is taken without asking more: no farther than
-    #: the budget at the anchor plus its noise, nor than the nearest wall or edge (a hot path's test:
-    #: one comparison; anything else asks :meth:`PoseGate.admit`).
-    reach2: float = 0.0
+    #: Where a pose is taken without asking more, ``(until, x_lo, x_hi, y_lo, y_hi)``: before the
+    #: anchor's window ends, in the square inside the circle the robot can reach from its anchor (its
+    #: budget there plus its noise, clear of the nearest wall or edge). A hot path's test is one
+    #: unpacking and chained comparisons; anything else asks :meth:`PoseGate.admit`. Not placed: an
+    #: empty box.
+    box: tuple[float, float, float, float, float] = NO_BOX
+    #: The pose taken last and the driving left since it, ``(x, y, noise, left)`` (noise = 3 sigma
+    #: capped): each hop from one taken pose to the next is charged beyond the noise of both ends, so
+    #: that poses that hop about within the anchor's window (each near the anchor, far from each
+    #: other) cost what driving between them would. ``left`` was refilled last at :attr:`hop_t`.
+    hop: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
+    hop_t: float = 0.0
 
 
 class PoseGate:
@@ -131,29 +148,44 @@ class PoseGate:
         """A new robot's track at top speed ``speed`` (not placed yet)."""
         return Track(speed=speed, cap=self.capacity(speed))
 
-    def admit(self, tr: Track, x: float, y: float, sigma: float, now: float,
-              last: tuple[float, float, float] | None = None, away: bool = False) -> Verdict:
+    def admit(self, tr: Track, x: float, y: float, sigma: float, now: float, away: bool = False) -> Verdict:
         """Whether a robot on track ``tr`` can be at ``(x, y)`` (uncertainty ``sigma``) at time
-        ``now``; an admitted pose updates the track. ``last`` is the pose admitted last (x, y, sigma):
-        when the anchor's :data:`WINDOW` has passed it becomes the anchor first, so that a robot
-        admitted far from its anchor is not measured from there for good. A robot not placed yet may
-        be anywhere a robot can be; ``away``: it was away (a reconnect), so it may have driven all
-        the time since, not only the budget's capacity."""
+        ``now``; an admitted pose updates the track. Two tests, both from the driving budget: from
+        the anchor (the pose's net distance beyond the noise of both; when the anchor's
+        :data:`WINDOW` has passed, the pose taken last becomes the anchor first, so that a robot
+        admitted far from its anchor is not measured from there for good), and from the pose taken
+        last (the hop beyond the noise of both, charged). A robot not placed yet may be anywhere a
+        robot can be; ``away``: it was away (a reconnect), so it may have driven all the time since,
+        not only the budget's capacity."""
         if not tr.t:
             here = self.where(x, y, sigma)
             if here.ok:
-                self.anchor(tr, x, y, sigma, self.capacity(tr.speed), now)
+                cap = self.capacity(tr.speed)
+                self.anchor(tr, x, y, sigma, cap, now)
+                tr.hop, tr.hop_t = (x, y, tr.noise, cap), now
             return here
-        if last is not None and now - tr.t >= WINDOW and (last[0], last[1]) != (tr.x, tr.y):
-            _, left = self.step((tr.x, tr.y, tr.noise / 3.0), self.refill(tr.budget, now - tr.t, tr.speed),
-                                *last, tr.speed)
-            self.anchor(tr, *last, left, now)
+        lx, ly, lnoise, left = tr.hop
+        if now - tr.t >= WINDOW and (lx, ly) != (tr.x, tr.y):
+            _, kept = self.step((tr.x, tr.y, tr.noise / 3.0), self.refill(tr.budget, now - tr.t, tr.speed),
+                                lx, ly, lnoise / 3.0, tr.speed)
+            self.anchor(tr, lx, ly, lnoise / 3.0, kept, now)
         budget = self.refill(tr.budget, now - tr.t, tr.speed)
+        left = self.refill(left, now - tr.hop_t, tr.speed)
         if away:
             budget = max(budget, tr.speed * (now - tr.t))
-        verdict, left = self.step((tr.x, tr.y, tr.noise / 3.0), budget, x, y, sigma, tr.speed)
-        if verdict.ok and now - tr.t >= WINDOW:  # the anchor's window has passed: this pose is the next
-            self.anchor(tr, x, y, sigma, left, now)
+            left = max(left, tr.speed * (now - tr.hop_t))
+        verdict, kept = self.step((tr.x, tr.y, tr.noise / 3.0), budget, x, y, sigma, tr.speed)
+        if not verdict.ok:
+            return verdict
+        noise = 3.0 * min(sigma, MAX_SIGMA)
+        hop = math.hypot(x - lx, y - ly) - lnoise - noise
+        if hop > left:
+            return Verdict(False, f"a hop of {hop + lnoise + noise:.1f} cells from the pose taken last ({lx:.2f}, "
+                                  f"{ly:.2f}) to ({x:.2f}, {y:.2f}); at {tr.speed:g} cells/s it could have "
+                                  f"driven {left + lnoise + noise:.1f}")
+        tr.hop, tr.hop_t = (x, y, noise, left - max(0.0, hop)), now
+        if now - tr.t >= WINDOW:  # the anchor's window has passed: this pose is the next
+            self.anchor(tr, x, y, sigma, kept, now)
         return verdict
 
     def anchor(self, tr: Track, x: float, y: float, sigma: float, budget: float, now: float) -> None:
@@ -161,8 +193,10 @@ class PoseGate:
         tr.x, tr.y, tr.noise, tr.budget, tr.t = x, y, 3.0 * min(sigma, MAX_SIGMA), budget, now
         clear = float(self.clearance[min(self.height - 1, max(0, math.floor(y + 0.5))),
                                      min(self.width - 1, max(0, math.floor(x + 0.5)))])
-        reach = min(clear, budget + tr.noise)
-        tr.reach2 = reach * reach
+        half = min(clear, budget + tr.noise) * SQRT_HALF  # the square inside the reachable circle
+        # at or by a wall (no clearance) every pose asks admit: even the anchor's own place may be
+        # refused there with a smaller sigma
+        tr.box = (now + WINDOW, x - half, x + half, y - half, y + half) if half > 0.0 else NO_BOX
 
     def bears_out(self, tracked: tuple[float, float], sigma: float, since: float, speed: float,
                   claim: tuple[float, float]) -> Verdict:

@@ -95,10 +95,9 @@ class SimRobot:
     inbox: deque[dict[str, Any]] = field(default_factory=lambda: deque(maxlen=100))
     last_report: float = 0.0
     last_sensed: float = 0.0
-    #: Its camera fixes' track and the fix taken last: a fix that the robot could not have driven to
-    #: is refused (robo_comp.match.plausibility).
+    #: Its camera fixes' track (which knows the fix taken last): a fix that the robot could not have
+    #: driven to is refused (robo_comp.match.plausibility).
     fix: Track | None = None
-    fix_last: tuple[float, float, float] | None = None
 
     # RobotView for tasks -------------------------------------------------
     def cell(self) -> tuple[int, int]:
@@ -925,7 +924,7 @@ class RobotHost:
             r.fix = gate.track(gate.speed)
             x0, y0, _ = r.driver.pose
             gate.admit(r.fix, x0, y0, 0.0, now)
-        verdict = gate.admit(r.fix, x, y, sigma, now, last=r.fix_last)
+        verdict = gate.admit(r.fix, x, y, sigma, now)
         if not verdict.ok:
             self.fixes_refused += 1
             if now - self._fix_warned > 1.0:
@@ -933,7 +932,6 @@ class RobotHost:
                 log.warning("positioning: a fix of %s was refused: %s (%d refused so far)", r.robot_id,
                             verdict.reason, self.fixes_refused)
             return False
-        r.fix_last = (x, y, sigma)
         return True
 
     def _publish_truth(self) -> None:
