@@ -399,7 +399,7 @@ def test_flood_fill_agrees_with_labels(w, h, density, seed):
         return
     for _ in range(10):
         s, t = (int(c) for c in rng.choice(cells, size=2))
-        assert pl._k().connected(free, w, h, s, t) == (labels[s] == labels[t])
+        assert pl._k().connected(free.copy(), w, h, s, t) == (labels[s] == labels[t])
 
 
 def test_flood_fill_grows_its_stack():
@@ -410,12 +410,14 @@ def test_flood_fill_grows_its_stack():
     walls[1::2, 1::2] = True
     free = np.ascontiguousarray(~walls, dtype=np.uint8).reshape(-1)
     k = pl._k()
-    seen = np.zeros(w * h, dtype=np.uint8)
     sx = np.zeros(4 * w + 64, dtype=np.int32)
     sy = np.zeros(4 * w + 64, dtype=np.int32)
-    assert k._fill_spans(free, w, h, w * h - 1, seen, sx, sy, 1)[0] == 2  # the first stack is too small
-    assert k.connected(free, w, h, 0, w * h - 1)
+    assert k._fill_spans(free.copy(), w, h, w * h - 1, sx, sy, 1)[0] == 2  # the first stack is too small
+    assert k.connected(free.copy(), w, h, 0, w * h - 1)
     walls[h // 2, :] = True
     free = np.ascontiguousarray(~walls, dtype=np.uint8).reshape(-1)
-    assert not k.connected(free, w, h, 0, w * h - 1)
+    marked = free.copy()
+    assert not k.connected(marked, w, h, 0, w * h - 1)
+    # the fill marked (2) the whole upper part it exhausted, and nothing below the wall
+    assert (marked[: (h // 2) * w] != 1).all() and (marked[(h // 2) * w:] != 2).all()
     assert k.connected(free, w, h, 0, (h // 2 - 1) * w + w - 1)

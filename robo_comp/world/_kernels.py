@@ -436,11 +436,12 @@ def astar_both(free, cost, w, h, s, t, diagonal, hmul, allow, bsize, bw,
 
 
 @njit(cache=True, nogil=True)
-def _fill_spans(free, w, h, t, seen, sx, sy, top):
+def _fill_spans(free, w, h, t, sx, sy, top):
     """Scanline flood fill over 4-connected free cells, resumable: pops seeds from the
-    stack ``sx``/``sy`` (``top`` entries) and marks whole runs of a row at once in ``seen``.
-    Returns (status, top): 1 when ``t`` was reached, 0 when the fill ran out (``t`` not
-    reachable), 2 when the stack is full (grow it and call again)."""
+    stack ``sx``/``sy`` (``top`` entries) and marks whole runs of a row at once, in ``free``
+    itself (1 = free, 2 = free and reached). Returns (status, top): 1 when ``t`` was reached,
+    0 when the fill ran out (``t`` not reachable), 2 when the stack is full (grow it and call
+    again)."""
     cap = sx.shape[0]
     while top > 0:
         if top + w + 2 > cap:  # one run pushes at most w + 2 seeds (both rows)
@@ -449,16 +450,16 @@ def _fill_spans(free, w, h, t, seen, sx, sy, top):
         x = sx[top]
         y = sy[top]
         row = y * w
-        if seen[row + x] != 0:
+        if free[row + x] != 1:
             continue
         lo = x
-        while lo > 0 and free[row + lo - 1] != 0 and seen[row + lo - 1] == 0:
+        while lo > 0 and free[row + lo - 1] == 1:
             lo -= 1
         hi = x
-        while hi + 1 < w and free[row + hi + 1] != 0 and seen[row + hi + 1] == 0:
+        while hi + 1 < w and free[row + hi + 1] == 1:
             hi += 1
         for i in range(row + lo, row + hi + 1):
-            seen[i] = 1
+            free[i] = 2
         if row + lo <= t <= row + hi:
             return 1, top
         for ny in (y - 1, y + 1):
@@ -467,7 +468,7 @@ def _fill_spans(free, w, h, t, seen, sx, sy, top):
             nrow = ny * w
             inrun = False
             for nx in range(lo, hi + 1):
-                ok = free[nrow + nx] != 0 and seen[nrow + nx] == 0
+                ok = free[nrow + nx] == 1
                 if ok and not inrun:
                     sx[top] = nx
                     sy[top] = ny
@@ -482,16 +483,17 @@ def connected(free, w, h, s, t):
     (the same components as 8-connectivity without corner cutting; see :func:`label`).
 
     A scanline flood fill from ``s`` that stops as soon as it reaches ``t``: the "no path"
-    answer of a one-off query without labelling the whole map. Needs one byte a cell.
+    answer of a one-off query without labelling the whole map. ``free`` holds 0 (wall) or 1
+    (free); the fill marks every cell it reaches with 2 in place (still nonzero, so still
+    free to every kernel, but no longer a 0/1 mask: pass a copy to keep one).
     """
-    seen = np.zeros(w * h, dtype=np.uint8)
     sx = np.empty(4 * w + 64, dtype=np.int32)
     sy = np.empty(4 * w + 64, dtype=np.int32)
     sx[0] = s % w
     sy[0] = s // w
     top = 1
     while True:
-        st, top = _fill_spans(free, w, h, t, seen, sx, sy, top)
+        st, top = _fill_spans(free, w, h, t, sx, sy, top)
         if st != 2:
             return st == 1
         sx = _grow(sx, top)

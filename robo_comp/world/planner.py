@@ -60,14 +60,15 @@ def obstacle_costs(walls: np.ndarray, near_cost: float = 10.0, radius: int = 1) 
 def _lazy_zeros(n: int, dtype: type) -> np.ndarray:
     """A zeroed array of ``n`` items whose pages the OS maps only when first touched.
 
-    Large numpy allocations ask the kernel for 2 MiB huge pages (``madvise``), so a search
-    that runs down a column of a big map would materialise 2 MiB for every few cells it
-    touches (hundreds of MiB for a search of thousands of cells); an anonymous ``mmap`` gets
-    4 KiB pages, zeroed by the OS on first touch.
+    numpy asks the kernel for 2 MiB huge pages (``madvise``) from 4 MiB up, so a search that
+    runs down a column of a big map would materialise 2 MiB for every few cells it touches
+    (hundreds of MiB for a search of thousands of cells); from there on an anonymous
+    ``mmap`` gets 4 KiB pages, zeroed by the OS on first touch. Below it ``np.zeros`` is
+    kept: the C library recycles such blocks between one-off queries, already mapped.
     """
     dt = np.dtype(dtype)
     size = n * dt.itemsize
-    if size < (1 << 20):
+    if size < (1 << 22):
         return np.zeros(n, dtype=dt)
     return np.frombuffer(mmap.mmap(-1, size), dtype=dt)
 
@@ -416,6 +417,6 @@ def find_path(walls: np.ndarray, start: Cell, goal: Cell, *, diagonal: bool = Fa
     cost, _, path = p._search(s, t, p._no_restrict, 1, 1, probe=True)
     if cost >= 0:
         return path
-    if not _k().connected(p._free, w, h, s, t):
+    if not _k().connected(p._free, w, h, s, t):  # marks p._free (private to this query)
         return None
     return p._search(s, t, p._no_restrict, 1, 1)[2]
