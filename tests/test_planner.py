@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import heapq
 import math
-import time
 
 import numpy as np
 import pytest
@@ -159,11 +158,9 @@ def test_no_path_answered_by_components_fast():
     m = thesis_map(2, 400)
     p = Planner(m.walls).prepare()
     p.find((0, 0), (0, 1))
-    t0 = time.perf_counter()
     res = p.find((0, 0), (399, 399))
-    elapsed = time.perf_counter() - t0
+    # answered by the component labels, no cell expanded (the time is bench_planner's figure)
     assert res.path is None and res.expanded == 0
-    assert elapsed < 0.05  # well under 1 ms in practice; generous for loaded CI machines
 
 
 def test_set_cell_updates_components_and_paths():
