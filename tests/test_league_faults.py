@@ -124,6 +124,35 @@ def test_ctrl_c_stops_a_run_at_once_and_the_next_run_plays_the_rest(league):
     assert statuses(league / "lg") == {"done": len(ids)}
 
 
+def test_ctrl_c_while_a_worker_starts_is_not_lost() -> None:
+    """A Ctrl-C that comes while the run starts a worker process (pressed as the second worker
+    starts, say) stops the run once the worker is up; the worker itself ignores it. Before, the run
+    ignored Ctrl-C during each start (for the child to inherit) and played on."""
+    import multiprocessing
+
+    from robo_comp.league.runner import _Worker
+
+    ctx = multiprocessing.get_context("spawn")
+    start = ctx.Process.start
+
+    def pressed_meanwhile(self: object) -> None:
+        os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C, delivered to the run during the start
+        start(self)  # type: ignore[arg-type]
+
+    ctx.Process.start = pressed_meanwhile  # type: ignore[method-assign]
+    worker = None
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            worker = _Worker(ctx)
+            time.sleep(1.0)  # not reached: the press stops the run as the start returns
+    finally:
+        ctx.Process.start = start  # type: ignore[method-assign]
+        for p in multiprocessing.active_children():
+            p.kill()
+            p.join(5)
+    assert worker is None
+
+
 # ------------------------------------------------------------------ dead workers, kills, the lock
 def test_a_killed_worker_costs_only_its_match_which_is_played_again(league, tmp_path):
     ids = schedule_round_robin(league)

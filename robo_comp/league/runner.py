@@ -54,6 +54,7 @@ def _worker_main(conn: Any) -> None:
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})  # started with it blocked (see _Worker)
     try:
         import ctypes
 
@@ -81,15 +82,15 @@ class _Worker:
         self.proc = ctx.Process(target=_worker_main, args=(child,), daemon=True, name="robo-comp-league-worker")
         import signal
 
-        try:  # started with Ctrl-C ignored (inherited through exec): a press while it starts up is the run's
-            old = signal.signal(signal.SIGINT, signal.SIG_IGN)
-        except ValueError:  # not the main thread: the worker ignores it once it runs
-            old = None
+        # Started with Ctrl-C blocked (the mask is inherited through fork and exec; the worker ignores
+        # it, then unblocks): a press while it starts up is the run's alone. Blocked, not ignored, in
+        # the run meanwhile: a press then stays pending and stops the run once unblocked (ignoring it
+        # here lost it, and the run played on).
+        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
         try:
             self.proc.start()
         finally:
-            if old is not None:
-                signal.signal(signal.SIGINT, old)
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
         child.close()
         self.spec: dict[str, Any] | None = None
 
