@@ -73,8 +73,11 @@ def bench_upload(n: int, label: str = "") -> None:
           f"median {statistics.median(warm) * 1e3:.1f} ms, p99 {pct(warm, 99) * 1e3:.1f} ms")
 
 
-def _echo_child(sock: socket.socket) -> None:
-    """The peer: a process that answers length-prefixed msgpack calls over a socketpair."""
+def _echo_child(sock: socket.socket, other: socket.socket) -> None:
+    """The peer: a process that answers length-prefixed msgpack calls over a socketpair, until the
+    caller closes its end (``other``, the caller's end a forked child holds a copy of, is closed
+    first: else the caller's close would never reach it and the child would outlive the bench)."""
+    other.close()
     reader = FrameReader(1 << 20)
     while True:
         data = sock.recv(1 << 16)
@@ -88,7 +91,7 @@ def bare_round_trip(calls: int) -> float:
     """Median seconds of a bare msgpack call and answer between two processes over a socketpair
     (what a robot-API call cannot do without: two processes, one message each way)."""
     a, b = socket.socketpair()
-    child = mp.Process(target=_echo_child, args=(b,))
+    child = mp.Process(target=_echo_child, args=(b, a))
     child.start()
     b.close()
     reader = FrameReader(1 << 20)
@@ -102,6 +105,10 @@ def bare_round_trip(calls: int) -> float:
         gaps.append(time.perf_counter() - t0)
     a.close()
     child.join(5)
+    if child.is_alive():  # it should have seen the close; never leave it behind
+        child.kill()
+        child.join(5)
+        print("bench_sandbox: the echo child did not end when its socket closed; killed it", file=sys.stderr)
     return statistics.median(gaps)
 
 
