@@ -53,8 +53,7 @@ def _worker_main(conn: Any) -> None:
     leaves Ctrl-C to the run, which stops it."""
     import signal
 
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})  # started with it blocked (see _Worker)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # already ignored since its start (see _Worker)
     try:
         import ctypes
 
@@ -82,14 +81,26 @@ class _Worker:
         self.proc = ctx.Process(target=_worker_main, args=(child,), daemon=True, name="robo-comp-league-worker")
         import signal
 
-        # Started with Ctrl-C blocked (the mask is inherited through fork and exec; the worker ignores
-        # it, then unblocks): a press while it starts up is the run's alone. Blocked, not ignored, in
-        # the run meanwhile: a press then stays pending and stops the run once unblocked (ignoring it
-        # here lost it, and the run played on).
+        # The worker starts with Ctrl-C ignored (inherited through exec; a spawned child's signal mask
+        # is reset, so blocking alone would not do): a press while it starts up is the run's alone.
+        # The run blocks it meanwhile as well: on Linux a blocked signal stays pending even while
+        # ignored, and is delivered to the run's own handler once restored and unblocked (ignored
+        # alone, a press in this window was lost and the run played on).
+        # multiprocessing's resource tracker, started with the first spawned process, unblocks SIGINT
+        # after its own start: started before, it leaves the mask below alone
+        from multiprocessing import resource_tracker
+
+        resource_tracker.ensure_running()
         signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+        try:
+            old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        except ValueError:  # not the main thread: the worker ignores it once it runs
+            old = None
         try:
             self.proc.start()
         finally:
+            if old is not None:
+                signal.signal(signal.SIGINT, old)
             signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
         child.close()
         self.spec: dict[str, Any] | None = None
