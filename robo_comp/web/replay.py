@@ -249,6 +249,8 @@ class Playback:
         assert self.view is not None
         t = time.perf_counter()
         self.at = min(max(0.0, float(at)), self.rec.duration)
+        if self.rec.duration - self.at < 0.0005:  # the page has the duration to the millisecond
+            self.at = self.rec.duration  # (rounded down, its "the end" left out the last records)
         text = self.view.seek_text(self.at, self.rec.duration)
         took = time.perf_counter() - t
         await self.send(text)
