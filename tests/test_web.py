@@ -711,36 +711,3 @@ def test_gateway_on_a_curve_core(tmp_path: Path) -> None:
         if web is not None:
             stop(web)
         m.close()
-
-
-def test_a_seek_to_the_duration_the_page_was_given_reaches_the_last_record(tmp_path: Path) -> None:
-    """The page gets the recording's duration to the millisecond; rounded down, "the end" it asks
-    for must still hold the records of the last fraction of a millisecond (here the finish)."""
-    import asyncio
-    import json as _json
-
-    from robo_comp.web.replay import Playback, Recording
-
-    log = tmp_path / "events.log"
-    write_log(log, seconds=10)
-    t0 = 1_700_000_000.0
-    ev = EventLog(log)
-    ev.append("match.phase", None, {"phase": "finished"}, t=t0 + 10.0004)
-    ev.close()
-    sent: list[str] = []
-
-    async def send(text: str) -> None:
-        sent.append(text)
-
-    async def main() -> dict:
-        rec = Recording(log)
-        view = await rec.view("public")
-        pb = Playback(rec, send)
-        await pb.open(view, 0.0, play=False, speed=1.0)
-        duration = _json.loads([m for m in sent if '"type":"state"' in m][-1])["duration"]
-        assert duration == 10.0  # what the page is told (the log runs to 10.0004 s)
-        await pb.seek(duration)
-        return _json.loads([m for m in sent if '"type":"state"' in m][-1])
-
-    state = asyncio.run(main())
-    assert any(e[0] == "match.phase" and e[1].get("phase") == "finished" for e in state["after"]), state["after"]
