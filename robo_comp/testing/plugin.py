@@ -6,11 +6,15 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import pytest
 
-from robo_comp.testing.bench import Bench
-from robo_comp.testing.match import DEFAULT_SCENARIO, Match, resolve_scenario, start_match
+from robo_comp.testing.match import Match, start_match
+from robo_comp.world.scenario import DEFAULT_SCENARIO, resolve_scenario
+
+if TYPE_CHECKING:
+    from robo_comp.engine.bench import Bench
 
 
 # ---------------------------------------------------------------------- pytest hooks and fixtures
@@ -91,6 +95,8 @@ def robo_match(tmp_path: Path, robo_scenario: Path) -> Iterator[Match]:
 @pytest.fixture
 def robo_bench(robo_scenario: Path, robo_team: str) -> Iterator[Bench]:
     """A :class:`Bench` with one robot of ``robo_team`` on ``robo_scenario`` (seed 0)."""
+    from robo_comp.engine.bench import Bench  # the engine loads numpy, numba and the sandbox: on first use
+
     b = Bench(robo_scenario, robo_team)
     try:
         yield b
