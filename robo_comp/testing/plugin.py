@@ -55,7 +55,7 @@ def pytest_configure(config: pytest.Config) -> None:
 def pytest_report_header(config: pytest.Config) -> str:
     """Whether team code in these tests runs inside the OS sandbox."""
     if OS_SANDBOX_OFF is None:
-        return "robo_comp: team code runs inside the OS sandbox (bubblewrap)"
+        return "robo_comp: team code runs inside the OS sandbox (bubblewrap and a seccomp filter)"
     return f"robo_comp: team code runs WITHOUT the OS sandbox ({OS_SANDBOX_OFF})"
 
 
