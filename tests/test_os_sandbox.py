@@ -14,6 +14,8 @@ from __future__ import annotations
 import os
 import shutil
 import socket
+import subprocess
+import sys
 import tempfile
 from collections.abc import Iterator
 from typing import Any
@@ -24,7 +26,7 @@ import robo_comp
 from robo_comp.errors import RoboCompError, UnavailableError
 from robo_comp.sandbox import oswall
 from robo_comp.sandbox.parent import Limits, Sandbox, TaskDone, TaskFailed
-from robo_comp.testing import plugin
+from robo_comp.testing import plugin, wait_robots
 
 PKG_ROOT = os.path.dirname(os.path.dirname(os.path.abspath(robo_comp.__file__)))
 
@@ -264,3 +266,70 @@ def test_without_bwrap_team_code_does_not_run(monkeypatch: pytest.MonkeyPatch, t
     with pytest.raises(UnavailableError) as e:
         Sandbox("red", [101])
     assert "bwrap is not installed" in e.value.message and "--os-sandbox off" in e.value.message
+
+
+def test_without_libseccomp_team_code_does_not_run() -> None:
+    """A machine without libseccomp (its file made empty for one process): the sandbox refuses
+    to start, saying what is missing and how the organiser turns the layer off."""
+    needs_bwrap()
+    import pyseccomp  # noqa: F401  (loads the library, so that its file shows in our memory map)
+
+    with open("/proc/self/maps") as f:
+        lib = next(line.split()[-1] for line in f if "libseccomp.so" in line)
+    probe = ("from robo_comp.errors import RoboCompError\n"
+             "from robo_comp.sandbox.parent import Sandbox\n"
+             "try:\n    Sandbox('red', [101])\nexcept RoboCompError as e:\n    print(e.message)\n")
+    env = {k: v for k, v in os.environ.items() if k != oswall.ENV}
+    r = subprocess.run(["bwrap", "--dev-bind", "/", "/", "--ro-bind", "/dev/null", lib, "--",
+                        sys.executable, "-c", probe], capture_output=True, text=True, timeout=60, env=env)
+    assert r.returncode == 0, r.stderr
+    assert "libseccomp is not installed" in r.stdout and "--os-sandbox off" in r.stdout, r.stdout
+
+
+def robo_comp_without_bwrap(tmp_path: Any, *args: str, **env: str) -> subprocess.CompletedProcess[str]:
+    """``robo-comp ARGS`` as a real process on a machine without bwrap (a PATH without it)."""
+    empty = tmp_path / "no-bwrap"
+    empty.mkdir(exist_ok=True)
+    full = {k: v for k, v in os.environ.items() if k != oswall.ENV} | {"PATH": str(empty)} | env
+    return subprocess.run([sys.executable, "-m", "robo_comp.cli", *args], capture_output=True, text=True,
+                          timeout=60, env=full, stdin=subprocess.DEVNULL)
+
+
+def test_a_robot_host_that_cannot_wall_team_code_stops_at_start_in_one_sentence(tmp_path: Any) -> None:
+    """``robo-comp robots`` checks the layer before it connects: without bwrap it stops (exit
+    code 2) with one sentence naming what is missing and both ways out, not at a team's first
+    upload; ``--os-sandbox on`` wins over ``ROBO_COMP_OS_SANDBOX=off`` in its environment."""
+    for extra, env in (((), {}), (("--os-sandbox", "on"), {oswall.ENV: "off"})):
+        r = robo_comp_without_bwrap(tmp_path, "robots", "--core", str(tmp_path / "no-core"), "--token", "x",
+                                    *extra, **env)
+        assert r.returncode == 2, (r.stdout, r.stderr)
+        said = r.stderr.strip()
+        assert len(said.splitlines()) == 1 and said.count(". ") == 0, said
+        assert said.startswith("robo-comp robots: team code runs only inside the OS sandbox"), said
+        assert "bwrap is not installed" in said and "apt-get install bubblewrap" in said, said
+        assert "--os-sandbox off" in said, said
+
+
+def test_a_league_run_that_cannot_wall_team_code_stops_before_its_first_match(tmp_path: Any) -> None:
+    r = robo_comp_without_bwrap(tmp_path, "league", "run", str(tmp_path / "season"), "--os-sandbox", "on")
+    assert r.returncode == 2 and "robo-comp league: team code runs only inside the OS sandbox" in r.stderr, r
+    assert "bwrap is not installed" in r.stderr and not (tmp_path / "season").exists()
+
+
+def test_os_sandbox_off_runs_team_code_without_the_layer_and_says_so(core: Any, tmp_path: Any,
+                                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    """The organiser's choice, made on the command line: a host on a machine without bwrap,
+    started with ``--os-sandbox off``, says so at start and runs an upload (without the option
+    the upload would be refused: see the test above)."""
+    empty = tmp_path / "no-bwrap"
+    empty.mkdir()
+    monkeypatch.setenv("PATH", str(empty))
+    monkeypatch.delenv(oswall.ENV, raising=False)
+    core.robots("red", 1, "--os-sandbox", "off")
+    red = core.client("red", timeout=30.0)
+    tag = wait_robots(red, 1)[0]["tag"]
+    module = ('MANIFEST = {"name": "hello", "version": "1", "kind": "extension", '
+              '"tasks": {"hello": {"description": "x", "args": []}}}\ndef hello(robot):\n    return 1\n')
+    out = red.upload([tag], "hello.py", module)
+    assert out["ok"], out
+    assert f"robo-comp robots: {oswall.OFF}" in (core.state / "robots-red.log").read_text()

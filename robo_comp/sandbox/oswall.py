@@ -25,6 +25,7 @@ accepting the first wall alone.
 """
 from __future__ import annotations
 
+import argparse
 import functools
 import os
 import shutil
@@ -38,12 +39,17 @@ from robo_comp.sandbox import sysfilter
 
 #: Environment variable; ``off`` runs team code without the OS layer (the organiser's choice).
 ENV = "ROBO_COMP_OS_SANDBOX"
-#: Why team code does not run when the layer is missing (the organiser reads it).
-MISSING = ("team code runs only inside the OS sandbox (bubblewrap and a seccomp filter), and it cannot "
-           "start here: {why}. Install them (Debian: apt-get install bubblewrap libseccomp2; as a user "
+#: Why team code does not run when the layer is missing (the organiser reads it; one sentence).
+MISSING = ("team code runs only inside the OS sandbox (bubblewrap and a seccomp filter), which cannot "
+           "start here: {why}; install them (Debian: apt-get install bubblewrap libseccomp2; as a user "
            "other than root bwrap also needs unprivileged user namespaces), or run team code without "
-           "this second wall: robo-comp robots --os-sandbox off (or robo-comp league run --os-sandbox off, "
-           f"or {ENV}=off in their environment; docs/sandbox.md, \"The OS layer\")")
+           "this second wall with robo-comp robots --os-sandbox off (robo-comp league run --os-sandbox "
+           f"off, or {ENV}=off in their environment; docs/sandbox.md, \"The OS layer\")")
+
+
+def missing(why: str) -> UnavailableError:
+    """The refusal when the layer cannot start here; ``details["why"]`` holds ``why`` alone."""
+    return UnavailableError(MISSING.format(why=why), why=why)
 
 
 def enabled() -> bool:
@@ -56,6 +62,40 @@ def choose(setting: str | None) -> None:
     process and every process it starts."""
     if setting is not None:
         os.environ[ENV] = setting
+
+
+#: What a command that runs team code says at start when the organiser turned the layer off.
+OFF = (f"team code runs WITHOUT the OS sandbox here (--os-sandbox off, or {ENV}=off): the policy "
+       "and the rlimits are its only walls")
+
+
+def package_root() -> str:
+    """The folder that holds the ``robo_comp`` package (the child imports it from there)."""
+    import robo_comp
+
+    return os.path.dirname(os.path.dirname(os.path.abspath(robo_comp.__file__)))
+
+
+def at_start(command: str, setting: str | None) -> None:
+    """At the start of a command that runs team code (``robots``, ``league run``): apply the
+    organiser's ``--os-sandbox`` (None: the environment decides) and check the layer here, so
+    that the organiser learns now, not from a team's first upload. Says :data:`OFF` on stderr
+    when the organiser turned it off; raises :func:`missing`'s refusal (one sentence: how to
+    install it or turn it off) when it cannot start, and the command stops."""
+    choose(setting)
+    if not enabled():
+        print(f"robo-comp {command}: {OFF}", file=sys.stderr, flush=True)
+        return
+    check(package_root())
+
+
+def add_option(parser: argparse.ArgumentParser) -> None:
+    """``--os-sandbox on|off`` for a command that runs team code (``robots``, ``league run``)."""
+    parser.add_argument("--os-sandbox", choices=("on", "off"), default=None,
+                        help="team code inside the sandbox's OS layer, bubblewrap and a seccomp filter (on: "
+                             f"the default), or without it (off: the policy and the rlimits only); sets {ENV} "
+                             "for this command and what it starts. Checked at start: where the layer cannot "
+                             "run, the command stops and says why (docs/sandbox.md, \"The OS layer\")")
 
 
 def _binds(pkg_root: str) -> list[str]:
@@ -86,7 +126,7 @@ def command(pkg_root: str, seccomp_fd: int | None = None) -> list[str]:
     ``seccomp_fd``, bwrap reads the start filter (compiled BPF) from that descriptor."""
     bwrap = shutil.which("bwrap")
     if bwrap is None:
-        raise UnavailableError(MISSING.format(why="bwrap is not installed"))
+        raise missing("bwrap is not installed")
     ns = ["--unshare-net", "--unshare-pid", "--unshare-ipc", "--unshare-uts", "--unshare-cgroup-try"]
     if os.geteuid() != 0:
         ns.append("--unshare-user")  # as root the child drops to nobody itself (a real uid outside)
@@ -99,7 +139,7 @@ def _filters() -> sysfilter.Programs:
     try:
         return sysfilter.programs()
     except UnavailableError as e:
-        raise UnavailableError(MISSING.format(why=e.message)) from None
+        raise missing(e.message) from None
 
 
 def _pipe(data: bytes) -> int:
@@ -141,12 +181,12 @@ def check(pkg_root: str) -> None:
                            capture_output=True, text=True, timeout=30, stdin=subprocess.DEVNULL,
                            pass_fds=(fd,))
     except (OSError, subprocess.TimeoutExpired) as e:
-        raise UnavailableError(MISSING.format(why=f"bwrap did not run ({e})")) from None
+        raise missing(f"bwrap did not run ({e})") from None
     finally:
         os.close(fd)
     if r.returncode != 0:
         why = (r.stderr.strip().splitlines() or [f"exit code {r.returncode}"])[-1][:200]
-        raise UnavailableError(MISSING.format(why=f"bwrap failed: {why}"))
+        raise missing(f"bwrap failed: {why}")
 
 
 @dataclass(frozen=True)

@@ -299,8 +299,7 @@ class Sandbox:
                "PYTHONHASHSEED": str(1 + self.seed % 4_294_967_295),
                "PATH": os.environ.get("PATH", "/usr/bin:/bin")}
         debug = os.environ.get("ROBO_COMP_SANDBOX_DEBUG") == "1"
-        import robo_comp
-        pkg_root = os.path.dirname(os.path.dirname(os.path.abspath(robo_comp.__file__)))
+        pkg_root = oswall.package_root()
         filter_fd = None
         try:
             wall = oswall.wall(pkg_root)  # the OS layer (bubblewrap, seccomp), or a clear refusal

@@ -48,7 +48,7 @@ def pytest_configure(config: pytest.Config) -> None:
     try:
         oswall.check(str(Path(robo_comp.__file__).resolve().parent.parent))
     except RoboCompError as e:
-        OS_SANDBOX_OFF = e.message.split(": ", 1)[-1].split(". ", 1)[0]
+        OS_SANDBOX_OFF = str(e.details.get("why", e.message))
         os.environ[oswall.ENV] = "off"
 
 
