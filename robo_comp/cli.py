@@ -175,6 +175,9 @@ def _robots(args: argparse.Namespace) -> int:
         from robo_comp.world.scenario import resolve_scenario
 
         truth = load_scenario(resolve_scenario(args.scenario))  # a file or a bundled scenario's name
+    from robo_comp.sandbox import oswall
+
+    oswall.at_start("robots", args.os_sandbox)  # a host that cannot wall team code stops here, saying so
     token = read_token(args.token, args.token_file)
     options: dict[str, object] = {}
     if args.driver == "er1":
@@ -348,6 +351,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--truth-pub", metavar="URL",
                    help="simulation only: publish the robots' true poses here for synthetic cameras "
                         "(robo-comp camera run --synthetic URL)")
+    from robo_comp.sandbox import oswall
+
+    oswall.add_option(r)
     r.set_defaults(func=_robots)
 
     ctl.add_parser(sub)

@@ -52,14 +52,14 @@ def pytest_configure(config: pytest.Config) -> None:
     try:
         oswall.check(str(Path(robo_comp.__file__).resolve().parent.parent))
     except RoboCompError as e:
-        OS_SANDBOX_OFF = e.message.split(": ", 1)[-1].split(". ", 1)[0]
+        OS_SANDBOX_OFF = str(e.details.get("why", e.message))
         os.environ[oswall.ENV] = "off"
 
 
 def pytest_report_header(config: pytest.Config) -> str:
     """Whether team code in these tests runs inside the OS sandbox."""
     if OS_SANDBOX_OFF is None:
-        return "robo_comp: team code runs inside the OS sandbox (bubblewrap)"
+        return "robo_comp: team code runs inside the OS sandbox (bubblewrap and a seccomp filter)"
     return f"robo_comp: team code runs WITHOUT the OS sandbox ({OS_SANDBOX_OFF})"
 
 
