@@ -302,7 +302,7 @@ def describe_event(e: LogEntry) -> str:
         verdict = "done" if d.get("ok") else "FAILED" if d.get("state", "done") == "done" else d.get("state")
         return f"{who} {d.get('name')} #{d.get('task_id')} {verdict}: {d.get('status', '')}"
     if t == "match.phase" and d.get("action") == "outage":
-        return f"a core outage now {OUTAGE_WORDS.get(d.get('outage'), '?')} (rule {d.get('outage')!r}, by {d.get('by', '?')})"
+        return f"a core outage now {OUTAGE_WORDS.get(str(d.get('outage')), '?')} (rule {d.get('outage')!r}, by {d.get('by', '?')})"
     if t == "match.phase":
         return f"match {d.get('phase', '?').upper()} ({d.get('action', '')} by {d.get('by', '?')})"
     if t == "score":
