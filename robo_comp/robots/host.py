@@ -835,7 +835,8 @@ class RobotHost:
         readings changed (within a sensing period, :mod:`robo_comp.robots.readings`), in ``reports``
         messages of up to ``REPORT_CHUNK`` robots; the sensors of all robots due are read in one
         vectorised pass."""
-        due, standing = [], []
+        due: list[SimRobot] = []
+        standing: list[SimRobot] = []
         for r in self.by_tag.values():
             (due if r.driver.moving or now - r.last_report >= 1.0 else standing).append(r)
         changed = self.readings_watch.changed(self.world, standing, now)

@@ -83,9 +83,10 @@ class ReadingWatch:
         before = np.array([self._sent[r.robot_id] for r in cand], dtype=np.float64)
         # no echo counts as the maximum range: a wall just at the edge of the range, whose echo comes
         # and goes with the noise, is no change
-        seen, before = (np.where(np.isnan(a), cfg.max_range, a) for a in (seen, before))
-        moved = (np.abs(seen - before) > max(MIN_CHANGE_CM, NOISE_SIGMAS * cfg.noise)).any(axis=1)
-        out = [r for r, m in zip(cand, moved.tolist()) if m]
+        seen = np.where(np.isnan(seen), cfg.max_range, seen)
+        before = np.where(np.isnan(before), cfg.max_range, before)
+        moved = np.any(np.abs(seen - before) > max(MIN_CHANGE_CM, NOISE_SIGMAS * cfg.noise), axis=1)
+        out = [r for r, m in zip(cand, moved) if m]
         for r in out:
             self._changed_at[r.robot_id] = now
         return out
