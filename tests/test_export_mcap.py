@@ -19,7 +19,7 @@ from conftest import HEARTBEAT, wait_for, wait_robots  # noqa: E402
 from robo_comp.cli import main as cli_main  # noqa: E402
 from robo_comp.errors import RoboCompError  # noqa: E402
 from robo_comp.launch import start_core  # noqa: E402
-from robo_comp.protocol import EVERYONE, PRIVATE_TOPICS, PUBLIC_TOPICS, TABLE, public_event, unpack_walls  # noqa: E402
+from robo_comp.protocol import EVERYONE, PRIVATE_TOPICS, PUBLIC_TOPICS, public_event, unpack_walls  # noqa: E402
 from robo_comp.protocol.logfile import read_log  # noqa: E402
 from robo_comp.testing import Match  # noqa: E402
 
