@@ -143,6 +143,8 @@ class Core:
         self.registry = Registry()
         #: At most this many robots per team (None: what the scenario gives each team).
         self.robots_per_team = robots_per_team
+        #: Who sees team code's debug drawing in replays (protocol.topics.DEBUG_REPLAY); set by the CLI.
+        self.debug_replay = "team"
         fastest_zone = max([1.0, *(z.speed_factor for z in scenario.zones)])
         #: The fastest a robot may drive (cells/s): a host's declared speed is cut to it.
         self.max_speed = float(max_speed) if max_speed else scenario.kinematics.speed * fastest_zone * MAX_SPEED_FACTOR
@@ -289,7 +291,7 @@ class Core:
         tmp.write_text(json.dumps(info, indent=2))
         os.replace(tmp, self.state_dir / "core.json")
         self.emit("core.started", None, {"router": info["router"], "teams": self.tokens.teams,
-                                         "arena": self._arena_payload})
+                                         "arena": self._arena_payload, "debug_replay": self.debug_replay})
         if self.recovered is not None:
             self.emit("core.recovered", None, self.recovered.to_dict())
         self._commit()

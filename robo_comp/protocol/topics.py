@@ -27,6 +27,8 @@ TOPICS = (
     # fair play: claims about the world the match did not believe, and robots handed between hosts
     # (both for the referee, and the team whose robot it is; never public)
     "integrity", "robot.handover",
+    # debug drawing of team code (robo_comp/protocol/drawing.py): the team's own, and see AFTER_MATCH_TOPICS
+    "debug.draw",
 )
 
 
@@ -47,8 +49,16 @@ PUBLIC_TOPICS: dict[str, tuple[str, ...] | None] = {
 }
 #: Topics that reach only the event's team and the referee, live and replayed.
 PRIVATE_TOPICS = frozenset({"radio", "refused", "robot.log", "upload.pending", "upload.sent", "upload.done",
-                            "upload.unloaded", "sandbox.reset", "integrity", "robot.handover"})
+                            "upload.unloaded", "sandbox.reset", "integrity", "robot.handover", "debug.draw"})
+#: Private topics a replay may show everyone, after the match, when the organiser chose so: the
+#: match's ``debug_replay`` option (:data:`DEBUG_REPLAY`), recorded in the log's ``core.started``.
+#: Never on a live public feed.
+AFTER_MATCH_TOPICS = frozenset({"debug.draw"})
+#: The ``debug_replay`` choices: a team's debug drawing is replayed to that team (and the
+#: referee) only, or to everyone.
+DEBUG_REPLAY = ("team", "everyone")
 assert set(TOPICS) == PUBLIC_TOPICS.keys() | PRIVATE_TOPICS and not PUBLIC_TOPICS.keys() & PRIVATE_TOPICS
+assert AFTER_MATCH_TOPICS <= PRIVATE_TOPICS
 
 
 def public_event(topic: str, data: dict[str, Any]) -> dict[str, Any] | None:
@@ -59,6 +69,14 @@ def public_event(topic: str, data: dict[str, Any]) -> dict[str, Any] | None:
     if fields is not None:
         return {k: data[k] for k in fields if k in data}
     return public_view(data)
+
+
+def replay_public_event(topic: str, data: dict[str, Any], debug_replay: str = "team") -> dict[str, Any] | None:
+    """What a replay shows the public of this event: :func:`public_event`, and the
+    :data:`AFTER_MATCH_TOPICS` too when the match's ``debug_replay`` is ``"everyone"``."""
+    if topic in AFTER_MATCH_TOPICS:
+        return data if debug_replay == "everyone" else None
+    return public_event(topic, data)
 
 
 def public_view(data: dict[str, Any]) -> dict[str, Any]:

@@ -35,6 +35,7 @@ from typing import Any, Callable, Iterable
 import msgpack
 
 from robo_comp.errors import BadTaskError, NotYoursError, UnavailableError, UploadError
+from robo_comp.protocol.drawing import clean_frame
 from robo_comp.sandbox import contract, oswall
 from robo_comp.sandbox.contract import BUILTIN_TASKS, ModuleInfo
 from robo_comp.sandbox.child import (
@@ -43,7 +44,7 @@ from robo_comp.sandbox.child import (
 
 __all__ = [
     "PENDING", "Limits", "Sandbox", "poll_many",
-    "Record", "Ready", "RpcCall", "LogLine", "TaskDone", "TaskFailed", "Loaded", "LoadFailed",
+    "Record", "Ready", "Drawing", "RpcCall", "LogLine", "TaskDone", "TaskFailed", "Loaded", "LoadFailed",
     "Unloaded", "SandboxStopped", "SandboxRestarted",
 ]
 
@@ -174,6 +175,18 @@ class TaskFailed(Record):
     message: str
     reason: str
     line: int | None = None
+    #: For ``error``: the frames of the team's files the error went through, outermost first
+    #: (``file:line in function: code``).
+    traceback: list[str] = field(default_factory=list)
+
+
+@dataclass
+class Drawing(Record):
+    """A robot's new frame of debug drawing (checked: :func:`robo_comp.protocol.drawing.clean_frame`)."""
+
+    run_id: int
+    tag: int
+    shapes: list
 
 
 @dataclass
@@ -708,8 +721,14 @@ class Sandbox:
                 if run.cancelled and why == "error":
                     why = "cancelled"
                 text = str(msg.get("m", ""))[:2000]
+                tb = msg.get("tb")
+                trace = [str(x)[:300] for x in tb[:20]] if type(tb) is list and why == "error" else []
                 self._out.append(TaskFailed(run.id, run.tag, run.task, text, why,
-                                            msg.get("line") if type(msg.get("line")) is int else None))
+                                            msg.get("line") if type(msg.get("line")) is int else None, trace))
+        elif t == "draw":
+            run = self._runs.get(msg.get("r", -1))
+            if run is not None and run.kind == "task":
+                self._out.append(Drawing(run.id, run.tag, clean_frame(msg.get("s"))))
         elif t == "loaded":
             run = self._runs.pop(msg["r"], None)
             if run is None:

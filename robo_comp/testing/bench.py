@@ -168,6 +168,9 @@ class _BenchSite:
         rec = self.bench._picture(self.tag)
         on_reply(True, {"id": rec["id"], "seen": self.bench.judge.describe(rec["victims"])})
 
+    def draw(self, shapes: list[list[Any]]) -> None:
+        self.bench.canvas.draw(self.tag, shapes)
+
     def request(self, type_: str, body: dict[str, Any], on_reply: host_answers.Reply) -> None:
         if type_ != "find":
             raise UnavailableError(f"the bench does not simulate {type_!r} (no core, no radio)")
@@ -307,6 +310,8 @@ class Bench:
         self._next_memory_check = 0
         self._next_sample = 0.0
         self._wall_end = math.inf
+        self.canvas = host_answers.DebugCanvas(self.team_of.get)  # team code's debug drawing
+        self.debug_replay = "team"  # who sees that drawing in a replay (protocol.topics.DEBUG_REPLAY)
 
     # ------------------------------------------------------------------ what the match holds
     @property
@@ -449,7 +454,7 @@ class Bench:
 
         names = [t.name for t in self.scenario.teams] or list(self.teams)
         head: list[tuple[str, str | None, dict[str, Any], float]] = [("core.started", None, {"router": "bench", "teams": names,
-                                        "arena": arena_payload(self.scenario, names)}, 0.0)]
+                                        "arena": arena_payload(self.scenario, names), "debug_replay": self.debug_replay}, 0.0)]
         for tag in self.tags:
             x, y, h = self._start[tag]
             head.append(("robot.registered", self.team_of[tag],
@@ -535,6 +540,7 @@ class Bench:
         position samples), for replays and walls."""
         if self.pose_sample <= 0 or self.arena.time < self._next_sample - 1e-9:
             return
+        self.canvas.record(self.events, round(self.arena.time, 6))
         poses = [self._true_pose(tag) for tag in self.tags]
         self._event("robot.positions", None, tags=list(self.tags), x=[p[0] for p in poses],
                     y=[p[1] for p in poses], heading=[p[2] for p in poses])
@@ -635,6 +641,8 @@ class Bench:
         if isinstance(rec, LogLine):
             self.logs.append(rec)
             self._event("robot.log", team, tag=rec.tag, stream=rec.stream, text=rec.text)
+        elif isinstance(rec, host_answers.Drawing):
+            host_answers.take_drawing(_BenchSite(self, rec.tag), rec)
         elif isinstance(rec, (TaskDone, SbFailed)):
             tag = self._run_tag.pop((team, rec.run_id), None)
             if tag is None or self._runs.get(tag) != rec.run_id:
@@ -650,7 +658,8 @@ class Bench:
                                             "reason": "stopped", "line": None})
             else:
                 out = {"ok": False, "state": "cancelled" if why else "failed", "status": why or rec.message,
-                       "result": None, "reason": "stopped" if why else rec.reason, "line": None if why else rec.line}
+                       "result": None, "reason": "stopped" if why else rec.reason, "line": None if why else rec.line,
+                       **({"traceback": rec.traceback} if rec.traceback and not why else {})}
             self._task_done(tag, task_id, name, out)
         elif isinstance(rec, SandboxStopped):
             self._event("sandbox.stopped", team, reason=rec.reason, message=rec.message)
