@@ -211,7 +211,7 @@ class UploadDesk:
             raise FieldError("draw: 'tags' and 'frames' must be lists of the same length")
         for tag in tags:
             self.access.hosted(ident, tag)  # only the host's own robots draw
-        self.out.emit("debug.draw", s.who.team, {"tags": list(tags), "frames": [clean_frame(f) for f in frames]},
+        self.out.emit("debug.draw", s.who.team, {"team": s.who.team, "tags": list(tags), "frames": [clean_frame(f) for f in frames]},
                       public=False)
         return None
 

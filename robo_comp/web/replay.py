@@ -83,6 +83,9 @@ class Recording:
         self.t0 = self.records[0].t if self.records else 0.0
         self.duration = self.records[-1].t - self.t0 if self.records else 0.0
         self.tokens = _tokens_beside(self.path)
+        #: Who the match let see its debug drawing in replays (its ``core.started`` says; see protocol.topics).
+        self.debug_replay = next((str(r.data.get("debug_replay") or "team") for r in self.records
+                                  if r.topic == "core.started"), "team")
         self.start = self._start()
         self._views: dict[str, RecordingView] = {}
         self._lock = asyncio.Lock()
@@ -143,7 +146,7 @@ class Recording:
             if rec.topic == "picture" and isinstance(rec.data.get("id"), int):
                 v.pictures[rec.data["id"]] = rec.data.get("team") or rec.team
             table = fold.feed(rec.topic, rec.data)  # every view: the core publishes its table to everyone
-            data = self._filter(name, rec.topic, rec.team, rec.data, team_of)
+            data = self._filter(name, rec.topic, rec.team, rec.data, team_of, self.debug_replay)
             now[0] = t
             if data is not None:
                 model.apply(rec.topic, data)
@@ -180,9 +183,9 @@ class Recording:
 
     @staticmethod
     def _filter(view: str, topic: str, team: str | None, data: dict[str, Any],
-                team_of: dict[int, str | None]) -> dict[str, Any] | None:
-        if view == "public":
-            return P.public_event(topic, data)  # the one table, as the core's PUB feed
+                team_of: dict[int, str | None], debug_replay: str = "team") -> dict[str, Any] | None:
+        if view == "public":  # the one table, as the core's PUB feed (and the match's debug_replay choice)
+            return P.replay_public_event(topic, data, debug_replay)
         if view == "referee" or topic == "core.started":
             return data
         if topic == "robot.positions" and team is None:  # the log's batch holds every team's robots
