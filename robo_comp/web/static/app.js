@@ -17,7 +17,7 @@ const S = {
   stats: { frames: 0, drawn: 0, drawMs: 0, since: perf(), states: 0, evs: 0, lastState: 0, gaps: [], draws: [], last: 0 },
 };
 // for tests and the bench: the page's model, renderer and counters
-window.robo = { model, renderer, S };
+window.robo = { model, renderer, S, showInfo: sel => showInfo(sel) };  // for tests and the console
 
 // ------------------------------------------------------------------ clock
 function matchNow() {
