@@ -6,8 +6,8 @@ Two league matches of the league's engine (:func:`robo_comp.league.engine.play_m
 real sandbox, 4 robots a team): ``frontier`` against ``explorer`` (the reference teams), and
 the same two teams with debug drawing at the documented bound: before every movement call each
 robot draws a full frame (:data:`robo_comp.protocol.drawing.MAX_SHAPES` shapes: 6 lines, 6 dots,
-4 texts of 12 characters, placed from its position and a counter so that no two frames are the
-same and every recording tick records every robot). The plain and the drawing match alternate
+4 texts of 12 characters, placed from a counter so that no two frames are the same and every
+recording tick records every robot; no robot call, so that only the drawing is measured). The plain and the drawing match alternate
 ``--reps`` times (each in a fresh process, so no cache favours the second); reported: the
 median wall time of each and its increase, the log size of each and its increase, and whether
 the scores and every event but ``debug.draw`` are the same (drawing costs nothing in score or
@@ -36,8 +36,9 @@ drawn_count = [0]
 
 def doodle_frame(robot):
     drawn_count[0] = drawn_count[0] + 1
-    x, y, h = robot.position()
     k = drawn_count[0] % 97
+    x = 2 + (drawn_count[0] * 7) % 30
+    y = 2 + (drawn_count[0] * 3) % 20
     for i in range(LINES):
         robot.draw_line(x, y, x + (i - 3) * 0.5, y + 2 + k * 0.01, "cyan")
     for i in range(DOTS):
