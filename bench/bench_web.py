@@ -117,7 +117,9 @@ def free_cells(c: Client) -> list[tuple[int, int]]:
 
 
 def start_live(state: Path, robots: int) -> tuple[Any, list[Any], Client]:
-    core = start_core(state, "--teams", ",".join(TEAMS), "--practice", "--scenario", str(bundled_scenario_path(SCENARIO)))
+    # --robots: the scenario gives each team 50; since issue 25 the core refuses robots beyond that
+    core = start_core(state, "--teams", ",".join(TEAMS), "--practice", "--scenario", str(bundled_scenario_path(SCENARIO)),
+                      "--robots", str(robots // len(TEAMS)))
     hosts = [start_robots(state, t, robots // len(TEAMS)) for t in TEAMS]
     ref = Client(str(state), (state / "referee.token").read_text().strip(), timeout=10)
     t_end = time.monotonic() + 120
