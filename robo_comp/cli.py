@@ -59,7 +59,7 @@ def _core(args: argparse.Namespace) -> int:
         raise FieldError(f"a core (pid {pid}) is already serving {state}; stop it first, or give another --state "
                          "folder for a second match")
     if args.scenario and not Path(args.scenario).is_file():  # a bundled scenario's name, as the league takes
-        from robo_comp.testing.match import resolve_scenario
+        from robo_comp.world.scenario import resolve_scenario
 
         args.scenario = str(resolve_scenario(args.scenario))
     made = not state.exists()
@@ -156,7 +156,7 @@ def _start_core(args: argparse.Namespace, state: Path) -> tuple[Any, bool]:
             "approve_uploads": bool(settings.get("approve_uploads")),
             "rules": settings.get("rules"), "curve": bool(settings.get("curve")),
             "pose_hz": settings.get("pose_hz", 10.0), "heartbeat": core.heartbeat,
-            "port": core.port, "robots": core.robots_per_team,
+            "port": core.port, "robots": core.match.robots_per_team,
             "max_speed": settings.get("max_speed"), "debug_replay": core.debug_replay}))
     except OSError:
         core.close()
@@ -173,9 +173,12 @@ def _robots(args: argparse.Namespace) -> int:
     if args.scenario:  # an organiser-run host knows the truth, so its camera shows victims
         from robo_comp.world.scenario import load_scenario
 
-        from robo_comp.testing.match import resolve_scenario
+        from robo_comp.world.scenario import resolve_scenario
 
         truth = load_scenario(resolve_scenario(args.scenario))  # a file or a bundled scenario's name
+    from robo_comp.sandbox import oswall
+
+    oswall.at_start("robots", args.os_sandbox)  # a host that cannot wall team code stops here, saying so
     token = read_token(args.token, args.token_file)
     options: dict[str, object] = {}
     if args.driver == "er1":
@@ -321,7 +324,7 @@ def build_parser() -> argparse.ArgumentParser:
     r = sub.add_parser("robots", help="host simulated robots of one team",
                        description="Host N simulated robots; they register, take tasks, report "
                                    "positions and reconnect on their own.")
-    from robo_comp.ctl import add_connection_args
+    from robo_comp.client import add_connection_args
 
     add_connection_args(r)
     r.add_argument("--count", type=int, default=3, help="number of robots")
@@ -353,6 +356,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--truth-pub", metavar="URL",
                    help="simulation only: publish the robots' true poses here for synthetic cameras "
                         "(robo-comp camera run --synthetic URL)")
+    from robo_comp.sandbox import oswall
+
+    oswall.add_option(r)
     r.set_defaults(func=_robots)
 
     ctl.add_parser(sub)
@@ -387,9 +393,9 @@ def build_parser() -> argparse.ArgumentParser:
     from robo_comp.world.overhead import cli as camera_cli
 
     camera_cli.add_parser(sub)
-    from robo_comp.protocol import curve
+    from robo_comp import keys_cli
 
-    curve.add_parser(sub)
+    keys_cli.add_parser(sub)
     from robo_comp.teams import newteam
 
     newteam.add_parser(sub)

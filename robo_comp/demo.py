@@ -13,6 +13,7 @@ that replays the match in a browser (``robo-comp web --replay STATE/events.log``
 from __future__ import annotations
 
 import json
+import os
 import random
 import sys
 import tempfile
@@ -103,6 +104,23 @@ def _start_camera(state: Path, teams: list[str], robots: int, out: Any) -> list[
     return procs
 
 
+def _hosts_without_os_layer_if_needed(out: Any) -> None:
+    """The demo uploads no team code: where the sandbox's OS layer cannot start (a laptop without
+    bubblewrap), its robot hosts run without it, and the demo says so, rather than stop as
+    ``robo-comp robots`` does there."""
+    from robo_comp.errors import UnavailableError
+    from robo_comp.sandbox import oswall
+
+    if not oswall.enabled():
+        return
+    try:
+        oswall.check(oswall.package_root())
+    except UnavailableError as e:
+        os.environ[oswall.ENV] = "off"  # for the hosts this process starts
+        print(f"demo: the sandbox's OS layer cannot start here ({e.details.get('why', e.message)}); the demo's "
+              "robot hosts run without it (the demo uploads no team code)", file=out)
+
+
 def run_demo(duration: float = 20.0, robots: int = 3, out: Any = None, web: int | None = None,
              camera: bool = False) -> int:
     """Run the demo match; prints a live summary and a final table; returns 0 on success.
@@ -113,6 +131,7 @@ def run_demo(duration: float = 20.0, robots: int = 3, out: Any = None, web: int 
     scenario = bundled_scenario_path(SCENARIO)
     state = Path(tempfile.mkdtemp(prefix="robo-comp-demo-"))  # kept: the match can be replayed
     procs: list[Any] = []
+    _hosts_without_os_layer_if_needed(out)
     try:
         # the organiser's hosts run `robots` robots a team (the scenario gives each team 2)
         procs.append(start_core(state, "--scenario", str(scenario), "--robots", str(robots)))

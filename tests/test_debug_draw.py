@@ -123,14 +123,14 @@ def test_replays_show_it_to_the_team_and_to_everyone_only_when_the_match_says(tm
 def test_the_wall_draws_it_and_its_keys_switch_it():
     import pygame
 
-    from robo_comp.wall.model import WallModel
+    from robo_comp.view.model import MatchView
     from robo_comp.wall.render import Renderer
     from robo_comp.wall.view import Layout, MapGeometry, TileSpec, ViewState
     from test_wall_render import interaction, snapshot
 
     pygame.display.init()
     pygame.font.init()
-    m = WallModel(clock=lambda: 0.0)
+    m = MatchView(clock=lambda: 0.0)
     m.load_snapshot(snapshot())
     m.apply("debug.draw", {"team": "red", "tags": [101], "frames": [[["d", 8.0, 8.0, "#00ff00"],
                                                                       ["l", 2.0, 10.0, 12.0, 10.0, "#ff00ff"]]]})

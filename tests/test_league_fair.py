@@ -67,7 +67,7 @@ def test_a_hostile_entrant_cannot_reroll_its_match(tmp_path):
 
 def test_sandbox_hash_seed_follows_the_seed_outside_the_league(tmp_path):
     """Every sandbox child (a robot host's too) has its string hashing fixed by its seed."""
-    from robo_comp.testing.bench import Bench
+    from robo_comp.engine.bench import Bench
 
     src = (ENTRANTS / "entropy.py").read_text().replace(
         "def play(robot, width, height, index, count):", "def probe(robot):\n    return hash('robo')\n\n\n"

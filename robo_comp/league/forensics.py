@@ -1,8 +1,8 @@
 """Crash forensics: what a match says when team code failed in it, and how to see it again.
 
-A team's ``play`` that raised ends as a ``task.done`` with ``reason: "error"``, the line and the
-traceback through the team's files (the sandbox gives them). :func:`crashes` reads them from a
-match's events (a league match's or a bench run's, :attr:`robo_comp.testing.bench.MatchRun.events`)
+A team's ``play`` that raised ends as a ``task.done`` whose result has ``reason: "error"``, the
+line and the traceback through the team's files (the sandbox gives them). :func:`crashes` reads them from a
+match's events (a league match's or an engine run's, :attr:`robo_comp.engine.bench.MatchRun.events`)
 with the robot call the robot made last before it (the bench logs each answered call as
 ``robot.call``), and :func:`crash_text` says it to the student with one command that plays the
 same match again on their machine (:func:`rerun_command`: ``robo-comp league rerun``). League
@@ -55,15 +55,19 @@ def crashes(events: list[dict[str, Any]]) -> list[Crash]:
         topic = ev.get("topic")
         if topic == "robot.call" and isinstance(ev.get("tag"), int):
             last_call[ev["tag"]] = ev
-        elif topic == "task.done" and ev.get("reason") == "error" and not ev.get("ok"):
+        elif topic == "task.done" and not ev.get("ok"):
+            result = ev.get("result")
+            why: dict[str, Any] = result if isinstance(result, dict) else {}  # reason, line, traceback
+            if why.get("reason") != "error":
+                continue
             team = str(ev.get("team"))
             if per_team.get(team, 0) >= MAX_PER_TEAM:
                 continue
             per_team[team] = per_team.get(team, 0) + 1
             call, answer = _shown_call(last_call[ev["tag"]]) if ev.get("tag") in last_call else ("", "")
             out.append(Crash(team, int(ev.get("tag") or 0), str(ev.get("name", "")), str(ev.get("status", "")),
-                             ev.get("line") if isinstance(ev.get("line"), int) else None, float(ev.get("t", 0.0)),
-                             call, answer, [str(x) for x in ev.get("traceback") or []]))
+                             why.get("line") if isinstance(why.get("line"), int) else None, float(ev.get("t", 0.0)),
+                             call, answer, [str(x) for x in why.get("traceback") or []]))
     return out
 
 

@@ -1,6 +1,6 @@
 """What the team console and the referee console share: the link, the model, STOP, toasts.
 
-:class:`ConsoleApp` owns a :class:`~robo_comp.tui.connection.CoreLink` (or any object with
+:class:`ConsoleApp` owns a :class:`~robo_comp.link.CoreLink` (or any object with
 the same few methods: the snapshot tests pass a canned one) and a
 :class:`~robo_comp.tui.model.ConsoleModel`. The link posts :class:`CoreEvent` and
 :class:`LinkChanged` messages; the app folds events into the model, raises toasts for what
@@ -23,7 +23,7 @@ from textual.css.query import NoMatches
 from textual.screen import Screen
 
 from robo_comp.errors import RoboCompError
-from robo_comp.tui.connection import CoreLink, EventSink, LinkState, StateSink
+from robo_comp.link import CoreLink, EventSink, LinkState, StateSink
 from robo_comp.tui.messages import CoreEvent, LinkChanged
 from robo_comp.tui.model import ConsoleModel, LogEntry
 

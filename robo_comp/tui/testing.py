@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from robo_comp.errors import UnknownTypeError, error_from_code
-from robo_comp.tui.connection import EventSink, LinkState, StateSink
+from robo_comp.link import EventSink, LinkState, StateSink
 
 GO_TO = {"name": "goTo", "description": "drive to a cell along a planned path",
          "args": [{"name": "x", "type": "int", "description": "target column"},

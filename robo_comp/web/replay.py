@@ -23,8 +23,8 @@ from typing import Any
 from robo_comp import protocol as P
 from robo_comp.errors import AuthError, FieldError
 from robo_comp.protocol.logfile import read_recording
-from robo_comp.wall.model import WallModel
-from robo_comp.wall.replay import ScoreFold
+from robo_comp.view.model import MatchView
+from robo_comp.view.score import ScoreFold
 from robo_comp.web.state import TaskNames, jsonable, map_png, state_json
 from robo_comp.web.story import Story
 
@@ -126,7 +126,7 @@ class Recording:
         kind = "public" if name == "public" else "private"
         v = RecordingView(name, kind)
         now = [0.0]
-        model = WallModel(clock=lambda: now[0])
+        model = MatchView(clock=lambda: now[0])
         model.replay = True
         tasks = TaskNames()
         fold = ScoreFold()  # the scores, read as the wall's replay reads them
@@ -170,7 +170,7 @@ class Recording:
                                   if model.match.phase else None))
         return v
 
-    def _keyframe(self, v: RecordingView, model: WallModel, tasks: TaskNames, maps: dict[int, str],
+    def _keyframe(self, v: RecordingView, model: MatchView, tasks: TaskNames, maps: dict[int, str],
                   at: float, now: list[float]) -> None:
         if model.arena_version not in maps:
             maps[model.arena_version] = map_png(model)
