@@ -190,7 +190,8 @@ def _robots(args: argparse.Namespace) -> int:
     elif args.driver == "ros2":
         options.update(_ros2_options(args))
     host = RobotHost(resolve_core(args.core), token, args.count,
-                     prefix=args.prefix, speed=args.speed, report_hz=args.report_hz, seed=args.seed,
+                     prefix=args.prefix, speed=args.speed, report_hz=args.report_hz, sensor_hz=args.sensor_hz,
+                     seed=args.seed,
                      truth=truth, driver=args.driver, driver_options=options,
                      curve=client_keys(args.core, token, args.curve_cert, args.core_key),
                      positioning=_positioning(args.positioning), truth_pub=args.truth_pub,
@@ -331,6 +332,10 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--prefix", help="robot id prefix (ids PREFIX-1..N; default: the team name)")
     r.add_argument("--speed", type=float, help="cells per second (default: the scenario's robot speed)")
     r.add_argument("--report-hz", type=float, default=10.0, help="position reports per second")
+    r.add_argument("--sensor-hz", type=_positive, default=2.0, metavar="HZ",
+                   help="range sensor readings per second (default 2: a sensing period of 0.5 s); a moving "
+                        "robot's readings go out once a sensing period, a standing robot's when they change, "
+                        "at most once a sensing period")
     r.add_argument("--seed", type=int, default=0)
     r.add_argument("--scenario", help="the match's scenario file (organisers only): the camera then shows victims")
     r.add_argument("--duration", type=float, default=0.0, help="exit after S seconds (0 = run until stopped)")

@@ -31,8 +31,8 @@ from robo_comp.protocol.messages import (
 )
 from robo_comp.protocol.replies import reply_body, reply_error
 from robo_comp.protocol.topics import (
-    AFTER_MATCH_TOPICS, DEBUG_REPLAY, EVERYONE, PRIVATE_KEYS, PRIVATE_TOPICS, PUBLIC_TOPICS, TOPICS, public_event,
-    public_view, replay_public_event,
+    AFTER_MATCH_TOPICS, DEBUG_REPLAY, EVERYONE, PRIVATE_KEYS, PRIVATE_TOPICS, PUBLIC_TOPICS, TOPICS, EventView,
+    public_event, public_view, replay_public_event,
 )
 from robo_comp.protocol.wire import (
     INSTANCE_MAX,
@@ -60,7 +60,7 @@ from robo_comp.protocol.wire import (
 
 __all__ = [
     "ANY_ROLE", "CONSOLE_ONLY", "HOST_ONLY", "ROLE_MESSAGES", "INSTANCE_MAX", "INSTANCE_MIN",
-    "CORE_TO_HOST", "EVERYONE", "MAX_FRAME", "MAX_RADIO", "MAX_REPORTS", "NOTIFICATIONS", "OPENING",
+    "CORE_TO_HOST", "EVERYONE", "EventView", "MAX_FRAME", "MAX_RADIO", "MAX_REPORTS", "NOTIFICATIONS", "OPENING",
     "AFTER_MATCH_TOPICS", "DEBUG_REPLAY", "PRIVATE_KEYS", "PRIVATE_TOPICS", "PUBLIC_TOPICS", "PROTOCOL_VERSION", "RADIO_RATE", "REQUESTS", "ROUTING_ID_BYTES", "SESSION_BYTES",
     "SESSION_KEY", "SOCKET_MAX_FRAME", "TOPICS", "Message", "check_reports", "decode", "decode_envelope",
     "describe_type", "error_reply", "event_frames", "is_finite", "new_instance_id", "new_routing_id", "new_session_secret",

@@ -34,6 +34,7 @@ from robo_comp.protocol.curve import ClientKeys, load_public, secure_client
 from robo_comp.errors import FieldError, RoboCompError
 from robo_comp.plugins.manager import get_plugin_manager
 from robo_comp.robots.oneworld import Foreign, is_real, merge_readings
+from robo_comp.robots.readings import ReadingWatch
 from robo_comp.robots.runtime import PLANNING, RunningTask, SimRobot, TaskRuntime, plan_around
 from robo_comp.robots.steps import Compute, Plan, TaskSpec
 from robo_comp.robots.teamcode import TeamCode
@@ -114,6 +115,8 @@ class RobotHost:
         self.truth = truth
         self.report_interval = 1.0 / report_hz
         self.sensor_interval = 1.0 / sensor_hz
+        #: Standing robots whose readings changed: reported within a sensing period (robots/readings.py).
+        self.readings_watch = ReadingWatch(self.sensor_interval)
         self.tick = 1.0 / tick_hz
         self.pm = plugins or get_plugin_manager()
         self.driver_kind = driver
@@ -650,6 +653,7 @@ class RobotHost:
             s = readings.get(r.tag)
             if s is not None:
                 r.last_sensed = now
+                self.readings_watch.sent(r.robot_id, s)
             sensors.append(s)
         body: dict[str, Any] = {"tags": tags, "x": xs, "y": ys, "heading": hs, "moving": moving, "sigma": sigmas}
         if readings:
@@ -680,13 +684,19 @@ class RobotHost:
         return readings
 
     def _report(self, now: float) -> None:
-        """Report moving robots every report interval, idle ones once a second, in ``reports``
+        """Report moving robots every report interval, idle ones once a second and when their
+        readings changed (within a sensing period, :mod:`robo_comp.robots.readings`), in ``reports``
         messages of up to ``REPORT_CHUNK`` robots; the sensors of all robots due are read in one
         vectorised pass."""
-        due = [r for r in self.by_tag.values() if r.driver.moving or now - r.last_report >= 1.0]
-        if not due:
+        due: list[SimRobot] = []
+        standing: list[SimRobot] = []
+        for r in self.by_tag.values():
+            (due if r.driver.moving or now - r.last_report >= 1.0 else standing).append(r)
+        changed = self.readings_watch.changed(self.world, standing, now)
+        if not due and not changed:
             return
-        sensing = [r for r in due if now - r.last_sensed >= self.sensor_interval]
+        sensing = [r for r in due if now - r.last_sensed >= self.sensor_interval] + changed
+        due += changed
         readings = self._sense(sensing) if sensing else {}
         sock = self.sock
         assert sock is not None  # reports go out while the host is up

@@ -25,7 +25,7 @@ from textual.screen import Screen
 from robo_comp.errors import RoboCompError
 from robo_comp.link import CoreLink, EventSink, LinkState, StateSink
 from robo_comp.tui.messages import CoreEvent, LinkChanged
-from robo_comp.tui.model import ConsoleModel, LogEntry
+from robo_comp.tui.model import OUTAGE_WORDS, ConsoleModel, LogEntry
 
 #: Notification titles by error code (the message itself comes from the core).
 ERROR_TITLES = {
@@ -322,6 +322,9 @@ class ConsoleApp(App[None]):
         elif t == "robot.stopped":
             self.notify(f"halted in {d.get('ms', 0):.0f} ms; {len(d.get('cancelled') or [])} task(s) cancelled",
                         title=f"Robot {d.get('tag')} stopped", severity="warning")
+        elif t == "match.phase" and d.get("action") == "outage":
+            self.notify(f"a core outage now {OUTAGE_WORDS.get(str(d.get('outage')), '?')} (by {d.get('by', 'the referee')})",
+                        title="Outage rule")
         elif t == "match.phase":
             self.notify(f"by {d.get('by', 'the referee')}", title=f"Match {str(d.get('phase', '?')).upper()}",
                         severity="warning" if d.get("phase") != "running" else "information")

@@ -131,7 +131,7 @@ class Recording:
         tasks = TaskNames()
         fold = ScoreFold()  # the scores, read as the wall's replay reads them
         story = Story(limit=None)
-        team_of: dict[int, str | None] = {}
+        see = P.EventView(name)  # the one visibility table (protocol/topics.py)
         maps: dict[int, str] = {}
         next_key = 0.0
         for rec in self.records:
@@ -139,14 +139,10 @@ class Recording:
             while t > next_key and model.arena is not None:
                 self._keyframe(v, model, tasks, maps, next_key, now)
                 next_key += KEYFRAME_EVERY
-            if rec.topic == "robot.registered":
-                tag = rec.data.get("tag")
-                if isinstance(tag, int):  # what the core logs; a record without one names no robot
-                    team_of[tag] = rec.data.get("team")
             if rec.topic == "picture" and isinstance(rec.data.get("id"), int):
                 v.pictures[rec.data["id"]] = rec.data.get("team") or rec.team
             table = fold.feed(rec.topic, rec.data)  # every view: the core publishes its table to everyone
-            data = self._filter(name, rec.topic, rec.team, rec.data, team_of, self.debug_replay)
+            data = see(rec.topic, rec.team, rec.data)
             now[0] = t
             if data is not None:
                 model.apply(rec.topic, data)
@@ -180,20 +176,6 @@ class Recording:
         v.key_index.append(len(v.frags))
         v.key_json.append(_dump(state_json(model, at, map_url=maps[model.arena_version], tasks=tasks.names)))
         now[0] = keep
-
-    @staticmethod
-    def _filter(view: str, topic: str, team: str | None, data: dict[str, Any],
-                team_of: dict[int, str | None], debug_replay: str = "team") -> dict[str, Any] | None:
-        if view == "public":  # the one table, as the core's PUB feed (and the match's debug_replay choice)
-            return P.replay_public_event(topic, data, debug_replay)
-        if view == "referee" or topic == "core.started":
-            return data
-        if topic == "robot.positions" and team is None:  # the log's batch holds every team's robots
-            keep = [i for i, tag in enumerate(data.get("tags") or []) if team_of.get(tag) == view]
-            if not keep:
-                return None
-            return {k: ([v[i] for i in keep] if isinstance(v, list) else v) for k, v in data.items()}
-        return data if team in (view, P.EVERYONE) else None
 
     def picture(self, view: RecordingView, pid: int) -> str:
         """Picture ``pid`` as a data URL, if the view may see it and it is beside the log."""
