@@ -194,8 +194,10 @@ def test_live_team_view_draws_it_and_the_public_view_never_gets_it(browser, tmp_
         team.wait_for_function("() => robo.S.view.kind === 'private'", timeout=15000)
         team.wait_for_function("() => robo.model.debug.size >= 2 && (robo.renderer.debugShown || 0) >= 6",
                                timeout=30000)
+        # the side panel follows within a refresh of the page's panel (4 a second)
+        wait_for(lambda: team.evaluate(DEBUG_STATE)["rows"][:2] == ["all", "red"], 10, "the debug panel's rows")
         got = team.evaluate(DEBUG_STATE)
-        assert got["panel"] and got["rows"][:2] == ["all", "red"], got
+        assert got["panel"], got
         path = shot(team, tmp_path, "debug-team-view.png")
         assert path.stat().st_size > 10_000
         # per team: red's box off → nothing drawn; on again → drawn
