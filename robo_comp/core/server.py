@@ -114,6 +114,8 @@ class Core:
                            scoring=scoring or ScoringConfig.from_table(scenario.scoring), practice=practice,
                            robots_per_team=robots_per_team, max_speed=max_speed)
         self.registry = self.match.registry
+        #: Who sees team code's debug drawing in replays (protocol.topics.DEBUG_REPLAY); set by the CLI.
+        self.debug_replay = "team"
         self.sessions: dict[bytes, Session] = {}
         # Who watches what: team name -> routing ids, and the referee's under None.
         self.watchers: dict[str | None, set[bytes]] = {}
@@ -192,7 +194,7 @@ class Core:
         tmp.write_text(json.dumps(info, indent=2))
         os.replace(tmp, self.state_dir / "core.json")
         self.emit("core.started", None, {"router": info["router"], "teams": self.tokens.teams,
-                                         "arena": self.arena_payload})
+                                         "arena": self.arena_payload, "debug_replay": self.debug_replay})
         if self.recovered is not None:
             self.emit("core.recovered", None, self.recovered.to_dict())
         self._commit()

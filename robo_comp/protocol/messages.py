@@ -101,12 +101,14 @@ REQUESTS: dict[str, dict[str, tuple[str, bool]]] = {
     "bump": {"tag": (_INT, True), "x": (_NUM, False), "y": (_NUM, False), "with": (_OPT_INT, False)},
     "advertise": {"tag": (_INT, True), "tasks": (_LIST, True)},
     "log": {"tag": (_OPT_INT, False), "stream": (_STR, True), "text": (_STR, True)},
+    # debug drawing of team code (robo_comp/protocol/drawing.py): one frame per robot, for its team only
+    "draw": {"tags": (_LIST, True), "frames": (_LIST, True)},
     # replies from a robot host to a core-initiated request (stop, upload, unload, extensions)
     "reply": {},
 }
 
 #: Types a sender may use without a reply on success.
-NOTIFICATIONS = frozenset({"report", "reports", "heartbeat", "bump", "log"})
+NOTIFICATIONS = frozenset({"report", "reports", "heartbeat", "bump", "log", "draw"})
 #: Robots in one ``reports`` message at most.
 MAX_REPORTS = 1000
 
@@ -117,7 +119,7 @@ CORE_TO_HOST = ("heartbeat", "task.start", "task.interrupt", "stop", "radio", "h
 #: Messages only the organiser's robot hosts send (``STATE/hosts/<team>.token``): they say what
 #: happens in the world (robots, poses, pictures, bumps, task results) and answer for robots.
 HOST_ONLY = frozenset({"register", "report", "reports", "task.next", "task.done", "radio", "leave",
-                       "picture", "bump", "advertise", "log", "reply"})
+                       "picture", "bump", "advertise", "log", "draw", "reply"})
 #: Messages every principal may send (a host reports a find for its team's code, reads the map).
 ANY_ROLE = frozenset({"hello", "heartbeat", "bye", "arena", "map", "map.delta", "find"})
 #: Messages of consoles, walls and scripts: a team's or the referee's token.

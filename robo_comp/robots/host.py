@@ -330,6 +330,11 @@ class RobotHost:
         if self.state == "up" and self.sock is not None:
             self._notify("log", {"tag": tag if tag in self.by_tag else None, "stream": stream, "text": text[:2000]})
 
+    def team_draw(self, tags: list[int], frames: list[list[Any]]) -> None:
+        """Send the robots' new frames of debug drawing to the core (for the team's views only)."""
+        if self.state == "up" and self.sock is not None:
+            self.sock.send(P.request("draw", 0, {"tags": tags, "frames": frames}, self.session))
+
     def code_request(self, type_: str, body: dict[str, Any], on_reply: Reply) -> None:
         """A request to the core on behalf of team code (a find, the radio)."""
         self._send(type_, body, on_reply)
