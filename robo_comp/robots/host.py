@@ -474,13 +474,14 @@ class RobotHost:
     def _dispatch(self, frame: bytes) -> None:
         try:
             msg = P.unpack(frame)
-            type_ = msg["type"]
-            rid = msg.get("id", 0)
-            body = msg.get("body") or {}
-        except Exception:
+            checked = P.validate_to_host(msg)  # the field table of what the core sends hosts
+        except Exception as e:
             self.s.last_rx = time.monotonic()
-            log.error("unreadable message from the core; ignored")
+            log.error("a message from the core that this host cannot take, ignored: %s",
+                      getattr(e, "message", None) or e.__class__.__name__)
             return
+        type_, rid = checked.type, checked.id
+        body = msg.get("body") or {}
         over = self.s.heard(msg, time.monotonic())
         if over is not None and self.state == "up":  # the core forgot this session, or restarted
             self._reconnect(over.value)
