@@ -32,6 +32,7 @@ from typing import Any, Protocol
 
 from robo_comp.errors import RoboCompError, UploadError
 from robo_comp.protocol import drawing
+from robo_comp.sandbox.api import MOVEMENTS
 from robo_comp.sandbox.contract import source_hash
 from robo_comp.sandbox.parent import (
     PENDING, Drawing, Limits, LoadFailed, Loaded, LogLine, RpcCall, Sandbox, SandboxRestarted, SandboxStopped,
@@ -304,7 +305,7 @@ class DebugCanvas:
         for team, (tags, frames) in self.changed().items():
             events.append({"t": t, "topic": "debug.draw", "team": team, "tags": tags, "frames": frames})
 #: The robot calls that move the robot: they become movement steps (:func:`movement_steps`).
-MOVEMENT_CALLS = ("move", "turn", "go_to")
+MOVEMENT_CALLS = MOVEMENTS
 
 
 def answer_call(site: CallSite, name: str, args: list[Any], settle: Settle) -> Any:

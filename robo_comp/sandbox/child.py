@@ -38,7 +38,7 @@ from typing import Any, Callable, TypeGuard
 import msgpack
 
 from robo_comp.protocol import drawing as _drawing
-from robo_comp.sandbox import explain, sysfilter
+from robo_comp.sandbox import api as _api, explain, sysfilter
 
 HEADER = struct.Struct(">I")
 EXIT_MEMORY = 75
@@ -108,6 +108,19 @@ class FrameReader:
             out.append(msg)
         return out
 
+
+
+_FACTORY: Callable[..., dict[str, Any]] | None = None
+
+
+def _robot_calls() -> Callable[..., dict[str, Any]]:
+    """The factory of a robot's remote calls, compiled once from the table (robo_comp/sandbox/api.py)."""
+    global _FACTORY
+    if _FACTORY is None:
+        scope: dict[str, Any] = {}
+        exec(compile(_api.factory_source(), "<robot api>", "exec"), scope)
+        _FACTORY = scope["_make"]
+    return _FACTORY
 
 def _trim(text: str, n: int = MAX_TEXT) -> str:
     return text if len(text) <= n else text[:n] + f"... ({len(text) - n} more characters)"
@@ -277,53 +290,7 @@ class Child:
                 raise TypeError(f"{what} must be a number")
             return v
 
-        def move(cells):
-            """Drive forward ``cells`` cells (negative: backwards); returns when done."""
-            return rpc(tag, "move", [_num(cells, "cells")])
-
-        def turn(degrees):
-            """Turn on the spot by ``degrees`` (positive: clockwise on the map, y pointing down)."""
-            return rpc(tag, "turn", [_num(degrees, "degrees")])
-
-        def go_to(x, y):
-            """Go to cell (x, y) along a planned path; returns when there."""
-            return rpc(tag, "go_to", [_num(x, "x"), _num(y, "y")])
-
-        def sense():
-            """The range-sensor readings (plain data)."""
-            return rpc(tag, "sense", [])
-
-        def position():
-            """The robot's believed position and heading ``[x, y, heading]``."""
-            return rpc(tag, "position", [])
-
-        def map_piece(radius):
-            """The map around the robot, ``radius`` cells each way."""
-            return rpc(tag, "map_piece", [_num(radius, "radius")])
-
-        def plan(x, y):
-            """A planned path (list of points) from here to (x, y)."""
-            return rpc(tag, "plan", [_num(x, "x"), _num(y, "y")])
-
-        def report_find(x, y, kind, evidence=None):
-            """Report a find at (x, y) of ``kind`` with plain-data ``evidence``."""
-            return rpc(tag, "report_find", [_num(x, "x"), _num(y, "y"), kind, evidence])
-
-        def take_picture():
-            """Take a picture; returns its id."""
-            return rpc(tag, "take_picture", [])
-
-        def look():
-            """Take a picture and say what it shows: ``{"picture": id, "victims": [{"x", "y", "kind"}]}``."""
-            return rpc(tag, "look", [])
-
-        def upload_picture(picture=None):
-            """Upload a picture (the last one if not given) to the environment."""
-            return rpc(tag, "upload_picture", [picture])
-
-        def radio(to, data):
-            """Send plain ``data`` to another robot of the team (tag ``to``)."""
-            return rpc(tag, "radio", [to, data])
+        remote = _robot_calls()(rpc, tag, _num)  # the table's calls (robo_comp/sandbox/api.py)
 
         def log(text):
             """Write a line to the team's log (counts against the output limit)."""
@@ -355,9 +322,8 @@ class Child:
             """Write a short text at cell (x, y) on your team's view (debug drawing; cut to 32 characters)."""
             return _draw(_drawing.text(x, y, text, colour))
 
-        funcs = (move, turn, go_to, sense, position, map_piece, plan, report_find, take_picture, look,
-                 upload_picture, radio, log, draw_dot, draw_line, draw_text)
-        items = {f.__name__: f for f in funcs}
+        local = {f.__name__: f for f in (log, draw_dot, draw_line, draw_text)}
+        items = {c.name: remote[c.name] if not c.local else local[c.name] for c in _api.ROBOT_API}
         items["tag"] = tag
         return self.restricted.Namespace("robot", items)
 
