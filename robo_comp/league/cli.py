@@ -52,6 +52,9 @@ def add_parser(sub: Any) -> None:
     i.add_argument("--seconds", type=float, help="match length in simulated seconds (default 300)")
     i.add_argument("--teams-per-match", type=int, help="teams in one match (default 2)")
     i.add_argument("--seed", type=int, help="the league's seed (every match's seed follows from it)")
+    i.add_argument("--rules", metavar="MODULE:OBJECT",
+                   help="scoring rules plugin for every match instead of the default search-and-rescue rules "
+                        "(as core --rules; the module must be importable where matches are played)")
     i.add_argument("--debug-replay", choices=("team", "everyone"),
                    help="who sees a team's debug drawing in the match replays: the team (default) or everyone")
     i.add_argument("--reference", type=int, default=0, metavar="N",
@@ -175,7 +178,11 @@ def _init(args: argparse.Namespace) -> int:
     if (root / "league.db").exists():
         raise FieldError(f"{root} already holds a league; submit to it or run it")
     changes: dict[str, Any] = {}
-    for key in ("name", "robots", "seconds", "teams_per_match", "seed", "debug_replay"):
+    if args.rules:
+        from robo_comp.plugins.manager import load_rules
+
+        load_rules(args.rules)  # refused here, in a sentence, rather than at the first match
+    for key in ("name", "robots", "seconds", "teams_per_match", "seed", "debug_replay", "rules"):
         v = getattr(args, key)
         if v is not None:
             changes[key] = v

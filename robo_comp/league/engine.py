@@ -94,7 +94,8 @@ def play_match(spec: dict[str, Any]) -> dict[str, Any]:
     ``spec``: ``id``, ``scenario`` (see :func:`load_match_scenario`), ``seed``, ``seconds``,
     ``robots`` (per team), ``entrants`` (``[{"team", "version", "files": {name: source}}]``),
     ``debug_replay`` (who sees team code's debug drawing in the replay: ``team``, the default,
-    or ``everyone``) and ``log`` (where the core-format event log goes; None: not written).
+    or ``everyone``), ``rules`` (a scoring rules plugin ``MODULE:OBJECT``, as ``core --rules``;
+    None: the installed rules) and ``log`` (where the core-format event log goes; None: not written).
 
     The result: ``id``, ``scores`` (team → score), ``ranks`` (team → 1 for the best; equal
     scores share a rank), ``victims`` (team → victims confirmed), ``bumps`` (team → count),
@@ -115,7 +116,12 @@ def play_match(spec: dict[str, Any]) -> dict[str, Any]:
     scenario = match_scenario(load_match_scenario(str(spec["scenario"])), teams, robots,
                               float(spec.get("seconds", 300)))
     budget = league_budget(robots, scenario.duration, spec)
-    with Bench(scenario, teams={t: robots for t in teams}, seed=int(spec.get("seed", 0)),
+    pm = None
+    if spec.get("rules"):  # the league's scoring rules plugin, as core --rules
+        from robo_comp.plugins.manager import load_rules
+
+        pm = load_rules(str(spec["rules"]))
+    with Bench(scenario, teams={t: robots for t in teams}, seed=int(spec.get("seed", 0)), pm=pm,
                max_sim_seconds=scenario.duration, budget=budget, practice=False) as bench:
         bench.debug_replay = debug_replay(spec.get("debug_replay"))  # recorded in the log's core.started
         for entrant in spec["entrants"]:

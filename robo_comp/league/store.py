@@ -348,7 +348,7 @@ class LeagueStore:
             entrants.append({"team": team, "version": s.version, "files": s.files})
         return {"id": m.id, "scenario": m.scenario, "seed": m.seed, "seconds": cfg["seconds"],
                 "robots": cfg["robots"], "entrants": entrants, "log": str(self.log_path(m.id)),
-                "debug_replay": cfg.get("debug_replay", "team")}
+                "debug_replay": cfg.get("debug_replay", "team"), "rules": cfg.get("rules")}
 
     def started(self, mid: int) -> None:
         """Match ``mid`` is being played (one more attempt)."""
