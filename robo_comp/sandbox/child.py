@@ -2,12 +2,13 @@
 
 Started by :class:`robo_comp.sandbox.parent.Sandbox` as::
 
-    python -s -P -B -c "...; from robo_comp.sandbox.child import main; main()" \
+    python -s -P -B -c "...; seal_child(); from robo_comp.sandbox.child import main; main()" \
         --fd N --limits <msgpack hex>
 
 (``-I`` but for ``-E``: the parent gives the whole environment, and ``PYTHONHASHSEED`` in it
-fixes ``hash()`` per match; a ``deterministic`` child starts itself again once with address
-randomisation off, see :func:`_without_aslr`.)
+fixes ``hash()`` per match; :func:`robo_comp.sandbox.determinism.seal_child` first takes
+memory addresses out of every default repr and hash; a replayable child also starts itself
+again once with address randomisation off, see :func:`_without_aslr`.)
 
 Order of start-up (everything that needs files or new threads happens *before* the limits):
 import all we need → die-with-parent → drop root to ``nobody`` (if root) → start the worker
@@ -804,7 +805,12 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--limits", required=True)
     opts = ap.parse_args(argv)
     limits = msgpack.unpackb(bytes.fromhex(opts.limits), raw=False)
-    if limits.get("deterministic") and argv is None:
+    from robo_comp.sandbox import determinism
+    if limits.get("replayable") and not determinism.sealed():
+        print(f"sandbox: cannot keep memory addresses from team code on this Python "
+              f"({determinism._seal_error}); a replayable sandbox does not run without that", file=sys.stderr)
+        os._exit(EXIT_INTERNAL)
+    if limits.get("aslr_off") and argv is None:
         _without_aslr()
     fd = opts.fd
     low = os.dup(fd)  # the lowest free descriptor: keeps RLIMIT_NOFILE small whatever the parent had open

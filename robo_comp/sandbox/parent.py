@@ -116,6 +116,12 @@ class Limits:
                 "debug": os.environ.get("ROBO_COMP_SANDBOX_DEBUG") == "1"}
 
 
+def keep_aslr() -> bool:
+    """True when ``ROBO_COMP_SANDBOX_ASLR=1``: a replayable child keeps address-space
+    randomisation on (tests check that a match replays without turning it off)."""
+    return os.environ.get("ROBO_COMP_SANDBOX_ASLR") == "1"
+
+
 # --------------------------------------------------------------------------- records
 @dataclass
 class Record:
@@ -252,8 +258,9 @@ class Sandbox:
                  builtin_tasks: Iterable[str] = BUILTIN_TASKS, start: bool = True,
                  deterministic: bool = False) -> None:
         self.team = team
-        #: Replayable child (league, bench): hash seed from ``seed`` and no address randomisation
-        #: (see docs/sandbox.md, "Determinism"); the hash seed is fixed in every child.
+        #: Replayable child (league, bench): it refuses to run where this Python cannot be sealed
+        #: against memory addresses, and runs without address randomisation as well (see
+        #: docs/sandbox.md, "Determinism"); every child is sealed and has its hash seed fixed.
         self.deterministic = deterministic
         self.tags: list[int] = list(tags)
         self.handler = handler
@@ -303,10 +310,13 @@ class Sandbox:
         pkg_root = os.path.dirname(os.path.dirname(os.path.abspath(robo_comp.__file__)))
         cmd = [sys.executable, "-s", "-P", "-B", "-c",  # -I without -E: isolated, but the env above is read
                f"import sys; sys.path.insert(0, {pkg_root!r}); "
+               # no address reaches team code: sealed before the modules the child needs are imported
+               "from robo_comp.sandbox.determinism import seal_child; seal_child(); "
                "from robo_comp.sandbox.child import main; main()",
                "--fd", str(child.fileno()),
                "--limits", msgpack.packb(dict(self.limits.wire(self.seed),
-                                              deterministic=self.deterministic)).hex()]
+                                              replayable=self.deterministic,
+                                              aslr_off=self.deterministic and not keep_aslr())).hex()]
         wrapped = oswall.wrap(cmd, pkg_root)  # the OS layer (bubblewrap), or a clear refusal
         self.os_sandbox = wrapped is not cmd
         cmd = wrapped
