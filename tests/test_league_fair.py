@@ -146,23 +146,58 @@ def test_an_entrant_over_the_log_bytes_limit_forfeits(tmp_path):
     assert res["ranks"]["frontier"] == 1
 
 
-def test_an_entrant_that_computes_too_long_forfeits_on_the_wall_clock(tmp_path):
+def test_an_entrant_that_computes_too_long_forfeits_on_cpu_time(tmp_path):
     """A second of computing before every turn: under the sandbox's 2 s slice, over the match's
-    wall-clock limit for the entrant (here 3 s); the opponent is not charged for it."""
-    res = play_match(spec(tmp_path, "slow", "frontier", log="slow.log", limits={"wall_seconds": 3.0}))
-    assert res["forfeit"]["team"] == "slow" and res["forfeit"]["limit"] == "wall_seconds"
+    CPU limit for the entrant (here 3 s); the opponent is not charged for it."""
+    res = play_match(spec(tmp_path, "slow", "frontier", log="slow.log", limits={"cpu_seconds": 3.0}))
+    assert res["forfeit"]["team"] == "slow" and res["forfeit"]["limit"] == "cpu_seconds"
     assert res["ranks"] == {"slow": 2, "frontier": 1}
     assert res["wall_seconds"] < 30
 
 
+def test_a_loaded_machine_does_not_make_an_entrant_forfeit(tmp_path, monkeypatch):
+    """The machine does not run frontier's sandbox for 1.2 s when its first robot starts (its
+    process is stopped, as on a machine too busy to schedule it): real time passes, frontier's
+    code costs nothing. The compute limit (0.8 s) charges CPU time, so the entrant that really
+    computes (slow) forfeits, not frontier. On the code before, which charged the real time
+    the match waited, frontier forfeited this match (a 0.8 s limit of real time)."""
+    import os
+    import signal
+    import threading
+
+    from robo_comp.sandbox.parent import Sandbox
+
+    start_task = Sandbox.start_task
+    stopped: list[int] = []
+
+    def busy_machine(self, tag, task, args=()):
+        if self.team == "frontier" and not stopped and self.pid:
+            stopped.append(self.pid)
+            os.kill(self.pid, signal.SIGSTOP)
+            threading.Timer(1.2, os.kill, (self.pid, signal.SIGCONT)).start()
+        return start_task(self, tag, task, args)
+
+    monkeypatch.setattr(Sandbox, "start_task", busy_machine)
+    res = play_match(spec(tmp_path, "frontier", "slow", log="busy.log", limits={"cpu_seconds": 0.8}))
+    assert stopped  # frontier's sandbox was held up
+    assert res["forfeit"]["team"] == "slow" and res["forfeit"]["limit"] == "cpu_seconds"
+    assert res["ranks"] == {"frontier": 1, "slow": 2}
+    assert not res["limits"]["frontier"]["sandbox"]  # no robot of frontier was stopped either
+
+
 def test_an_entrant_that_grows_the_worker_past_the_memory_limit_forfeits(tmp_path):
-    """The worker's growth is charged to the entrant whose robots logged the most (here the one
-    flooding, against a team that sits still); the limit is tiny so that the test sees it. The
-    match is played in a fresh process, as a league worker plays it (a long-lived test process
-    reuses memory it freed, and would not grow)."""
-    res = play_fresh(spec(tmp_path, "sitter", "flood", log="mem.log", limits={"memory_mib": 0.01}, seconds=60))
-    assert res["forfeit"]["team"] == "flood" and res["forfeit"]["limit"] == "memory_mib"
-    assert res["ranks"] == {"sitter": 1, "flood": 2}
+    """Memory is charged to the entrant whose robots took it: hoard asks for the biggest map
+    piece again and again (about 1.8 MB of log, 10 MiB of the worker's memory in 15 s), chatter
+    radios long messages (2.9 MB of log, under 2 MiB of memory). With a 5 MiB limit hoard
+    forfeits, whichever side it plays; the code before charged the worker's growth to the
+    entrant that logged the most, and chatter forfeited both matches. Played in a fresh process,
+    as a league worker plays a match (a long-lived test process reuses memory it freed)."""
+    limits = {"memory_mib": 5, "events": 10**9, "log_bytes": 10**12}
+    for a, b in (("hoard", "chatter"), ("chatter", "hoard")):
+        res = play_fresh(spec(tmp_path, a, b, log=f"{a}.log", seconds=15, limits=limits))
+        assert res["forfeit"]["team"] == "hoard" and res["forfeit"]["limit"] == "memory_mib", res["forfeit"]
+        assert res["ranks"] == {"chatter": 1, "hoard": 2}
+        assert "its robots took" in res["forfeit"]["message"]
 
 
 def test_the_report_shows_the_forfeit_and_the_provisional_mark(tmp_path):

@@ -24,6 +24,7 @@ from robo_comp.robots import teamcode as host_answers  # the robot host's answer
 from robo_comp.robots.steps import Move, Plan, Step, Turn
 from robo_comp.sandbox.parent import PENDING
 from robo_comp.testing.match import DEFAULT_SCENARIO, resolve_scenario
+from robo_comp.testing.usage import EntrantMeter
 
 if TYPE_CHECKING:  # heavy imports (numpy, numba, the sandbox) only when a fixture needs them
     from robo_comp.sandbox.contract import ModuleInfo
@@ -66,9 +67,10 @@ class Budget:
 
     The other limits are per **entrant** (team) and per match; None: no limit. Going over one
     ends the match as that entrant's forfeit (:attr:`Bench.forfeit`): ``events`` (events its
-    robots caused), ``log_bytes`` (their size, as JSON lines), ``wall_seconds`` (real time its
-    code computed) and ``memory_mib`` (growth of this process during the match, charged to
-    the entrant with the most logged bytes).
+    robots caused), ``log_bytes`` (their size, as JSON lines), ``cpu_seconds`` (CPU time of
+    its sandbox's processes), ``wall_seconds`` (real time the match waited for its code: a
+    backstop, it grows with the machine's load) and ``memory_mib`` (its sandbox's growth plus
+    this process's growth while its robots were served); see :mod:`robo_comp.testing.usage`.
     """
 
     calls_per_second: float = 10.0
@@ -78,12 +80,13 @@ class Budget:
     log_bytes: int | None = None
     wall_seconds: float | None = None
     memory_mib: float | None = None
+    cpu_seconds: float | None = None
 
 
 @dataclass(frozen=True)
 class Forfeit:
     """Why a match ended early: ``team`` went over ``limit`` (``events``, ``log_bytes``,
-    ``wall_seconds``, ``memory_mib``); ``message`` says it to the student; ``t`` is the
+    ``cpu_seconds``, ``wall_seconds``, ``memory_mib``); ``message`` says it to the student; ``t`` is the
     simulated time."""
 
     team: str
@@ -297,12 +300,14 @@ class Bench:
         self._next_task = 1
         self.budget = budget or Budget()
         self._tokens: dict[int, tuple[float, float]] = {}  # tag -> (calls left, at simulated time)
-        #: Per team: events its robots caused, their bytes as JSON lines, real seconds its code computed.
-        self.used: dict[str, dict[str, float]] = {t: {"events": 0.0, "log_bytes": 0.0, "wall_seconds": 0.0}
+        #: Per team: events its robots caused, their bytes as JSON lines, real seconds the match
+        #: waited for its code and the CPU seconds its code used.
+        self.used: dict[str, dict[str, float]] = {t: {"events": 0.0, "log_bytes": 0.0, "wall_seconds": 0.0,
+                                                      "cpu_seconds": 0.0}
                                                   for t in self.teams}
         #: Set when an entrant went over a match limit; the match then ends (see :class:`Budget`).
         self.forfeit: Forfeit | None = None
-        self._rss0 = _rss_mib()
+        self.meter = EntrantMeter(self.sandboxes)  # CPU, real time, memory per entrant (the match limits)
         self._ending: str | None = None  # the entrant whose forfeit is ending the match
         self._next_memory_check = 0
         self._next_sample = 0.0
@@ -394,7 +399,7 @@ class Bench:
                 raise FieldError(f"robot {tag} is not on the bench; its robots are {self.tags}")
             self._queues.setdefault(tag, deque()).extend((str(n), list(a)) for n, a in steps)
         self._wall_end = t0 + timeout
-        self._rss0 = _rss_mib()  # the match's growth counts from here (modules loaded)
+        self.meter.start()  # the match's costs count from here (modules loaded)
         self._next_memory_check = 256
         self._drain_logs()
         self._sample_poses()
@@ -402,7 +407,8 @@ class Bench:
         try:
             while self.forfeit is None:
                 for tag in ready:
-                    self._serve(tag)
+                    with self.meter.serving(self.team_of[tag]):
+                        self._serve(tag)
                     self._check_memory()
                     if self.forfeit is not None:
                         break
@@ -495,8 +501,8 @@ class Bench:
             self.forfeit = Forfeit(team, limit, f"team {team} forfeits the match: {why}", round(self.arena.time, 6))
 
     def _check_memory(self) -> None:
-        """Charge growth of this process over :attr:`Budget.memory_mib` to the entrant that
-        logged the most."""
+        """An entrant whose memory (:meth:`EntrantMeter.memory_mib`) is over
+        :attr:`Budget.memory_mib` forfeits."""
         limit = self.budget.memory_mib
         if limit is None or self.forfeit is not None:
             return
@@ -504,11 +510,11 @@ class Bench:
         if self._next_memory_check > 0:
             return
         self._next_memory_check = 256
-        grown = _rss_mib() - self._rss0
-        if grown > limit:
-            team = max(self.teams, key=lambda t: (self.used[t]["log_bytes"], -self.teams.index(t)))
-            self._lose(team, "memory_mib", f"the match grew by {grown:.0f} MiB (limit {limit:g} MiB), most of it "
-                                           f"for what its robots logged ({self.used[team]['log_bytes'] / 2**20:.1f} MiB)")
+        for team in self.teams:
+            mib = self.meter.memory_mib(team)
+            if mib > limit:
+                self._lose(team, "memory_mib", f"its robots took {mib:.1f} MiB of memory in the match (limit "
+                                               f"{limit:g} MiB: its sandbox's growth and the worker's while serving them)")
 
     def _pay(self, tag: int, name: str) -> float:
         """Draw ``name``'s price from robot ``tag``'s call budget; returns the simulated time at
@@ -575,18 +581,22 @@ class Bench:
         now = time.monotonic()
         used = self.used[team]  # every team of the bench has its counts from the start
         used["wall_seconds"] += now - t0
-        limit = self.budget.wall_seconds
-        if limit is not None and used["wall_seconds"] > limit:
-            self._lose(team, "wall_seconds", f"its code computed for more than {limit:g} s of real time in "
-                                             "the match")
+        cpu = used["cpu_seconds"] = self.meter.wait(team, now - t0)
+        b = self.budget
+        if b.cpu_seconds is not None and cpu > b.cpu_seconds:
+            self._lose(team, "cpu_seconds", f"its code computed for more than {b.cpu_seconds:g} s of CPU time in "
+                                            "the match")
+        elif b.wall_seconds is not None and used["wall_seconds"] > b.wall_seconds:
+            self._lose(team, "wall_seconds", f"the match waited more than {b.wall_seconds:g} s of real time for "
+                                             "its code")
         if self._ending is not None:
             pass  # the match is ending: its runs are being cancelled
         elif self.forfeit is not None and team == self.forfeit.team:
             self._ending = team  # stop waiting for it: its runs are cancelled as the match ends
             raise _Ended()
         elif now > self._wall_end:
-            if self.budget.wall_seconds is not None:  # a league match: the slowest entrant forfeits
-                slow = max(self.teams, key=lambda t: (self.used[t]["wall_seconds"], -self.teams.index(t)))
+            if self.budget.wall_seconds is not None:  # a league match: the most computing entrant forfeits
+                slow = max(self.teams, key=lambda t: (self.meter.read_cpu(t), -self.teams.index(t)))
                 self._lose(slow, "wall_seconds", "the match ran out of real time, and its code computed the longest")
                 self._ending = slow
                 raise _Ended()
@@ -844,15 +854,6 @@ class Bench:
 
 class _Ended(Exception):
     """Internal: the match ends now (an entrant's forfeit); unwinds the step-locked loop."""
-
-
-def _rss_mib() -> float:
-    """This process's resident memory in MiB (0 where /proc is not there)."""
-    try:
-        with open("/proc/self/statm") as f:
-            return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
-    except (OSError, ValueError, IndexError):
-        return 0.0
 
 
 def _json_line(event: dict[str, Any]) -> str:
