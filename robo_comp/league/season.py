@@ -115,7 +115,7 @@ def submit(store: LeagueStore, team: str, files: dict[str, str], who: str) -> tu
 def submit_reference(store: LeagueStore, count: int = 4, who: str = "reference") -> list[Submission]:
     """Submit a reference field: the first ``count`` reference teams (at most 4), or for more,
     ``count`` entrants of known strength order: ``ref-00`` (strongest) to ``ref-NN``, the
-    frontier team with handicap 0 to NN (each step: its robots start 4 s later)."""
+    frontier team with handicap 0 to NN (each step: its robots start 7 s later)."""
     from robo_comp.league import reference
 
     if count <= len(reference.NAMES):
