@@ -24,7 +24,8 @@ from robo_comp.errors import FieldError, ForbiddenError, NotYoursError, PhaseErr
 from robo_comp.scoring.board import Scoreboard, ScoreLine
 from robo_comp.scoring.config import ScoringConfig
 from robo_comp.scoring.judge import FindJudge
-from robo_comp.scoring.match import MatchClock, monotonic_mark
+from robo_comp.match.clock import MatchClock, monotonic_mark
+from robo_comp.protocol.states import Phase
 from robo_comp.teams.policy import check_owner, check_referee
 from robo_comp.world.scenario import Scenario
 
@@ -65,7 +66,7 @@ class Competition:
         self.events = events  # the core's event log (opened after recovery has replayed into this desk)
         self.config = config
         self.clock = MatchClock(duration=math.inf if practice else float(scenario.duration),
-                                phase="running" if practice else "setup",
+                                phase=Phase.RUNNING if practice else Phase.SETUP,
                                 running_since=time.monotonic() if practice else None)
         self.board = Scoreboard(teams, pm, config)
         #: Pictures and finds, judged as on the bench and in league matches (one judge).

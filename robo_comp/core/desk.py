@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import Any, Protocol
 
-from robo_comp.core.registry import Registry, RobotRecord
+from robo_comp.match.registry import Registry, RobotRecord
 from robo_comp.core.sessions import Session
 
 

@@ -22,12 +22,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
 from robo_comp.protocol.logfile import FORMAT_VERSION, LEGACY_VERSION, Damage, LogReader
-from robo_comp.core.registry import Registry, RobotRecord, RobotStatus
-from robo_comp.core.tasks import TaskMachine, TaskMode, TaskRecord, TaskState
+from robo_comp.match.registry import Registry, RobotRecord
+from robo_comp.protocol.states import RobotStatus, TaskMode, TaskState
+from robo_comp.match.tasks import TaskMachine, TaskRecord
 from robo_comp.protocol.taskspec import check_specs
 from robo_comp.errors import RoboCompError
 from robo_comp.scoring.board import ScoreLine
-from robo_comp.scoring.match import outage_seconds
+from robo_comp.match.clock import outage_seconds
 
 if TYPE_CHECKING:
     from robo_comp.core.competition import Competition

@@ -51,8 +51,9 @@ from robo_comp.core.guard import (
 from robo_comp.private_files import private_dir
 from robo_comp.core.recovery import RecoveryReport, recover
 from robo_comp.core.sessions import Session
-from robo_comp.core.registry import RobotRecord, RobotStatus, Registry
-from robo_comp.core.tasks import TaskMachine, TaskMode, TaskRecord, TaskState
+from robo_comp.match.registry import RobotRecord, Registry
+from robo_comp.protocol.states import RobotStatus, TaskMode, TaskState
+from robo_comp.match.tasks import TaskMachine, TaskRecord
 from robo_comp.protocol.taskspec import check_args, check_specs, find_spec
 from robo_comp.errors import (
     AuthError,
@@ -72,7 +73,7 @@ from robo_comp.errors import (
 from robo_comp.match.plausibility import MAX_NOISE, MAX_SIGMA, PoseGate
 from robo_comp.plugins.manager import get_plugin_manager
 from robo_comp.scoring.config import ScoringConfig
-from robo_comp.scoring.match import CLOCK_PERIOD
+from robo_comp.match.clock import CLOCK_PERIOD
 from robo_comp.teams.policy import check_owner, check_referee
 from robo_comp.teams.tokens import ORGANISER, REFEREE, Principal, TokenBook
 from robo_comp.world.public import arena_payload

@@ -22,7 +22,8 @@ from typing import TYPE_CHECKING, Any
 
 from robo_comp import protocol as P
 from robo_comp.core.desk import Access, Outbox
-from robo_comp.core.registry import RobotRecord, RobotStatus
+from robo_comp.match.registry import RobotRecord
+from robo_comp.protocol.states import RobotStatus
 from robo_comp.protocol.taskspec import check_specs
 from robo_comp.errors import (
     FieldError, ForbiddenError, NotYoursError, RoboCompError, UnavailableError, UploadError,

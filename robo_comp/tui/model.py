@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from robo_comp.protocol import unpack_walls
-from robo_comp.scoring.match import HeardClock
+from robo_comp.protocol.clock import HeardClock
 
 #: Events kept for the log pane and the monitor's "recent events".
 MAX_EVENTS = 2000

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from robo_comp.protocol import unpack_walls
-from robo_comp.scoring.match import HeardClock
+from robo_comp.protocol.clock import HeardClock
 
 #: Trail points kept per robot (the last N positions at least ``TRAIL_STEP`` cells apart).
 TRAIL_LEN = 48
