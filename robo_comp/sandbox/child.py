@@ -766,9 +766,9 @@ ADDR_NO_RANDOMIZE = 0x0040000
 
 
 def _without_aslr() -> None:
-    """Start this process again with address randomisation off (a replayable child: the
-    addresses that reach team code through ``repr()`` of functions and plain objects, default
-    ``hash()`` and the order of their sets then follow the code, not the kernel's dice).
+    """Start this process again with address randomisation off (a replayable child, as a spare:
+    the seal already keeps every address from team code, see
+    :mod:`robo_comp.sandbox.determinism`; ``ROBO_COMP_SANDBOX_ASLR=1`` skips this).
     Returns only when it is already off or the kernel does not let us turn it off."""
     try:
         import ctypes
