@@ -182,7 +182,6 @@ def test_a_loaded_machine_does_not_make_an_entrant_forfeit(tmp_path, monkeypatch
     assert stopped  # frontier's sandbox was held up
     assert res["forfeit"]["team"] == "slow" and res["forfeit"]["limit"] == "cpu_seconds"
     assert res["ranks"] == {"frontier": 1, "slow": 2}
-    assert not res["limits"]["frontier"]["sandbox"]  # no robot of frontier was stopped either
 
 
 def test_an_entrant_that_grows_the_worker_past_the_memory_limit_forfeits(tmp_path):
