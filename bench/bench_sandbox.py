@@ -12,7 +12,8 @@
    restarted over and over), one allocates without bound. The RPC rate of the two well-behaved
    teams is compared with an undisturbed run.
 4. ``--os-layer`` (instead of 1–3): the cold upload and the robot-API round trip with the OS
-   layer (bubblewrap, sandbox/oswall.py) on and off, one after the other in the same run.
+   layer on (bubblewrap and the seccomp filter, sandbox/oswall.py and sysfilter.py), with
+   bubblewrap but the filter left out, and off, interleaved in the same run.
 5. ``--seal`` (instead of 1–3): what the seal against memory addresses (sandbox/determinism.py)
    costs team code: CPU time per operation (best of 3) of attribute writes on a team object,
    set insertions of team objects and of a function, f-strings of a function and dicts keyed
@@ -209,18 +210,29 @@ def bench_isolation(seconds: float) -> None:
 
 
 def bench_os_layer(calls: int, n: int) -> None:
-    """Upload and robot-API call cost with the OS layer on, then off, in this one run."""
+    """Upload and robot-API call cost with the OS layer on (bwrap and the seccomp filter), with
+    bwrap but the filter left out, and off, interleaved in this one run."""
     import os
 
     from robo_comp.sandbox import oswall
 
+    def unfiltered(pkg_root: str) -> oswall.Wall | None:
+        return oswall.Wall(pkg_root, None) if oswall.enabled() else None
+
+    with_filter = oswall.wall
     bare = bare_round_trip(calls)
     print(f"bare msgpack round trip between two processes over a socketpair, {calls} calls: median {bare * 1e6:.0f} us")
-    for on in (True, False, True, False):  # interleaved: a drift of the machine hits both alike
-        os.environ[oswall.ENV] = "on" if on else "off"
-        label = f"OS layer {'on (bwrap)' if on else 'off'}"
-        bench_upload(n, f", {label}")
-        bench_rpc(calls, Limits(), f"default limits, {label}", bare)
+    settings = (("on", with_filter, "on (bwrap + seccomp)"), ("on", unfiltered, "bwrap, no seccomp"),
+                ("off", with_filter, "off"))
+    for _ in range(2):  # interleaved: a drift of the machine hits every setting alike
+        for env, wall, name in settings:
+            os.environ[oswall.ENV] = env
+            oswall.wall = wall  # the filter left out for one setting only
+            label = f"OS layer {name}"
+            print(f"-- {label}; load: {os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f} {os.getloadavg()[2]:.2f}")
+            bench_upload(n, f", {label}")
+            bench_rpc(calls, Limits(), f"default limits, {label}", bare)
+    oswall.wall = with_filter
 
 
 SEAL_CODE = r'''

@@ -12,6 +12,7 @@ Replies come back as plain dicts; error replies raise the matching
 """
 from __future__ import annotations
 
+import argparse
 import json
 import time
 from collections import deque
@@ -353,6 +354,22 @@ def recv_event(sub: zmq.Socket) -> tuple[str, dict[str, Any]]:
     """Read one ``(topic, payload)`` from a SUB socket made by :meth:`Client.subscribe`."""
     topic, payload = sub.recv_multipart()
     return topic.decode(), P.unpack(payload)
+
+
+def add_connection_args(p: argparse.ArgumentParser, required: bool = True) -> None:
+    """``--core``, ``--token``/``--token-file`` and the CurveZMQ ``--curve-cert``/``--core-key``,
+    shared by every client command (``required=False`` where another source may replace the core,
+    as the wall's ``--replay``)."""
+    from robo_comp.protocol.curve import add_curve_args
+
+    p.add_argument("--core", required=required,
+                   help="ROUTER URL (tcp://HOST:PORT), the core's state folder, or mdns:NAME (a core started "
+                        "with --advertise NAME on this LAN)")
+    tok = p.add_mutually_exclusive_group(required=required)
+    tok.add_argument("--token", help="team or referee token")
+    tok.add_argument("--token-file", help="file holding the token")
+    add_curve_args(p)
+
 
 
 __all__ = ["Client", "ConnectionLostError", "open_dealer", "read_token", "recv_event", "resolve_core"]

@@ -30,7 +30,9 @@ import zmq
 from conftest import CoreHandle, wait_for, wait_robots
 from test_hostile_clients import Peer, code, router
 from robo_comp import protocol as P
-from robo_comp.testing.zmtp import core_rss, router_address, zmtp_command, zmtp_frame, zmtp_greeting, zmtp_open
+from robo_comp.testing.zmtp import (
+    core_rss, router_address, zmtp_command, zmtp_frame, zmtp_greeting, zmtp_initiate, zmtp_open,
+)
 
 MiB = 1 << 20
 
@@ -284,9 +286,10 @@ def small_core(tmp_path: Path) -> Iterator[CoreHandle]:
         h.close()
 
 
-def _flood(address: str, target: tuple[str, int], opening: bytes) -> list[socket.socket]:
+def _flood(address: str, target: tuple[str, int], opening: bytes, then: bytes = b"") -> list[socket.socket]:
     """:data:`FLOOD` TCP connections from ``address`` that each send ``opening`` (a handshake),
-    then nothing."""
+    and ``then`` once the core's ``WELCOME`` has come (the rest of a PLAIN handshake), then
+    nothing."""
     socks = []
     for _ in range(FLOOD):
         s = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
@@ -294,18 +297,37 @@ def _flood(address: str, target: tuple[str, int], opening: bytes) -> list[socket
         s.setblocking(False)
         s.connect_ex(target)
         socks.append(s)
-    t_end = time.monotonic() + 5.0
-    waiting = list(socks)
-    while waiting and time.monotonic() < t_end:  # each sends its handshake once connected
+    t_end = time.monotonic() + 10.0
+    sending = list(socks)
+    welcomed: dict[socket.socket, bytes] = {}
+    while (sending or welcomed) and time.monotonic() < t_end:  # each sends its handshake once connected
         left = []
-        for s in waiting:
+        for s in sending:
             try:
                 s.send(opening)
             except BlockingIOError:
                 left.append(s)
             except OSError:  # refused or cut by the core: done
                 pass
-        waiting = left
+            else:
+                if then:
+                    welcomed[s] = b""
+        sending = left
+        for s, got in list(welcomed.items()):
+            try:
+                chunk = s.recv(4096)
+            except BlockingIOError:
+                continue
+            except OSError:
+                chunk = b""
+            if not chunk:  # cut by the core
+                del welcomed[s]
+            elif b"WELCOME" in got + chunk:
+                with contextlib.suppress(OSError):
+                    s.send(then)
+                del welcomed[s]
+            else:
+                welcomed[s] = got + chunk
         time.sleep(0.05)
     return socks
 
@@ -329,7 +351,7 @@ def test_a_connection_flood_is_cut_and_the_match_goes_on(small_core: CoreHandle)
     flood: list[socket.socket] = []
     try:
         flood += _flood("127.0.0.2", target, zmtp_open("NULL"))
-        flood += _flood("127.0.0.3", target, zmtp_open("PLAIN", core.token("red").encode()))
+        flood += _flood("127.0.0.3", target, zmtp_open("PLAIN", core.token("red").encode()), zmtp_initiate())
         blue = core.client("blue")  # a new client gets in during the flood
         assert blue.robots() == [] and blue.role == "team"
         assert ref.give(tag, "goTo", [3, 3])["task_id"] >= 1  # the match goes on

@@ -177,3 +177,45 @@ def test_a_replay_core_publishes_nothing_private(tmp_path: Path) -> None:
     assert proc.returncode == 0, (state / "replay.log").read_text()[-2000:]
     assert not leaks(got), leaks(got)[:5]
     assert {t for t in topics if t in P.PUBLIC_TOPICS} <= {t for t, _ in got}
+
+
+def mcap_messages(path: Path) -> list[tuple[str, str]]:
+    """Every message of an MCAP file, decoded, as (topic, its text: JSON, or an image's bytes)."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    out = []
+    with open(path, "rb") as f:
+        for _, channel, _, m in make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages():
+            data = getattr(m, "data", None)
+            out.append((channel.topic, data if isinstance(data, str) else  # JSON (std_msgs/String)
+                        bytes(data).decode("latin-1") if channel.topic == "/pictures" else str(m)))
+    return out
+
+
+def test_a_public_mcap_export_carries_nothing_private(tmp_path: Path) -> None:
+    """``robo-comp export mcap`` (its default view, public): no marker in any message, no private
+    topic on ``/events``, no picture's image; the public topics are there. Before, the export wrote
+    every record whole and every picture."""
+    pytest.importorskip("mcap_ros2", reason="the mcap extra is not installed (pip install -e '.[mcap]')")
+    from robo_comp.export.mcap import export_mcap
+
+    log = tmp_path / "m" / "events.log"
+    topics = write_every_topic(log)
+    (log.parent / "pictures").mkdir()
+    (log.parent / "pictures" / "1.png").write_bytes(b"\x89PNG\r\n\x1a\n" + SECRET.encode())  # red's picture 1
+    export_mcap(log, tmp_path / "public.mcap")
+    got = mcap_messages(tmp_path / "public.mcap")
+    assert not [m for m in got if SECRET in m[1]], [m for m in got if SECRET in m[1]][:5]
+    events = [json.loads(text) for t, text in got if t == "/events"]
+    assert not {e["topic"] for e in events} & P.PRIVATE_TOPICS
+    assert {e["topic"] for e in events} == {"core.started", *(t for t in topics if t in P.PUBLIC_TOPICS)}
+    assert "/pictures" not in {t for t, _ in got}
+    # the team's and the referee's views of the same log hold the markers and the picture
+    export_mcap(log, tmp_path / "red.mcap", view="team:red")
+    red = mcap_messages(tmp_path / "red.mcap")
+    assert any(SECRET in text for t, text in red if t == "/pictures") and any(SECRET in m[1] for m in red)
+    export_mcap(log, tmp_path / "blue.mcap", view="team:blue")
+    blue = mcap_messages(tmp_path / "blue.mcap")
+    assert {json.loads(text)["team"] for t, text in blue if t == "/events"} <= {"blue", P.EVERYONE, None}
+    assert "/pictures" not in {t for t, _ in blue}  # red's picture

@@ -15,7 +15,7 @@ import pytest  # noqa: E402
 from robo_comp.core.eventlog import EventLog  # noqa: E402
 from robo_comp.wall import render as R  # noqa: E402
 from robo_comp.wall.interact import Command, Interaction  # noqa: E402
-from robo_comp.wall.model import WallModel  # noqa: E402
+from robo_comp.view.model import MatchView  # noqa: E402
 from robo_comp.wall.render import Overlay, Renderer  # noqa: E402
 from robo_comp.wall.replay import ReplaySource  # noqa: E402
 from robo_comp.wall.view import Layout, MapGeometry, TileSpec, ViewState  # noqa: E402
@@ -55,8 +55,8 @@ def snapshot() -> dict:
             "finds": []}
 
 
-def model() -> WallModel:
-    m = WallModel(clock=lambda: 0.0)
+def model() -> MatchView:
+    m = MatchView(clock=lambda: 0.0)
     m.load_snapshot(snapshot())
     m.apply("find.reported", {"id": 1, "team": "blue", "tag": 102, "x": 8.0, "y": 16.0, "kind": "victim",
                               "state": "confirmed", "evidence": [7]})
@@ -67,7 +67,7 @@ def model() -> WallModel:
     return m
 
 
-def render(m: WallModel, tile: TileSpec, view: ViewState | None = None, overlay: Overlay | None = None):
+def render(m: MatchView, tile: TileSpec, view: ViewState | None = None, overlay: Overlay | None = None):
     surf = pygame.Surface(tile.size, 0, 32)
     r = Renderer(m, tile, view or ViewState())
     r.draw(surf, None, overlay)
@@ -197,7 +197,7 @@ def test_zoom_factor_fits_any_arena_into_any_window():
         assert g.edge_x(arena[0]) - g.edge_x(0) >= mw - 2 or g.edge_y(arena[1]) - g.edge_y(0) >= mh - 2
 
 
-def interaction(m: WallModel, view: ViewState, tile: TileSpec) -> tuple[Interaction, Renderer]:
+def interaction(m: MatchView, view: ViewState, tile: TileSpec) -> tuple[Interaction, Renderer]:
     r = Renderer(m, tile, view)
     return Interaction(m, view, r.layout, r.geometry, r.panel_boxes, r.robot_radius,
                        double_click=0.4, path_wait=1.0), r
@@ -264,7 +264,7 @@ def test_replay_feeds_the_model_from_an_event_log(tmp_path: Path):
     log.close()
     fake = [0.0]
     src = ReplaySource(tmp_path / "events.log", speed=4.0, clock=lambda: fake[0])
-    m = WallModel()
+    m = MatchView()
     src.attach(m)
     src.advance(m)
     assert m.arena is not None and not m.robots  # the log's first event carries the arena

@@ -9,14 +9,17 @@ from __future__ import annotations
 
 from typing import Any, Protocol
 
-from robo_comp.match.registry import Registry, RobotRecord
 from robo_comp.core.sessions import Session
+from robo_comp.match.model import Match
+from robo_comp.match.registry import Registry, RobotRecord
 
 
 class Access(Protocol):
     """Sessions, robots and ownership, as the desks see them."""
 
     registry: Registry
+    #: The match the core drives (robots, tasks, the contest): what a command may do is its check.
+    match: Match
 
     def session(self, ident: bytes) -> Session:
         """The session of connection ``ident`` (``E_AUTH`` if it has none)."""
@@ -33,15 +36,6 @@ class Access(Protocol):
     def host_sessions(self) -> list[bytes]:
         """The connections that host robots."""
 
-    def give_task(self, r: RobotRecord, name: str, args: list[Any], queue: bool, by: str) -> dict[str, Any]:
-        """Give robot ``r`` a task (ownership is the caller's check); the ``give`` reply's body."""
-
-    def halt_and_remove(self, tag: int, reason: str) -> None:
-        """Halt robot ``tag``, cancel its tasks and take it out of the match."""
-
-    def judged_pose(self, r: RobotRecord, claim: dict[str, Any], what: str) -> tuple[float, float, float]:
-        """The pose at which the match judges ``what`` (a picture, a bump) of robot ``r``: the host's
-        ``claim`` only where the core's tracked pose bears it out, else the tracked pose."""
 
 
 class Outbox(Protocol):

@@ -25,7 +25,7 @@ import socket
 import time
 import traceback
 from collections import deque
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
@@ -51,10 +51,9 @@ from robo_comp.core.guard import (
 from robo_comp.private_files import private_dir
 from robo_comp.core.recovery import RecoveryReport, recover
 from robo_comp.core.sessions import Session
-from robo_comp.match.registry import RobotRecord, Registry
-from robo_comp.protocol.states import RobotStatus, TaskMode, TaskState
-from robo_comp.match.tasks import TaskMachine, TaskRecord
-from robo_comp.protocol.taskspec import check_args, check_specs, find_spec
+from robo_comp.match.model import Match
+from robo_comp.match.registry import RobotRecord
+from robo_comp.protocol.states import Phase, RobotStatus
 from robo_comp.errors import (
     AuthError,
     FieldError,
@@ -67,10 +66,8 @@ from robo_comp.errors import (
     RoboCompError,
     StorageError,
     TimeoutError_,
-    TooLargeError,
     UnavailableError,
 )
-from robo_comp.match.plausibility import MAX_NOISE, MAX_SIGMA, PoseGate
 from robo_comp.plugins.manager import get_plugin_manager
 from robo_comp.scoring.config import ScoringConfig
 from robo_comp.match.clock import CLOCK_PERIOD
@@ -93,10 +90,6 @@ POSE_HZ = 10.0
 #: Robots per ``robot.positions`` event (and per logged sample record): one such chunk is the
 #: largest piece of background work between two looks at the socket.
 POSE_CHUNK = 500
-MAX_RESULT = 64 * 1024
-#: Without ``--max-speed``: the fastest a robot may be (cells/s) is this many times the scenario's
-#: robot speed (hosts declare their robots' speed at ``register``; a faster claim is cut to this).
-MAX_SPEED_FACTOR = 4.0
 #: Frames held back while the log cannot be written, at most (the oldest go first).
 HELD_FRAMES = 50_000
 #: Requests served while the event log cannot be written: they log nothing, or (stop) must never
@@ -141,23 +134,17 @@ class Core:
         self.port = port
         self.pub_port = pub_port
         self.heartbeat = heartbeat
-        self.registry = Registry()
-        #: At most this many robots per team (None: what the scenario gives each team).
-        self.robots_per_team = robots_per_team
-        fastest_zone = max([1.0, *(z.speed_factor for z in scenario.zones)])
-        #: The fastest a robot may drive (cells/s): a host's declared speed is cut to it.
-        self.max_speed = float(max_speed) if max_speed else scenario.kinematics.speed * fastest_zone * MAX_SPEED_FACTOR
-        self._default_speed = min(self.max_speed, scenario.kinematics.speed * fastest_zone)
-        #: Fair play: which reported poses a robot could have reached (robo_comp.match.plausibility).
-        self.gate = PoseGate(scenario.walls, self.max_speed)
-        # claims about the world not believed since the last beat: (tag, kind) -> [count, the last reason]
-        self._implausible: dict[tuple[int, str], list[Any]] = {}
-        self.tasks = TaskMachine(self._task_started, self._task_finished)
+        self.pm = plugins or get_plugin_manager()
+        #: The match this core drives (robots, their tasks, the contest): no sockets; its events and
+        #: directives come back through this core's MatchOutput methods (emit, to_host, ...).
+        self.match = Match(scenario, self.tokens.teams, self, self.pm,
+                           scoring=scoring or ScoringConfig.from_table(scenario.scoring), practice=practice,
+                           robots_per_team=robots_per_team, max_speed=max_speed)
+        self.registry = self.match.registry
         self.sessions: dict[bytes, Session] = {}
         # Who watches what: team name -> routing ids, and the referee's under None.
         self.watchers: dict[str | None, set[bytes]] = {}
         self.pending_stops: dict[int, PendingStop] = {}
-        self.next_task_id = 1
         self.next_core_req = 1
         # The core owns its context: the ZAP endpoint (the transport's credential check) is one per context.
         self.ctx = zmq.Context()
@@ -191,8 +178,6 @@ class Core:
         # Refusals of connections without a session, counted per (type, code) and logged once a beat
         # (a flood of bad hellos must not flood the log and the referee's console).
         self._refused_anon: dict[tuple[str, str, Principal | None], list[Any]] = {}
-        self._moved: set[int] = set()  # moved since the last heartbeat (the log's sample)
-        self._posed: dict[str, set[int]] = {}  # team -> robots that reported since the last batch
         # Background work cut into slices of bounded size (position batches, position samples for the
         # log): the loop does one slice per turn and looks at its socket in between, so that a stop
         # never waits behind a whole batch of 10,000 robots.
@@ -209,20 +194,16 @@ class Core:
             "leave": self._on_leave, "reply": self._on_host_reply, "arena": self._on_arena, "stats": self._on_stats,
             "hosts": self._on_hosts, "handover": self._on_handover,
         }
-        self.pm = plugins or get_plugin_manager()
         log_path = self.state_dir / "events.log"
         # the log is opened after recovery (below); the desks reach it through the core
         self.maps = MapDesk(self, self, scenario)
-        self.competition = Competition(self, self, scenario, self.tokens.teams, self.pm, self.state_dir,
-                                       self.maps, lambda: self.events,
-                                       scoring or ScoringConfig.from_table(scenario.scoring), practice)
-        self.uploads = UploadDesk(self, self, self.competition, self.state_dir,
-                                  approve_uploads or scenario.approve_uploads)
+        self.competition = Competition(self, self, self.match, self.state_dir, lambda: self.events)
+        self.uploads = UploadDesk(self, self, self.state_dir, approve_uploads or scenario.approve_uploads)
         for desk in (self.competition, self.maps, self.uploads):
             self._handlers.update(desk.handlers())
         self.recovered: RecoveryReport | None = None
         if log_path.exists() and log_path.stat().st_size > 0:
-            self.recovered = recover(self, log_path)
+            self.recovered = recover(self.match, log_path)
             self.events = EventLog(log_path, fsync=fsync, seq=self.recovered.seq,
                                    good_end=self.recovered.good_end, legacy=self.recovered.legacy_tail)
         else:
@@ -361,9 +342,9 @@ class Core:
                     timeout = min(timeout, 0.05)
                 if self.storage_fault is not None:  # try the log again soon: resume within a fraction of a second
                     timeout = min(timeout, 0.2)
-                if self._posed:
+                if self.match.posed:
                     timeout = min(timeout, max(0.0, next_pose - time.monotonic()))
-                if self.competition.phase == "running":
+                if self.match.contest.phase is Phase.RUNNING:
                     timeout = min(timeout, max(0.0, next_clock - time.monotonic()))
                 if self._slices:  # background work left: look at the socket, then do the next slice
                     timeout = 0.0
@@ -612,7 +593,7 @@ class Core:
         ``--fsync``, forced to disk): an acknowledged event survives ``kill -9`` of the core.
         """
         self._urgent = False
-        self.competition.flush_score()
+        self.match.contest.flush_score()
         try:
             self.events.flush()
         except StorageFault as fault:
@@ -736,33 +717,30 @@ class Core:
         r = self.registry.robots.get(tag)
         if r is None or r.session != ident:
             raise NotYoursError(f"robot {tag} is not hosted by this connection; register it first")
-        if r.status != RobotStatus.CONNECTED:
-            self._mark_returned(r)
+        if r.status is not RobotStatus.CONNECTED:
+            self.match.heard(r)
         return r
 
-    def _send_host(self, r: RobotRecord, type_: str, body: dict[str, Any], req_id: int = 0) -> None:
-        if r.session is not None:  # a stop leaves at once, whatever the log's state (safety first)
+    # ------------------------------------------------------------------ the match's output (MatchOutput)
+    def to_host(self, r: RobotRecord, type_: str, body: dict[str, Any], req_id: int = 0) -> None:
+        """A directive to the host connection of robot ``r`` (a stop leaves at once, whatever the
+        log's state: safety first)."""
+        if r.session is not None:
             self.send(r.session, P.request(type_, req_id, body), type_ == "stop")
 
-    def _new_task(self, r: RobotRecord, name: str, args: list[Any], mode: TaskMode, by: str) -> TaskRecord:
-        t = TaskRecord(self.next_task_id, r.tag, name, args, mode, by)
-        self.next_task_id += 1
-        return t
+    def to_hosts(self, type_: str, body: dict[str, Any]) -> None:
+        """A directive to every robot host connection (``hold``)."""
+        frame = P.request(type_, 0, body)
+        for ident in self.host_sessions():
+            self.send(ident, frame)
 
-    def _task_started(self, r: RobotRecord, t: TaskRecord) -> None:
-        self.emit("task.started", r.team, {"tag": r.tag, "task_id": t.id, "name": t.name, "args": t.args})
+    def finished(self) -> None:
+        """The match has just finished: its results go into the state folder."""
+        self.competition.write_results_now()
 
-    def _task_finished(self, r: RobotRecord, t: TaskRecord) -> None:
-        self.registry.finished(r, t)
-        self.emit("task.done", r.team, {"tag": r.tag, "task_id": t.id, "name": t.name, "ok": t.ok,
-                                         "state": t.state, "status": t.status, "result": t.result})
-
-    def _mark_lost(self, r: RobotRecord, why: str) -> None:
-        if r.status == RobotStatus.CONNECTED:
-            r.status = RobotStatus.LOST
-            r.moving = False
-            self.emit("robot.lost", r.team, {"tag": r.tag, "x": r.x, "y": r.y, "message": why})
-            self.competition.feed({"kind": "robot.lost", "team": r.team, "tag": r.tag})
+    def discovered(self, r: RobotRecord, find: dict[str, Any]) -> None:
+        """A find was reported: the map service marks it for the team."""
+        self.maps.discovery(r.tag, r.team, find["x"], find["y"], find["kind"], find["evidence"])
 
     def has_session(self, ident: bytes) -> bool:
         """Whether connection ``ident`` has a session."""
@@ -778,48 +756,13 @@ class Core:
         """Routing ids of the connections that host robots."""
         return [ident for ident, s in self.sessions.items() if s.tags]
 
-    def halt_and_remove(self, tag: int, reason: str) -> None:
-        """Halt a robot (no confirmation awaited), cancel its tasks, take it out of the match."""
-        r = self.registry.get(tag)
-        if r.status == RobotStatus.CONNECTED:
-            self._send_host(r, "stop", {"tag": r.tag})
-        self.tasks.cancel_all(r, f"cancelled: {reason}", f"cancelled: {reason}")
-        r.moving = False
-        r.status = RobotStatus.DISQUALIFIED
-
-    def judged_pose(self, r: RobotRecord, claim: dict[str, Any], what: str) -> tuple[float, float, float]:
-        """The pose at which the match judges ``what`` of robot ``r`` (see :class:`~robo_comp.core.desk.Access`).
-
-        The organiser's simulation knows a robot's true pose, which its reports (the robot's own
-        estimate) only approach; so a host's claimed pose is used where the tracked pose bears it out
-        (within 3 sigma, plus the driving since the last report). Anything else is judged at the
-        tracked pose, and the referee gets an ``integrity`` event."""
-        tracked = (r.x, r.y, r.heading)
-        if not all(type(claim.get(k)) in (int, float) for k in ("x", "y")):
-            return tracked
-        x, y = float(claim["x"]), float(claim["y"])
-        since = time.time() - r.last_report if r.last_report else self.gate.lag
-        verdict = self.gate.bears_out((r.x, r.y), r.sigma, since, r.track.speed, (x, y))
-        if not verdict.ok:
-            self._disbelieve(r, what, f"{what} {verdict.reason}; judged where it is tracked")
-            return tracked
-        heading: Any = claim.get("heading")
-        if type(heading) in (int, float) and math.isfinite(heading):
-            return x, y, float(heading)
-        return x, y, r.heading
-
-    def _mark_returned(self, r: RobotRecord) -> None:
-        if r.status != RobotStatus.CONNECTED and r.tag not in self.competition.disqualified_robots:
-            r.status = RobotStatus.CONNECTED
-            self.emit("robot.returned", r.team, {"tag": r.tag, "x": r.x, "y": r.y})
-
     # ------------------------------------------------------------------ timers
     def _queue_positions(self) -> None:
         """Queue the newest pose of every robot that reported since the last batch for publishing,
         in ``robot.positions`` events per team of at most :data:`POSE_CHUNK` robots, one per loop
         turn: however often robots report, subscribers get at most ``pose_hz`` positions per robot
         per second (conflation)."""
-        posed, self._posed = self._posed, {}
+        posed, self.match.posed = self.match.posed, {}
         for team in sorted(posed):
             tags = sorted(posed[team])
             for k in range(0, len(tags), POSE_CHUNK):
@@ -828,14 +771,9 @@ class Core:
     def _publish_chunk(self, team: str, tags: list[int]) -> None:
         """One ``robot.positions`` event for robots ``tags`` of ``team``. A robot that was lost or
         left since it reported is left out: its ``robot.lost``/``robot.left`` went first."""
-        robots = self.registry.robots
-        connected = RobotStatus.CONNECTED
-        rows = [r for r in map(robots.__getitem__, tags) if r.status is connected]
-        if rows:
-            self.emit("robot.positions", team, {
-                "team": team, "tags": [r.tag for r in rows], "x": [r.x for r in rows],
-                "y": [r.y for r in rows], "heading": [r.heading for r in rows],
-                "moving": [r.moving for r in rows], "sigma": [r.sigma for r in rows]}, log_it=False)
+        batch = self.match.position_batch(team, tags)
+        if batch is not None:
+            self.emit("robot.positions", team, batch, log_it=False)
 
     def _publish_positions(self) -> None:
         """Publish every robot that reported since the last batch now (a replay's step)."""
@@ -847,33 +785,30 @@ class Core:
         """Queue the robots that moved since the last heartbeat for the log, as batched records of
         at most :data:`POSE_CHUNK` robots (the feed had a batch every pose period; the log keeps one
         sample per robot per beat)."""
-        if not self._moved or self.storage_fault is not None:  # samples: none kept while the log is down
+        moved = self.match.moved
+        if not moved or self.storage_fault is not None:  # samples: none kept while the log is down
             return
-        tags = sorted(self._moved)
-        self._moved.clear()
+        tags = sorted(moved)
+        moved.clear()
         for k in range(0, len(tags), POSE_CHUNK):
             self._slices.append(partial(self._log_chunk, tags[k:k + POSE_CHUNK]))
 
     def _log_chunk(self, tags: list[int]) -> None:
         if self.storage_fault is not None:
             return
-        rows = [self.registry.robots[t] for t in tags]
-        self.events.append("robot.positions", None, {
-            "tags": tags, "x": [r.x for r in rows], "y": [r.y for r in rows],
-            "heading": [r.heading for r in rows]})
+        self.events.append("robot.positions", None, self.match.position_sample(tags))
 
     def _tick(self, now: float) -> None:
         """Heartbeats out, lost detection, idle sessions forgotten, the match clock, map deltas."""
         self._log_positions()
         if self._refused_anon:
             self._log_refused()
-        if self._implausible:
-            self._log_implausible()
+        self.match.tell_integrity()
         if ((self._zap is not None and self._zap.refusals_waiting) or (self._guard and self._guard.cuts_waiting)
                 or (self._pub_guard and self._pub_guard.cuts_waiting)):
             self._log_refused_handshakes()
         self.maps.push()
-        self.competition.tick(now)
+        self.match.contest.tick()
         hb = P.request("heartbeat", 0, {"t": time.time(), "core_id": self.core_id})
         limit = 3 * self.heartbeat
         for ident, s in list(self.sessions.items()):
@@ -884,7 +819,7 @@ class Core:
                     for tag in s.tags:
                         r = self.registry.robots[tag]
                         if r.session == ident:
-                            self._mark_lost(r, f"no message from its host for {silent:.1f} s")
+                            self.match.lost(r, f"no message from its host for {silent:.1f} s")
             elif s.watching:
                 self.send(ident, hb, True)
                 if silent > max(SESSION_IDLE / 10, limit * 10):
@@ -942,7 +877,7 @@ class Core:
             self._release_robots(old, "its host's connection now speaks for someone else")
         return {"session": sess.secret, "role": who.role, "team": who.team, "protocol": P.PROTOCOL_VERSION,
                 "core_id": self.core_id,
-                "match": self.competition.state(),
+                "match": self.match.contest.state(),
                 "pub_port": self.pub_port, "heartbeat": self.heartbeat, "teams": self.tokens.teams,
                 "arena": {"name": self.scenario.name, "width": self._arena_payload["width"],
                           "height": self._arena_payload["height"]}}
@@ -952,7 +887,7 @@ class Core:
         for tag in s.tags:
             r = self.registry.robots[tag]
             if r.session == s.ident:
-                self._mark_lost(r, why)
+                self.match.lost(r, why)
                 r.session = None
         s.tags = set()
 
@@ -961,8 +896,8 @@ class Core:
         if s is not None:
             for tag in s.tags:
                 r = self.registry.robots[tag]
-                if r.session == ident and r.status == RobotStatus.LOST:
-                    self._mark_returned(r)
+                if r.session == ident and r.status is RobotStatus.LOST:
+                    self.match.heard(r)
         return None
 
     def _on_bye(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
@@ -977,8 +912,8 @@ class Core:
         self._forget(s.ident)
         for tag in s.tags:
             r = self.registry.robots[tag]
-            if r.session == s.ident and r.status == RobotStatus.CONNECTED:
-                self._mark_lost(r, why)
+            if r.session == s.ident:
+                self.match.lost(r, why)
 
     def _on_watch(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
         s = self.session(ident)
@@ -1024,52 +959,25 @@ class Core:
     def _on_snapshot(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
         s = self.session(ident)
         team = None if s.who.role == "referee" else s.who.team
-        return {"arena": self._arena_payload, "teams": self.tokens.teams,
-                "robots": [r.summary() for r in self.registry.of_team(team)], "seq": self.events.seq,
-                "match": self.competition.state(), "score": self.competition.board.table(),
-                "finds": [f for f in self.competition.finds if team is None or f["team"] == team]}
+        return dict(self.match.snapshot(team), arena=self._arena_payload, teams=self.tokens.teams,
+                    seq=self.events.seq)
 
     def _on_give(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
         s = self.session(ident)
         r = self.robot_for(ident, msg.body["tag"])
-        return self.give_task(r, msg.body["task"], msg.body.get("args", []), bool(msg.body.get("queue", False)),
-                              s.who.name)
-
-    def give_task(self, r: RobotRecord, name: str, args: list[Any], queue: bool, by: str) -> dict[str, Any]:
-        """Give robot ``r`` a task now (interrupting) or queued; ownership is the caller's check."""
-        self.competition.check_robot(r.tag)
-        self.competition.check_phase("give")
-        spec = find_spec(r.tasks, name, r.tag)
-        args = check_args(spec, args)
-        if r.status == RobotStatus.LEFT:
-            raise UnavailableError(f"robot {r.tag} has left the arena; it takes no tasks until it returns")
-        if not queue and r.status != RobotStatus.CONNECTED:
-            raise UnavailableError(
-                f"robot {r.tag} is {r.status} and cannot start a task now; queue it (--queue) for when it returns")
-        t = self._new_task(r, spec["name"], args, TaskMode.QUEUE if queue else TaskMode.NOW, by)
-        self.emit("task.given", r.team, {"tag": r.tag, "task_id": t.id, "name": t.name, "args": args,
-                                          "mode": t.mode, "by": by})
-        started = self.tasks.give(r, t, idle_ok=r.status == RobotStatus.CONNECTED)
-        if started is not None:
-            self._send_host(r, "task.start", started.wire())
-        if queue:
-            return {"task_id": t.id, "mode": "queue", "position": len(r.queue)}
-        if started is t:
-            return {"task_id": t.id, "mode": "now", "interrupts": None}
-        assert r.current is not None  # t waits for the running task's next movement boundary
-        self._send_host(r, "task.interrupt", t.wire())
-        return {"task_id": t.id, "mode": "now", "interrupts": r.current.id}
+        return self.match.give(r, msg.body["task"], msg.body.get("args", []), bool(msg.body.get("queue", False)),
+                               s.who.name)
 
     def _on_stop(self, ident: bytes, msg: P.Message) -> None:
         r = self.robot_for(ident, msg.body["tag"])
-        self.competition.check_robot(r.tag)
-        if r.status != RobotStatus.CONNECTED or r.session is None:
+        self.match.contest.check_robot(r.tag)
+        if r.status is not RobotStatus.CONNECTED or r.session is None:
             raise UnavailableError(
                 f"robot {r.tag} is {r.status}; it halts by itself when it loses the core, and cannot be reached now")
         cid = self.new_request_id()
         now = time.monotonic()
         self.pending_stops[cid] = PendingStop(ident, msg.id, r.tag, now + STOP_TIMEOUT, now)
-        self._send_host(r, "stop", {"tag": r.tag}, cid)
+        self.to_host(r, "stop", {"tag": r.tag}, cid)
         return None  # the reply goes out when the robot confirms (see _on_host_reply)
 
     def _on_hosts(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
@@ -1104,27 +1012,11 @@ class Core:
                                                          "the referee handed this robot over to another host"}))
                 if old in self.sessions:
                     self.sessions[old].tags.discard(tag)
-            if r.status == RobotStatus.CONNECTED:
-                r.status = RobotStatus.LOST
-                r.moving = False
-                self.emit("robot.lost", r.team, {"tag": tag, "x": r.x, "y": r.y,
-                                                 "message": "handed over by the referee; waiting for its next host"})
-                self.competition.feed({"kind": "robot.lost", "team": r.team, "tag": tag})
-            r.session = None
+            self.match.handed_over(r, who.name, old.hex() if old else None)
             released.append(tag)
-            self.emit("robot.handover", r.team, {"tag": tag, "by": who.name, "from": old.hex() if old else None},
-                      public=False)
         return {"released": released}
 
     # ------------------------------------------------------------------ robot-host requests
-    def robot_limit(self, team: str) -> int:
-        """How many robots ``team`` may register: ``--robots``, else what the scenario gives it
-        (a team the scenario does not name: as many as its largest team)."""
-        if self.robots_per_team is not None:
-            return self.robots_per_team
-        counts = {t.name: t.robots for t in self.scenario.teams}
-        return counts.get(team, max(counts.values(), default=1))
-
     def _on_register(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
         b = msg.body
         who = self.tokens.lookup(b["token"])
@@ -1136,30 +1028,13 @@ class Core:
                 "for the world (see docs/security.md, 'Who runs what')")
         self._check_key(who)
         robot_id = b["robot_id"]
-        if not (0 < len(robot_id) <= 64):
-            raise FieldError("'robot_id' must have 1 to 64 characters")
-        specs = check_specs(b.get("tasks", []))
         sess = self.sessions.get(ident)
         if sess is not None and sess.who != who:
             raise AuthError(f"this connection's session speaks for {sess.who.name}; robots of "
                             f"{who.name} register on a connection of their own")
-        r = self.registry.lookup(team, robot_id)
-        returning = r is not None
-        if r is None:
-            limit = self.robot_limit(team)
-            have = len(self.registry.of_team(team))
-            if have >= limit:
-                raise ForbiddenError(
-                    f"team {team} has its {limit} robot{'s' if limit != 1 else ''} already (the scenario gives "
-                    f"each team {limit}); robot {robot_id!r} is one too many and was not registered. A robot "
-                    "that comes back registers with its old robot id; the organiser may allow more with "
-                    "'robo-comp core --robots N'")
-            if "x" in b and "y" in b:
-                where = self.gate.where(float(b["x"]), float(b["y"]))
-                if not where.ok:
-                    raise ImplausibleError(f"robot {robot_id!r} cannot start there: {where.reason}")
-        elif (r.session is not None and r.session != ident and r.session in self.sessions
-              and r.status == RobotStatus.CONNECTED):
+        r = self.match.admit(team, robot_id, b)  # the scenario's robots, a free start: the match's rules
+        if (r is not None and r.session is not None and r.session != ident and r.session in self.sessions
+                and r.status is RobotStatus.CONNECTED):
             holder = self.sessions[r.session]
             raise HeldError(
                 f"robot {robot_id!r} (tag {r.tag}) of team {team} is held by another robot host (connected "
@@ -1174,111 +1049,30 @@ class Core:
                 raise RateLimitError(full)
             sess = Session(ident, who, "robots", time.monotonic(), key=self._key_owner)
             self.sessions[ident] = sess
-        if r is None:
-            r = self.registry.add(team, robot_id)
-        elif r.session is not None and r.session != ident and r.session in self.sessions:
+        if r is not None and r.session is not None and r.session != ident and r.session in self.sessions:
             self.sessions[r.session].tags.discard(r.tag)
-        r.session = ident
-        sess.tags.add(r.tag)
-        r.tasks = specs
-        declared = b.get("speed")
-        speed = min(self.max_speed, float(declared)) if declared and declared > 0 else self._default_speed
-        r.track.speed, r.track.cap = speed, self.gate.capacity(speed)
-        self._registered_pose(r, b, returning)
-        was = r.status
-        r.status = RobotStatus.DISQUALIFIED if r.tag in self.competition.disqualified_robots else RobotStatus.CONNECTED
-        r.last_report = time.time()
-        if returning:
-            done = b.get("done")
-            if done is not None and r.current is not None and done.get("task_id") == r.current.id:
-                # the host finished it while the core could not hear (the core was down, the link
-                # cut): its task.done comes with the registration; taken once, like task.done
-                self._take_done(r, done)
-            elif r.current is not None and r.current.id != b.get("task_id"):
-                if b.get("fresh", True):
-                    # the host no longer runs what we think it runs (it restarted): start afresh
-                    self.tasks.finish(r, r.current, False, "the robot's host restarted and lost this task",
-                                      state=TaskState.CANCELLED)
-                # else the host never got this task (the core went down, or the link, before it
-                # arrived): the reply below hands it over again
-            self.emit("robot.returned", r.team, {"tag": r.tag, "x": r.x, "y": r.y, "was": was,
-                                                 "tasks": list(specs.values())})
-        else:
-            self.emit("robot.registered", r.team, {"tag": r.tag, "team": r.team, "robot_id": robot_id,
-                                                   "x": r.x, "y": r.y, "heading": r.heading,
-                                                   "tasks": list(specs.values())})
-        self.tasks.advance(r)
-        return {"session": sess.secret, "tag": r.tag, "team": r.team, "returning": returning,
-                "heartbeat": self.heartbeat,
-                "task": r.current.wire() if r.current else None,
-                "hold": self.competition.phase in ("paused", "finished")}
-
-    def _registered_pose(self, r: RobotRecord, b: dict[str, Any], returning: bool) -> None:
-        """Take the pose a robot registers with, if it could be there: a new robot anywhere free in
-        the arena, a returning one within what it could have driven while it was away (after a core
-        restart, anywhere free: this core never placed it)."""
-        if "heading" in b:
-            r.heading = float(b["heading"])
-        if "x" in b and "y" in b:
-            x, y = float(b["x"]), float(b["y"])
-            verdict = self.gate.admit(r.track, x, y, 0.0, time.monotonic(), away=returning)
-            if verdict.ok:
-                r.x, r.y = x, y
-            else:
-                self._disbelieve(r, "pose", verdict.reason)
-
-    def _disbelieve(self, r: RobotRecord, kind: str, why: str) -> None:
-        """A claim about robot ``r`` (a ``pose``, a ``picture``'s or a ``bump``'s place) was not
-        believed: counted, and told to the referee in one ``integrity`` event per robot and kind a beat."""
-        row = self._implausible.get((r.tag, kind))
-        if row is None:
-            self._implausible[(r.tag, kind)] = [1, why]
-        else:
-            row[0] += 1
-            row[1] = why
-
-    def _log_implausible(self) -> None:
-        """The ``integrity`` events (referee only) of the claims not believed since the last beat."""
-        rows, self._implausible = self._implausible, {}
-        for (tag, kind), (count, why) in sorted(rows.items()):
-            r = self.registry.robots[tag]
-            self.emit("integrity", None, {"kind": kind, "tag": tag, "team": r.team, "count": count,
-                                          "x": r.x, "y": r.y, "message": why}, public=False)
+        reply = self.match.register(team, robot_id, ident, b)
+        sess.tags.add(reply["tag"])
+        return dict(reply, session=sess.secret, heartbeat=self.heartbeat)
 
     def _on_report(self, ident: bytes, msg: P.Message) -> None:
-        """One robot's pose (a row of :meth:`_take_rows`, without its loop)."""
+        """One robot's pose (a row of the match's ``take_rows``, without its loop)."""
         b = msg.body
         r = self.hosted(ident, b["tag"])
-        x, y = b["x"], b["y"]
-        mono = time.monotonic()
-        if not PoseGate.quick(r.track, x, y, 0.0, mono):
-            why = self._pose_refusal(r, x, y, 0.0, mono)
-            if why:
-                raise ImplausibleError(f"robot {r.tag}'s pose was not taken: {why}")
-        r.x, r.y, r.heading, r.moving, r.sigma = x, y, b["heading"], b.get("moving", False), 0.0
-        if b.get("sensors") is not None:
-            r.sensors = b["sensors"]
-        r.last_report = time.time()
-        self._moved.add(r.tag)
-        self._posed.setdefault(r.team, set()).add(r.tag)
+        self.match.report(r, b["x"], b["y"], b["heading"], b.get("moving", False), b.get("sensors"))
         return None
-
-    def _pose_refusal(self, r: RobotRecord, x: float, y: float, sigma: float, now: float) -> str:
-        """Why robot ``r`` could not be at ``(x, y)`` now ("" when it could: ``PoseGate.admit``, and
-        its track moves on); a refused pose is counted for the referee's ``integrity`` event."""
-        verdict = self.gate.admit(r.track, x, y, sigma, now)
-        if not verdict.ok:
-            self._disbelieve(r, "pose", verdict.reason)
-        return verdict.reason
 
     def _on_reports(self, ident: bytes, msg: P.Message) -> None:
         """Many robots of one host in one message (a host reports its robots in batches): the rows of
-        :meth:`_take_rows`."""
+        the match's ``take_rows``."""
         b = msg.body
         n = P.check_reports(b)
         self._check_known(ident)
-        foreign, refused = self._take_rows(ident, b["tags"], b["x"], b["y"], b["heading"], b.get("moving") or [False] * n,
-                                           b.get("sensors") or [None] * n, b.get("sigma") or [0.0] * n)
+        team = self.sessions[ident].who.team
+        assert team is not None  # a host's session: register needs a team's host token
+        foreign, refused = self.match.take_rows(ident, team, b["tags"], b["x"], b["y"], b["heading"],
+                                                b.get("moving") or [False] * n, b.get("sensors") or [None] * n,
+                                                b.get("sigma") or [0.0] * n)
         if foreign:  # the others' rows were taken
             raise NotYoursError(f"robots {foreign[:10]} are not hosted by this connection; register them first")
         if refused:
@@ -1286,128 +1080,22 @@ class Core:
                                    f"referee sees why): {refused[0][1]}")
         return None
 
-    def _take_rows(self, ident: bytes, tags: Sequence[int], xs: Sequence[float], ys: Sequence[float],
-                   headings: Sequence[float], moving: Sequence[bool], sensors: Sequence[dict[str, Any] | None],
-                   sigmas: Sequence[float]) -> tuple[list[int], list[tuple[int, str]]]:
-        """Take the poses of robots hosted by ``ident`` (published in the next ``robot.positions``
-        batch); returns the tags not hosted there and the refused rows with why. The rows are taken in
-        one loop without calls (the checks of :meth:`hosted` and :meth:`PoseGate.admit`'s common case,
-        inlined): a core with 10,000 robots at 10 Hz takes 100,000 rows a second."""
-        now = time.time()
-        mono = time.monotonic()
-        foreign = []
-        refused = []
-        robots = self.registry.robots
-        took: list[int] = []  # published in the next batch; all of the host's team (it registered them)
-        taken = took.append
-        connected = RobotStatus.CONNECTED
-        sqrt = math.sqrt
-        max_sigma = MAX_SIGMA
-        max_noise = MAX_NOISE
-        try:
-            for tag, x, y, h, mv, sn, sg in zip(tags, xs, ys, headings, moving, sensors, sigmas):
-                r = robots.get(tag)
-                if r is None or r.session != ident:
-                    foreign.append(tag)
-                    continue
-                if r.status is not connected:
-                    self._mark_returned(r)
-                # PoseGate.quick inlined (a call a row costs a fifth of the row): the common case of
-                # PoseGate.admit. The rest (a new anchor once a second, refusals, longer moves) asks
-                # admit, which refills.
-                tr = r.track
-                until, x_lo, x_hi, y_lo, y_hi = tr.box
-                lx, ly, lnoise, left = tr.hop
-                dx = x - lx
-                dy = y - ly
-                noise = 3.0 * sg if sg < max_sigma else max_noise
-                hop = sqrt(dx * dx + dy * dy) - lnoise - noise
-                if mono < until and x_lo <= x <= x_hi and y_lo <= y <= y_hi and hop <= left:
-                    tr.hop = (x, y, noise, left - hop if hop > 0.0 else left)
-                else:
-                    why = self._pose_refusal(r, x, y, sg, mono)
-                    if why:
-                        refused.append((tag, why))
-                        continue
-                r.x = x  # one store each: a five-way tuple assignment builds and unpacks a tuple a row
-                r.y = y
-                r.heading = h
-                r.moving = mv
-                r.sigma = sg
-                if sn is not None:
-                    r.sensors = sn
-                r.last_report = now
-                taken(tag)
-        finally:
-            if took:
-                self._moved.update(took)
-                team = self.sessions[ident].who.team
-                assert team is not None  # a host's session: register needs a team's host token
-                self._posed.setdefault(team, set()).update(took)
-        return foreign, refused
-
     def _on_task_next(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        r = self.hosted(ident, msg.body["tag"])
-        t = r.current or self.tasks.advance(r)
+        t = self.match.task_next(self.hosted(ident, msg.body["tag"]))
         return {"task": t.wire() if t is not None else None}
 
     def _on_task_done(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        b = msg.body
-        r = self.hosted(ident, b["tag"])
-        tid = b["task_id"]
-        if r.current is None or r.current.id != tid:
-            if any(t.id == tid for t in r.done):  # sent again (its answer was lost): taken once
-                return {"next": r.current.wire() if r.current is not None else None, "duplicate": True}
-            raise FieldError(f"task {tid} is not robot {r.tag}'s current task")
-        nxt = self._take_done(r, b)
-        return {"next": nxt.wire() if nxt is not None else None}
-
-    def _take_done(self, r: RobotRecord, b: dict[str, Any]) -> TaskRecord | None:
-        """Finish ``r``'s current task with the host's report ``b`` (ok, status, result); return
-        the task that starts next."""
-        result = b.get("result")
-        if len(P.pack(result)) > MAX_RESULT:
-            raise TooLargeError(f"a task result may be at most {MAX_RESULT} bytes once packed")
-        if not isinstance(b.get("ok"), bool) or not isinstance(b.get("status"), str):
-            raise FieldError("a task's report needs 'ok' (true or false) and 'status' (text)")
-        return self.tasks.complete(r, b["ok"], b["status"][:500], result)
+        return self.match.task_done(self.hosted(ident, msg.body["tag"]), msg.body)
 
     def _on_radio(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
         b = msg.body
         r = self.hosted(ident, b["tag"])
-        size = len(P.pack(b["data"]))
-        if size > P.MAX_RADIO:
-            raise TooLargeError(f"a radio message may be at most {P.MAX_RADIO} bytes; this one is {size}")
-        now = time.monotonic()
-        r.radio_allowance = min(P.RADIO_RATE, r.radio_allowance + (now - r.radio_checked) * P.RADIO_RATE)
-        r.radio_checked = now
-        if r.radio_allowance < 1.0:
-            raise RateLimitError(f"robot {r.tag} may send at most {P.RADIO_RATE:.0f} radio messages per second")
-        r.radio_allowance -= 1.0
-        to = b.get("to")
-        if to is None:
-            targets = [x for x in self.registry.of_team(r.team) if x.tag != r.tag]
-        else:
-            t = self.registry.robots.get(to)
-            if t is None or t.team != r.team:
-                raise NotYoursError(f"robot {to} is not on team {r.team}; the radio reaches your own team only")
-            targets = [t]
-        delivered = 0
-        body = {"from": r.tag, "to": to, "data": b["data"]}
-        for t in targets:
-            if t.status == RobotStatus.CONNECTED and t.session is not None:
-                self.send(t.session, P.request("radio", 0, dict(body, tag=t.tag)))
-                delivered += 1
-        self.emit("radio", r.team, dict(body, delivered=delivered), public=False)
-        return {"delivered": delivered}
+        return {"delivered": self.match.radio(r, b.get("to"), b["data"])}
 
     def _on_leave(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
         r = self.hosted(ident, msg.body["tag"])
-        r.status = RobotStatus.LEFT
-        r.moving = False
-        r.session = None
+        self.match.leave(r)
         self.sessions[ident].tags.discard(r.tag)
-        self.emit("robot.left", r.team, {"tag": r.tag, "x": r.x, "y": r.y})
         return {}
 
     def _on_host_reply(self, ident: bytes, msg: P.Message) -> None:
@@ -1430,19 +1118,8 @@ class Core:
             self.send(p.ident, P.error_reply(p.req_id, RoboCompError(
                 f"robot {p.tag} could not stop: {err.get('message', 'no reason given')}")), True)
             return None
-        body = body or {}
-        if type(body.get("heading")) in (int, float) and math.isfinite(body["heading"]):
-            r.heading = float(body["heading"])
-        x: Any = body.get("x")
-        y: Any = body.get("y")
-        if type(x) in (int, float) and type(y) in (int, float) and not self._pose_refusal(r, x, y, r.sigma,
-                                                                                         time.monotonic()):
-            r.x, r.y = float(x), float(y)  # where it halted, if it could be there (else where it is tracked)
-        r.moving = False
-        cancelled = self.tasks.cancel_all(r, "stopped", "cancelled by stop")
         ms = (time.monotonic() - p.t0) * 1000
-        self.emit("robot.stopped", r.team, {"tag": r.tag, "x": r.x, "y": r.y, "cancelled": cancelled,
-                                             "ms": round(ms, 3)})
+        cancelled = self.match.stopped(r, body or {}, ms)
         self.send(p.ident, P.ok_reply(p.req_id, {  # a stop is answered at once, even during a storage fault
             "tag": r.tag, "x": r.x, "y": r.y, "heading": r.heading, "cancelled": cancelled, "ms": ms}), True)
         return None

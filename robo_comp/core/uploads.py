@@ -18,20 +18,16 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from robo_comp import protocol as P
 from robo_comp.core.desk import Access, Outbox
 from robo_comp.match.registry import RobotRecord
-from robo_comp.protocol.states import RobotStatus
-from robo_comp.protocol.taskspec import check_specs
+from robo_comp.protocol.states import Phase, RobotStatus
 from robo_comp.errors import (
     FieldError, ForbiddenError, NotYoursError, RoboCompError, UnavailableError, UploadError,
 )
 from robo_comp.sandbox import contract
-
-if TYPE_CHECKING:  # pragma: no cover
-    from robo_comp.core.competition import Competition
 
 #: Most robots one upload may go to.
 MAX_TAGS = 64
@@ -65,11 +61,10 @@ class PendingUpload:
 class UploadDesk:
     """The core's upload service: handlers, the forwarding to hosts and their answers."""
 
-    def __init__(self, access: Access, out: Outbox, competition: Competition, state_dir: Path,
-                 approve_uploads: bool = False) -> None:
+    def __init__(self, access: Access, out: Outbox, state_dir: Path, approve_uploads: bool = False) -> None:
         self.access = access
         self.out = out
-        self.competition = competition
+        self.contest = access.match.contest
         self.approve_uploads = approve_uploads
         self.asks: dict[int, HostAsk] = {}  # by forwarded request id (an ask spanning hosts: several)
         self.pending: dict[int, PendingUpload] = {}
@@ -108,7 +103,7 @@ class UploadDesk:
     def _on_upload(self, ident: bytes, msg: P.Message) -> dict[str, Any] | None:
         s = self.access.session(ident)
         robots = self._robots(ident, msg.body["tags"])
-        self.competition.check_phase("upload")
+        self.contest.check_phase("upload")
         filename, source = self._source(msg.body)
         sha = contract.source_hash(source)
         team = robots[0].team
@@ -118,7 +113,7 @@ class UploadDesk:
         body = {"filename": filename, "source": source, "sha256": sha, "run": bool(msg.body.get("run"))}
         tags = [r.tag for r in robots]
         if (self.approve_uploads and s.who.role == "team"
-                and self.competition.phase == "running"):
+                and self.contest.phase is Phase.RUNNING):
             uid = self.next_upload
             self.next_upload += 1
             self.pending[uid] = PendingUpload(uid, team, s.who.name, tags, body)
@@ -189,8 +184,7 @@ class UploadDesk:
 
     def _set_tasks(self, r: RobotRecord, adverts: list[Any]) -> None:
         """What robot ``r`` advertises from now on (checked like at registration)."""
-        r.tasks = check_specs(adverts)
-        self.out.emit("robot.tasks", r.team, {"tag": r.tag, "tasks": list(r.tasks.values())})
+        self.access.match.advertise(r, adverts)
 
     def _on_log(self, ident: bytes, msg: P.Message) -> None:
         tag = msg.body.get("tag")
@@ -301,7 +295,7 @@ class UploadDesk:
             if first is None or r is None:
                 continue
             try:
-                self.access.give_task(r, first, [], queue=False, by=by)
+                self.access.match.give(r, first, [], queue=False, by=by)
             except RoboCompError as e:
                 self.out.emit("refused", r.team, {"by": by, "type": "upload", "code": e.code,
                                                    "message": f"could not run {first} on robot {r.tag}: "

@@ -71,6 +71,9 @@ def add_parser(sub: Any) -> None:
     r.add_argument("--workers", type=int, default=None, help="local processes (default: the CPU count)")
     r.add_argument("--ray", metavar="ADDRESS", help="play on a Ray cluster: auto (this machine's cluster), "
                    "an address such as 10.0.0.1:6379, or local (start one here)")
+    from robo_comp.sandbox import oswall
+
+    oswall.add_option(r)
     r.set_defaults(func=_run)
 
     t = lsub.add_parser("table", help="the leaderboard (μ − 3σ)")
@@ -201,7 +204,11 @@ def runner_for(args: argparse.Namespace) -> Any:
     from robo_comp.league.runner import LocalRunner, RayRunner
 
     if args.ray:
-        return RayRunner(args.ray)
+        from robo_comp.sandbox import oswall
+
+        # the cluster's workers do not inherit this environment: the OS layer's setting goes with the job
+        setting = os.environ.get(oswall.ENV)
+        return RayRunner(args.ray, **({"runtime_env": {"env_vars": {oswall.ENV: setting}}} if setting else {}))
     return LocalRunner(args.workers or os.cpu_count() or 1)
 
 
@@ -212,7 +219,12 @@ def _run(args: argparse.Namespace) -> int:
         raise FieldError("--teams, --rounds and --unranked choose what a --format schedules; without "
                          "--format, 'league run' plays the matches already scheduled")
     from robo_comp.league.runner import Stopped
+    from robo_comp.sandbox import oswall
 
+    if args.ray:  # the workers' machines run the team code: they get the organiser's setting
+        oswall.choose(args.os_sandbox)
+    else:  # this machine does: a run that cannot wall team code stops before its first match
+        oswall.at_start("league run", args.os_sandbox)
     with _store(args) as store:
         store.lock()  # one run per league; the kernel drops it however this process ends
         runner = runner_for(args)

@@ -1,6 +1,6 @@
 """One league match: the entrants' code in the real sandbox, played by the bench's engine.
 
-A league match is the official match engine (:class:`robo_comp.testing.bench.Bench`: the robot
+A league match is the official match engine (:class:`robo_comp.engine.bench.Bench`: the robot
 host's call table, the core's find judge and scoring rules, the core's event names) run on a
 simulated clock, so the same scenario, seed and code give the same scores and a byte-identical
 event log. :func:`play_match` takes and returns plain data, so a process pool or a Ray worker
@@ -35,7 +35,7 @@ COLOURS = ("#e6194b", "#4363d8", "#3cb44b", "#f58231", "#911eb4", "#42d4f4", "#f
 def load_match_scenario(spec: str) -> Any:
     """The scenario of a match: a bundled name (``office``), a file path, or
     ``generated:SEED[:DIFFICULTY[:TEAMS]]`` (a procedurally generated one)."""
-    from robo_comp.testing.match import resolve_scenario
+    from robo_comp.world.scenario import resolve_scenario
     from robo_comp.world.scenario import load_scenario, parse_scenario
 
     if spec.startswith("generated:"):
@@ -64,7 +64,7 @@ def match_scenario(scenario: Any, teams: list[str], robots: int, seconds: float)
     return dataclasses.replace(scenario, teams=placed, duration=float(seconds))
 
 
-#: A league match's limits per entrant (see :class:`robo_comp.testing.bench.Budget`): events
+#: A league match's limits per entrant (see :class:`robo_comp.engine.budget.Budget`): events
 #: and log bytes per robot per simulated second, CPU seconds of its code, real seconds the
 #: match may wait for its code (a backstop: real time grows with the machine's load) and
 #: memory (its sandbox's and the worker's growth for it) per match. A normal entrant uses a
@@ -80,7 +80,7 @@ MEMORY_MIB = 512.0
 def league_budget(robots: int, seconds: float, spec: dict[str, Any] | None = None) -> Any:
     """The budget of a league match of ``robots`` robots a team and ``seconds`` simulated
     seconds; ``spec["limits"]`` may override any field (for tests and organisers)."""
-    from robo_comp.testing.bench import Budget
+    from robo_comp.engine.budget import Budget
 
     scale = max(1, robots) * max(1.0, seconds)
     fields: dict[str, Any] = {"events": int(EVENTS_PER_ROBOT_SECOND * scale), "log_bytes": int(LOG_BYTES_PER_ROBOT_SECOND * scale),
@@ -104,7 +104,7 @@ def play_match(spec: dict[str, Any]) -> dict[str, Any]:
     (team → what its code ran into: sandbox limits that stopped a robot, calls the call
     budget held back, and its use of the match limits), for the student's match report.
     """
-    from robo_comp.testing.bench import Bench
+    from robo_comp.engine.bench import Bench
 
     t0 = time.perf_counter()
     teams = [e["team"] for e in spec["entrants"]]
@@ -115,7 +115,7 @@ def play_match(spec: dict[str, Any]) -> dict[str, Any]:
                               float(spec.get("seconds", 300)))
     budget = league_budget(robots, scenario.duration, spec)
     with Bench(scenario, teams={t: robots for t in teams}, seed=int(spec.get("seed", 0)),
-               max_sim_seconds=scenario.duration, budget=budget) as bench:
+               max_sim_seconds=scenario.duration, budget=budget, practice=False) as bench:
         for entrant in spec["entrants"]:
             for name, source in sorted(entrant["files"].items()):
                 bench.load(name, source, team=entrant["team"])
@@ -128,11 +128,12 @@ def play_match(spec: dict[str, Any]) -> dict[str, Any]:
         restarts: dict[tuple[int, str], int] = {}
 
         def again(tag: int, outcome: dict[str, Any]) -> list[tuple[str, list[Any]]]:
-            why = outcome.get("reason")
-            if outcome["ok"] or outcome.get("start_error") or why not in ("stopped", "error"):
+            result = outcome.get("result")
+            why = result.get("reason") if isinstance(result, dict) else None
+            if outcome["ok"] or outcome.get("refused") or why not in ("bumped", "error"):
                 return []  # done, or a broken limit (the sandbox said which)
             n = restarts.get((tag, why), 0)
-            if n >= (RESTARTS if why == "stopped" else RETRIES):
+            if n >= (RESTARTS if why == "bumped" else RETRIES):
                 return []
             restarts[(tag, why)] = n + 1
             return [(PLAY, list(plan[tag][0][1]))]
@@ -162,7 +163,8 @@ def limits_hit(events: list[dict[str, Any]], team: str, used: dict[str, float], 
     (calls the call budget answered later) and ``use`` (its share of each match limit, 0..1;
     the CPU, real-time and memory shares are not deterministic and so not in the result)."""
     stopped = sorted({str(e.get("status")) for e in events
-                      if e["topic"] == "task.done" and e["team"] == team and e.get("reason") == "limit"})
+                      if e["topic"] == "task.done" and e["team"] == team and isinstance(e.get("result"), dict)
+                      and e["result"].get("reason") == "limit"})
     use = {}
     for name in ("events", "log_bytes"):
         cap = getattr(budget, name)

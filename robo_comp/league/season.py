@@ -85,7 +85,7 @@ def check_submission(files: dict[str, str]) -> dict[str, dict[str, Any]]:
     live match is; the modules together must advertise ``play(robot, width, height, index,
     count)``. Returns the advertised tasks; raises :class:`UploadError` with the file and
     line, or :class:`FieldError` when ``play`` is missing."""
-    from robo_comp.testing.bench import Bench
+    from robo_comp.engine.bench import Bench
 
     with Bench("demo_room", robots=1) as bench:
         for name, source in sorted(files.items()):

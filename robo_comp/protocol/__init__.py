@@ -30,7 +30,8 @@ from robo_comp.protocol.messages import (
     validate,
 )
 from robo_comp.protocol.replies import reply_body, reply_error
-from robo_comp.protocol.topics import EVERYONE, PRIVATE_KEYS, PRIVATE_TOPICS, PUBLIC_TOPICS, TOPICS, public_event, public_view
+from robo_comp.protocol.topics import (EVERYONE, PRIVATE_KEYS, PRIVATE_TOPICS, PUBLIC_TOPICS, TOPICS, EventView,
+                                       public_event, public_view)
 from robo_comp.protocol.wire import (
     INSTANCE_MAX,
     INSTANCE_MIN,
@@ -57,7 +58,7 @@ from robo_comp.protocol.wire import (
 
 __all__ = [
     "ANY_ROLE", "CONSOLE_ONLY", "HOST_ONLY", "ROLE_MESSAGES", "INSTANCE_MAX", "INSTANCE_MIN",
-    "CORE_TO_HOST", "EVERYONE", "MAX_FRAME", "MAX_RADIO", "MAX_REPORTS", "NOTIFICATIONS", "OPENING",
+    "CORE_TO_HOST", "EVERYONE", "EventView", "MAX_FRAME", "MAX_RADIO", "MAX_REPORTS", "NOTIFICATIONS", "OPENING",
     "PRIVATE_KEYS", "PRIVATE_TOPICS", "PUBLIC_TOPICS", "PROTOCOL_VERSION", "RADIO_RATE", "REQUESTS", "ROUTING_ID_BYTES", "SESSION_BYTES",
     "SESSION_KEY", "SOCKET_MAX_FRAME", "TOPICS", "Message", "check_reports", "decode", "decode_envelope",
     "describe_type", "error_reply", "event_frames", "is_finite", "new_instance_id", "new_routing_id", "new_session_secret",

@@ -1,10 +1,12 @@
 """Event topics and what of an event the public may see: the one visibility table.
 
 Every public feed takes what it carries from :func:`public_event`: the core's live PUB socket
-(``Core.emit``), a replay core's PUB socket (``robo-comp replay``) and the public view of a web
-replay (``robo-comp web --replay``). So a recorded match shown to the public shows exactly what
-the live public feed showed, never more. A topic missing from :data:`PUBLIC_TOPICS` is never
-public (a new topic is private until it is listed here).
+(``Core.emit``), a replay core's PUB socket (``robo-comp replay``), the public view of a web
+replay (``robo-comp web --replay``) and a public MCAP export (``robo-comp export mcap``). So a
+recorded match shown to the public shows exactly what the live public feed showed, never more. A
+topic missing from :data:`PUBLIC_TOPICS` is never public (a new topic is private until it is
+listed here). :class:`EventView` is what a recorded match's views (public, a team's, the
+referee's) see of each logged event, from this table.
 """
 from __future__ import annotations
 
@@ -66,3 +68,33 @@ def public_view(data: dict[str, Any]) -> dict[str, Any]:
     if PRIVATE_KEYS & data.keys():
         return {k: v for k, v in data.items() if k not in PRIVATE_KEYS}
     return data
+
+
+class EventView:
+    """What one view of a recorded match sees of each logged event: ``public`` (what the public feeds
+    carried: :func:`public_event`), ``referee`` (everything) or a team's name (what that team's
+    consoles were sent live: its own events whole, the events for everyone, the arena, its own
+    robots' rows of the positions). Call it with the records in order: it learns the robots'
+    teams from ``robot.registered``. Used by the web replay's views and the MCAP export."""
+
+    def __init__(self, view: str) -> None:
+        self.view = view
+        self.team_of: dict[int, str | None] = {}  # robot tag -> its team, from robot.registered
+
+    def __call__(self, topic: str, team: str | None, data: dict[str, Any]) -> dict[str, Any] | None:
+        """The event's data as this view sees it (``None``: not at all)."""
+        if topic == "robot.registered":
+            tag = data.get("tag")
+            if isinstance(tag, int):  # what the core logs; a record without one names no robot
+                self.team_of[tag] = data.get("team")
+        view = self.view
+        if view == "public":
+            return public_event(topic, data)
+        if view == "referee" or topic == "core.started":
+            return data
+        if topic == "robot.positions" and team is None:  # the log's batch holds every team's robots
+            keep = [i for i, tag in enumerate(data.get("tags") or []) if self.team_of.get(tag) == view]
+            if not keep:
+                return None
+            return {k: ([v[i] for i in keep] if isinstance(v, list) else v) for k, v in data.items()}
+        return data if team in (view, EVERYONE) else None

@@ -12,8 +12,8 @@ again once with address randomisation off, see :func:`_without_aslr`.)
 
 Order of start-up (everything that needs files or new threads happens *before* the limits):
 import all we need → die-with-parent → drop root to ``nobody`` (if root) → start the worker
-threads → rlimits (CPU, address space, no new processes, no new files, no file writes, no core)
-→ send ``ready``. Then the main thread only reads messages from the parent and dispatches
+threads → inside the OS layer, the seccomp filter that refuses new programs → rlimits (CPU,
+address space, no new processes, no new files, no file writes, no core) → send ``ready``. Then the main thread only reads messages from the parent and dispatches
 them; team code (module bodies, ``init``, tasks) runs in the worker threads, one run each.
 
 Wire format (both directions): 4-byte big-endian length + a msgpack map with key ``t``.
@@ -38,7 +38,7 @@ from typing import Any, Callable, TypeGuard
 
 import msgpack
 
-from robo_comp.sandbox import explain
+from robo_comp.sandbox import explain, sysfilter
 
 HEADER = struct.Struct(">I")
 EXIT_MEMORY = 75
@@ -743,6 +743,20 @@ def _drop_root() -> None:
         pass
 
 
+def _no_new_programs(seccomp: list | None, debug: bool) -> None:
+    """Inside the OS layer: install the run filter (no ``execve`` from now on) on every thread
+    (sandbox/sysfilter.py). Team code never runs without it: a refusal ends the child."""
+    if seccomp is None:
+        return
+    try:
+        sysfilter.install(bytes(seccomp[0]), int(seccomp[1]))
+    except OSError:
+        if debug:
+            import traceback
+            traceback.print_exc(file=sys.__stderr__)
+        os._exit(EXIT_INTERNAL)
+
+
 def _set_limits(limits: dict, keep_fds: int) -> None:
     mib = 1024 * 1024
 
@@ -786,13 +800,15 @@ def _without_aslr() -> None:
 
 
 def _plant_hole(child: "Child") -> None:
-    """Tests only: every team module's builtins get the real ``os`` and ``socket`` modules (a
-    hole in the policy, to show what the OS layer still stops)."""
+    """Tests only: every team module's builtins get the real ``os``, ``socket`` and ``ctypes``
+    modules (a hole in the policy, to show what the OS layer still stops: ``ctypes`` makes any
+    system call)."""
+    import ctypes
     make = child.policy.make_globals
 
     def holed(module_name: str) -> dict[str, Any]:
         glb = make(module_name)
-        glb["__builtins__"].update(os=os, socket=socket)
+        glb["__builtins__"].update(os=os, socket=socket, ctypes=ctypes)
         return glb
 
     child.policy.make_globals = holed  # type: ignore[method-assign]
@@ -834,6 +850,7 @@ def main(argv: list[str] | None = None) -> None:
     sys.stdout = _CappedStream(child, "stdout")
     sys.stderr = _CappedStream(child, "stderr")
     _drop_root()
+    _no_new_programs(limits.get("seccomp"), limits.get("debug", False))
     _set_limits(limits, keep_fds=fd + 1)
     child.cpu_soft = -1
     child.refresh_cpu()

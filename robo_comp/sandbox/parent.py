@@ -103,9 +103,9 @@ class Limits:
     the team's modules; doubled each time it happens again, up to ``max_cooldown``."""
     max_cooldown: float = 600.0
     test_policy_hole: bool = False
-    """TESTS ONLY: team code finds the real ``os`` and ``socket`` modules among its builtins, a
-    planted hole in the policy through which tests check what the OS layer still stops
-    (sandbox/oswall.py)."""
+    """TESTS ONLY: team code finds the real ``os``, ``socket`` and ``ctypes`` modules among its
+    builtins, a planted hole in the policy through which tests check what the OS layer still
+    stops (sandbox/oswall.py, sandbox/sysfilter.py)."""
 
     def wire(self, seed: int) -> dict[str, Any]:
         """The subset the child needs."""
@@ -308,29 +308,36 @@ class Sandbox:
                "PYTHONHASHSEED": str(1 + self.seed % 4_294_967_295),
                "PATH": os.environ.get("PATH", "/usr/bin:/bin")}
         debug = os.environ.get("ROBO_COMP_SANDBOX_DEBUG") == "1"
-        import robo_comp
-        pkg_root = os.path.dirname(os.path.dirname(os.path.abspath(robo_comp.__file__)))
-        cmd = [sys.executable, "-s", "-P", "-B", "-c",  # -I without -E: isolated, but the env above is read
-               f"import sys; sys.path.insert(0, {pkg_root!r}); "
-               # no address reaches team code: sealed before the modules the child needs are imported
-               "from robo_comp.sandbox.determinism import seal_child; seal_child(); "
-               "from robo_comp.sandbox.child import main; main()",
-               "--fd", str(child.fileno()),
-               "--limits", msgpack.packb(dict(self.limits.wire(self.seed),
-                                              replayable=self.deterministic,
-                                              aslr_off=self.deterministic and not keep_aslr())).hex()]
-        wrapped = oswall.wrap(cmd, pkg_root)  # the OS layer (bubblewrap), or a clear refusal
-        self.os_sandbox = wrapped is not cmd
-        cmd = wrapped
+        pkg_root = oswall.package_root()
+        filter_fd = None
         try:
+            wall = oswall.wall(pkg_root)  # the OS layer (bubblewrap, seccomp), or a clear refusal
+            cmd = [sys.executable, "-s", "-P", "-B", "-c",  # -I without -E: isolated, but the env above is read
+                   f"import sys; sys.path.insert(0, {pkg_root!r}); "
+                   # no address reaches team code: sealed before the modules the child needs are imported
+                   "from robo_comp.sandbox.determinism import seal_child; seal_child(); "
+                   "from robo_comp.sandbox.child import main; main()",
+                   "--fd", str(child.fileno()),
+                   "--limits", msgpack.packb(dict(
+                       self.limits.wire(self.seed), replayable=self.deterministic,
+                       aslr_off=self.deterministic and not keep_aslr(),
+                       seccomp=None if wall is None else wall.child_filter())).hex()]
+            self.os_sandbox = wall is not None
+            if wall is not None:
+                cmd, filter_fd = wall.wrap(cmd)
             self.proc = subprocess.Popen(
                 cmd, stdin=subprocess.DEVNULL,
                 stdout=None if debug else subprocess.DEVNULL,
                 stderr=None if debug else subprocess.DEVNULL,
-                pass_fds=(child.fileno(),), start_new_session=True, close_fds=True, env=env,
-                cwd="/")
+                pass_fds=(child.fileno(),) if filter_fd is None else (child.fileno(), filter_fd),
+                start_new_session=True, close_fds=True, env=env, cwd="/")
+        except BaseException:
+            parent.close()
+            raise
         finally:
             child.close()
+            if filter_fd is not None:
+                os.close(filter_fd)
         parent.setblocking(False)
         self.sock = parent
         self._reader = FrameReader(self.limits.message_bytes)

@@ -17,7 +17,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from robo_comp.wall.model import WallModel
+from robo_comp.view.model import MatchView
 from robo_comp.wall.view import Layout, MapGeometry, Rect, ViewState, rnd
 
 #: Seconds between two clicks on one robot that make a double click.
@@ -56,7 +56,7 @@ def _inside(r: Rect, x: float, y: float) -> bool:
 class Interaction:
     """The click state machine of one wall process."""
 
-    def __init__(self, model: WallModel, view: ViewState, layout: Layout,
+    def __init__(self, model: MatchView, view: ViewState, layout: Layout,
                  geometry: Callable[[], MapGeometry | None], boxes: Callable[[], dict[Any, Rect]],
                  radius: Callable[[MapGeometry], int], *, double_click: float = DOUBLE_CLICK,
                  path_wait: float = PATH_WAIT) -> None:

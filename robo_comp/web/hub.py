@@ -12,7 +12,7 @@
   ``picture.get``. What the token may see is the core's decision, never the gateway's.
 
 Every browser of a view gets the same text for an event: each batch is applied to the hub's
-:class:`WallModel` (for browsers that join later) and serialised once. A browser that cannot
+:class:`MatchView` (for browsers that join later) and serialised once. A browser that cannot
 keep up is never waited for: its queue is dropped and it gets a fresh ``state`` instead.
 """
 from __future__ import annotations
@@ -32,8 +32,8 @@ from robo_comp.client import pub_url
 from robo_comp import protocol as P
 from robo_comp.protocol.curve import client_keys, secure_client
 from robo_comp.errors import FieldError, RoboCompError
-from robo_comp.tui.connection import CoreLink, LinkState
-from robo_comp.wall.model import WallModel
+from robo_comp.link import CoreLink, LinkState
+from robo_comp.view.model import MatchView
 from robo_comp.web.state import TaskNames, jsonable, map_png, public_snapshot, state_json
 from robo_comp.web.story import Story
 from robo_comp.world.mapservice import unpack_costs
@@ -120,7 +120,7 @@ class Hub:
 
     def __init__(self, name: str) -> None:
         self.name = name
-        self.model = WallModel()
+        self.model = MatchView()
         self.tasks = TaskNames()
         self.subs: set[Subscriber] = set()
         self.ready = asyncio.Event()
@@ -212,7 +212,7 @@ class Hub:
 
     def load(self, snap: dict[str, Any], costs: Any = None) -> None:
         """Start the model from a snapshot (and the map service's cell costs, when given)."""
-        model = WallModel()
+        model = MatchView()
         model.load_snapshot(snap)
         if costs is not None:
             model.set_costs(costs)
