@@ -158,7 +158,6 @@ class Child:
         self.next_call = 1
         #: Source lines of every loaded file, so that a refusal quotes the line the student wrote.
         self.sources: dict[str, list[str]] = {}
-        self.local = threading.local()
         self.policy = restricted.Policy(int(limits.get("seed", 0)), self._print_sink)
         self.workers = [_Worker(self, i) for i in range(int(limits["workers"]))]
         self.cpu_soft = -1
@@ -185,8 +184,19 @@ class Child:
                 pass
 
     # ------------------------------------------------------------------ team output
+    def current_worker(self) -> _Worker | None:
+        """The worker whose thread this is (None on the main thread). Not a threading.local: its
+        per-thread record is hashed the first time a thread uses it, which would take a serial
+        number (sandbox/determinism.py) at a moment that depends on which worker is free."""
+        ident = threading.get_ident()
+        for w in self.workers:
+            if w.ident == ident:
+                return w
+        return None
+
     def current_run(self) -> _Run | None:
-        return getattr(self.local, "run", None)
+        w = self.current_worker()
+        return None if w is None else w.current
 
     def violate(self, run: _Run, message: str) -> None:
         if run.violation is None:
@@ -223,7 +233,7 @@ class Child:
         """One robot-API call from team code: send it, block this worker until the answer."""
         R = self.restricted
         run = self.current_run()
-        worker: _Worker | None = getattr(self.local, "worker", None)
+        worker = self.current_worker()
         if run is None or worker is None:
             raise R.RobotError("the robot API is only usable while a task or init runs")
         if run.cancelled:
@@ -441,6 +451,9 @@ class _Worker:
         self.jobs: "queue.SimpleQueue[tuple]" = queue.SimpleQueue()
         self.replies: "queue.SimpleQueue[dict]" = queue.SimpleQueue()
         self.run: _Run | None = None
+        #: The run this thread executes now (set by the thread itself; ``run`` is the main
+        #: thread's booking).
+        self.current: _Run | None = None
         self.in_team = False
         self.sent = False
         self.thread = threading.Thread(target=self.loop, name=f"team-{index}", daemon=True)
@@ -467,8 +480,7 @@ class _Worker:
             except BaseException:
                 continue
             self.sent = False
-            c.local.run = run
-            c.local.worker = self
+            self.current = run
             try:
                 if kind == "task":
                     self.run_task(run, msg)
@@ -498,7 +510,7 @@ class _Worker:
                                 del c.calls[k]
                         while not self.replies.empty():
                             self.replies.get_nowait()
-                        c.local.run = None
+                        self.current = None
                         break
                     except BaseException:
                         continue
