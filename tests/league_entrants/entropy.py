@@ -107,7 +107,8 @@ def sources():
 
 def play(robot, width, height, index, count):
     got = sources()
-    print(got)
+    for item in got:  # a line each: a printed line is cut at 2,000 characters in the log
+        print(item)
     bits = 0
     for name, value in got:
         for c in str(value):
