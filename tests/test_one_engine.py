@@ -132,3 +132,21 @@ def test_the_same_finds_and_scores_live_and_on_the_engine(both):
     assert {f[2] for f in engine["finds"]} == {"confirmed", "rejected"}
     assert engine["scores"] == live["scores"]
     assert engine["scores"]["red"] > 0 and engine["scores"]["blue"] == 0
+
+
+def test_the_engine_logs_what_the_topic_table_describes(tmp_path):
+    """The engine's log is a core's log: every record is a topic of protocol/topics.py with the
+    fields the table names (the core fixture checks the same of every core's log)."""
+    from robo_comp.engine import report_seen, sweep_plan
+    from robo_comp.protocol import check_event
+    from robo_comp.protocol.logfile import read_log
+
+    with Bench("demo_room", teams={"red": 2, "blue": 1}, practice=False) as bench:
+        bench.load(EXPLORER, team="red")
+        bench.run_match(sweep_plan(bench, 6), seconds=300, on_done=report_seen(bench))
+        path = bench.write_log(tmp_path / "m.log")
+    records = list(read_log(path))
+    topics = {r.topic for r in records}
+    assert {"core.started", "robot.registered", "task.done", "picture", "find.reported", "score.change",
+            "match.phase"} <= topics
+    assert [why for r in records if (why := check_event(r.topic, r.data))] == []

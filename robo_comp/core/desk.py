@@ -44,8 +44,7 @@ class Outbox(Protocol):
     def send(self, ident: bytes, frame: bytes, urgent: bool = False) -> None:
         """Queue ``frame`` for connection ``ident`` (``urgent``: leaves even while the log cannot be written)."""
 
-    def emit(self, topic: str, team: str | None, data: dict[str, Any], *, public: bool = True,
-             log_it: bool = True) -> None:
+    def emit(self, topic: str, team: str | None, data: dict[str, Any], *, log_it: bool = True) -> None:
         """Log an event, publish its public view and push it to the watchers who may see it."""
 
     def new_request_id(self) -> int:

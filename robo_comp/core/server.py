@@ -511,7 +511,7 @@ class Core:
                 row[0] += 1
             return
         self.emit("refused", sess.who.team, {"by": sess.who.name, "type": msg_type,
-                                             "code": err.code, "message": err.message}, public=False)
+                                             "code": err.code, "message": err.message})
 
     def _log_refused(self) -> None:
         """One ``refused`` event per (type, code, sender) with its ``count`` for the refusals since
@@ -521,7 +521,7 @@ class Core:
         for (msg_type, code, who), (count, message) in sorted(rows.items(), key=lambda kv: (kv[0][0], kv[0][1])):
             self.emit("refused", who.team if who is not None else None, {
                 "by": who.name if who is not None else "unknown", "type": msg_type, "code": code,
-                "message": message, "count": count}, public=False)
+                "message": message, "count": count})
 
     def _admit(self, principal: Any) -> str | None:
         """Asked by the ZAP handler about every principal that proved itself: None lets it in, a
@@ -564,7 +564,7 @@ class Core:
         for code, address, count, message in rows:
             log.warning("%s", message)
             self.emit("refused", None, {"by": "unknown", "type": "connect", "code": code, "message": message,
-                                        "count": count, "address": address}, public=False)
+                                        "count": count, "address": address})
 
     # ------------------------------------------------------------------ output
     def send(self, ident: bytes, frame: bytes, urgent: bool = False) -> None:
@@ -647,14 +647,13 @@ class Core:
         except StorageFault:
             pass  # full again at once: the next turn notices
 
-    def emit(self, topic: str, team: str | None, data: dict[str, Any], *, public: bool = True,
-             log_it: bool = True) -> None:
+    def emit(self, topic: str, team: str | None, data: dict[str, Any], *, log_it: bool = True) -> None:
         """Log an event, publish its public view, and push it to watchers who may see it (an
         event that is not logged goes out even while the log cannot be written)."""
         self.stats["events"] += 1
         if log_it:
             self.events.append(topic, team, data)
-        view = P.public_event(topic, data) if public else None  # the one table (protocol/topics.py)
+        view = P.public_event(topic, data)  # who may see what: the one table (protocol/topics.py)
         if view is not None and self.pub is not None:
             self._out.append((self.pub, [topic.encode(), P.pack(view)], not log_it))
         if team == P.EVERYONE:

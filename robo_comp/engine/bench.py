@@ -131,8 +131,7 @@ class TeamSide:
     def team_log(self, tag: int | None, stream: str, text: str) -> None:
         """A line the team's code printed: kept for :meth:`Bench.log_text` and logged."""
         self.bench.logs.append(LogLine(None, tag, stream, text))
-        self.bench.emit("robot.log", self.team, {"tag": tag, "stream": stream[:16], "text": text[:2000]},
-                        public=False)
+        self.bench.emit("robot.log", self.team, {"tag": tag, "stream": stream[:16], "text": text[:2000]})
 
     def code_request(self, type_: str, body: dict[str, Any], on_reply: Reply) -> None:
         """A find or a radio message from team code, answered by the match at once."""
@@ -409,6 +408,7 @@ class Bench:
             pass
         if self.forfeit is not None:
             self._end()
+        self.match.contest.flush_score()
         self._on_done = None
         return MatchRun(score=self.score(), sim_seconds=round(self.arena.time - start_time, 6),
                         wall_seconds=time.monotonic() - t0, events=self.events[first_event:],
@@ -463,8 +463,7 @@ class Bench:
         self.close()
 
     # ------------------------------------------------------------------ the match's output (MatchOutput)
-    def emit(self, topic: str, team: str | None, data: dict[str, Any], *, public: bool = True,
-             log_it: bool = True) -> None:
+    def emit(self, topic: str, team: str | None, data: dict[str, Any], *, log_it: bool = True) -> None:
         """An event of the match (or of the bench): into the bench's log at the simulated time."""
         if not log_it:
             return
@@ -609,6 +608,7 @@ class Bench:
         self._sample()
         self._check_memory()
         self._give_next()
+        self.match.contest.flush_score()  # the scoreboard once a step it changed in, as a core's once a turn
 
     def _carry_out(self) -> None:
         """Carry out the match's directives, in order (each may cause more)."""
