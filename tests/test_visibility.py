@@ -74,6 +74,8 @@ def every_topic() -> list[tuple[str, str | None, dict[str, Any]]]:
         "integrity": (None, {"kind": "pose", "tag": 101, "team": "red", "count": 1, "x": 2, "y": 8,
                              "message": SECRET}),
         "robot.handover": ("red", {"tag": 101, "by": "referee", "from": SECRET}),
+        # team code's debug drawing: the team's own (this match's debug_replay is the default, "team")
+        "debug.draw": ("red", {"team": "red", "tags": [101], "frames": [[["t", 2.0, 8.0, SECRET, "#ffffff"]]]}),
     }
     out = []
     for topic in P.TOPICS:

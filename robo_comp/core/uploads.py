@@ -74,7 +74,7 @@ class UploadDesk:
     def handlers(self) -> dict[str, Callable[[bytes, P.Message], dict[str, Any] | None]]:
         """Request handlers this module adds to the core."""
         return {"upload": self._on_upload, "unload": self._on_unload, "extensions": self._on_extensions,
-                "approve": self._on_approve, "advertise": self._on_advertise, "log": self._on_log,
+                "approve": self._on_approve, "advertise": self._on_advertise, "log": self._on_log, "draw": self._on_draw,
                 "sandbox.reset": self._on_sandbox_reset}
 
     # ------------------------------------------------------------------ checks
@@ -193,6 +193,21 @@ class UploadDesk:
             self.access.hosted(ident, tag)
         self.out.emit("robot.log", s.who.team, {"tag": tag, "stream": msg.body["stream"][:16],
                                                  "text": msg.body["text"][:2000]})
+        return None
+
+    def _on_draw(self, ident: bytes, msg: P.Message) -> None:
+        """A host's new frames of debug drawing: checked again here (robo_comp/protocol/drawing.py),
+        logged as ``debug.draw`` for the team's own views and the referee only."""
+        from robo_comp.protocol.drawing import clean_frame
+
+        s = self.access.session(ident)
+        tags, frames = msg.body["tags"], msg.body["frames"]
+        if len(tags) != len(frames) or len(tags) > P.MAX_REPORTS:
+            raise FieldError("draw: 'tags' and 'frames' must be lists of the same length")
+        for tag in tags:
+            self.access.hosted(ident, tag)  # only the host's own robots draw
+        self.out.emit("debug.draw", s.who.team,
+                      {"team": s.who.team, "tags": list(tags), "frames": [clean_frame(f) for f in frames]})
         return None
 
     def host_reply(self, ident: bytes, cid: int, raw: dict[str, Any]) -> bool:

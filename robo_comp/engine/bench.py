@@ -155,6 +155,15 @@ class TeamSide:
         pid, seen = self.bench.picture(r)
         on_reply(True, {"id": pid, "seen": seen})
 
+    def team_draw(self, tags: list[int], frames: list[list[Any]]) -> None:
+        """The robots' new frames of debug drawing, logged as ``debug.draw`` for the team (as a
+        core logs a host's ``draw``); costs nothing: no match limit counts it."""
+        bench = self.bench
+        data = {"team": self.team, "tags": tags, "frames": frames}
+        t = round(bench.arena.time, 6)
+        bench.events.append({**data, "t": t, "topic": "debug.draw", "team": self.team})
+        bench._records.append(("debug.draw", self.team, data, t))
+
 
 class Bench:
     """Team modules in the real sandbox, robots simulated in-process from a scenario, on a
@@ -226,6 +235,7 @@ class Bench:
         #: The event log of every run so far: dicts with ``t``, ``topic``, ``team`` and the event's data.
         self.events: list[dict[str, Any]] = []
         self._records: list[tuple[str, str | None, dict[str, Any], float]] = []  # the core log's records
+        self.debug_replay = "team"  # who sees team code's debug drawing in a replay (protocol.topics.DEBUG_REPLAY)
         self.finds: list[dict[str, Any]] = []
         self.calls: list[tuple[int, str, list[Any]]] = []
         self.logs: list[LogLine] = []
@@ -447,7 +457,8 @@ class Bench:
 
         names = [t.name for t in self.scenario.teams] or list(self.teams)
         head: list[tuple[str, str | None, dict[str, Any], float]] = [
-            ("core.started", None, {"router": "bench", "teams": names, "arena": arena_payload(self.scenario, names)},
+            ("core.started", None, {"router": "bench", "teams": names, "arena": arena_payload(self.scenario, names),
+                                    "debug_replay": self.debug_replay},
              0.0)]
         return write_log(Path(path), head + self._records)
 
@@ -695,6 +706,8 @@ class Bench:
             tags = sorted(moved)
             moved.clear()
             self.emit("robot.positions", None, self.match.position_sample(tags))
+        for side in self.sides.values():
+            side.code.flush_drawing()  # team code's debug drawing, at the same ticks
         self.match.posed.clear()  # no live feed to conflate for
 
     def _end(self) -> None:

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from robo_comp.errors import FieldError, UploadError
+from robo_comp.league.forensics import rerun_command
 from robo_comp.league import ratings, schedule
 from robo_comp.league.engine import PLAY
 from robo_comp.league.store import LeagueStore, MatchRow, Submission
@@ -342,12 +343,14 @@ def league_view(store: LeagueStore) -> dict[str, Any]:
     order = {m.id: i + 1 for i, m in enumerate(m for m in matches if m.ranked and m.result is not None)}
     history = {team: [[order.get(mid, 0), round(ratings.ordinal(mu, sigma), 3)] for mid, mu, sigma in h]
                for team, h in store.history().items()}
-    return {"name": cfg["name"], "generated": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
+    return {"name": cfg["name"], "root": str(store.root), "generated": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
             "standings": rows, "history": history, "scores": per_scenario, "held": rating_hold(store),
             "matches": [{"id": m.id, "format": m.format, "round": m.round, "scenario": m.scenario, "seed": m.seed,
                          "ranked": m.ranked, "status": m.status, "teams": m.teams,
                          "scores": (m.result or {}).get("scores", {}),
-                         "forfeit": (m.result or {}).get("forfeit"), "notes": match_notes(m.result),
+                         "forfeit": (m.result or {}).get("forfeit"),
+                         "notes": match_notes(m.result, rerun_command(str(store.root), m.id)),
+                         "crashes": (m.result or {}).get("crashes") or [],
                          "log": str(store.log_path(m.id).relative_to(store.root)),
                          "seconds": (m.result or {}).get("wall_seconds")} for m in matches]}
 
@@ -368,13 +371,21 @@ def order_free(store: LeagueStore) -> list[dict[str, Any]]:
              "matches": counts.get(t, 0)} for i, t in enumerate(order)]
 
 
-def match_notes(result: dict[str, Any] | None) -> list[str]:
+def match_notes(result: dict[str, Any] | None, rerun: str | None = None) -> list[str]:
     """What a match's report says about the limits its entrants ran into: the forfeit, the
     sandbox limits that stopped a robot, calls the call budget held back, and a match limit
-    an entrant used more than half of (see docs/league.md, "Limits")."""
+    an entrant used more than half of (see docs/league.md, "Limits"); and where team code
+    crashed (robot, call, line, match time), with ``rerun``, the command that plays it again."""
     if not result:
         return []
     notes = []
+    for c in result.get("crashes") or []:
+        call = f", last call {c['call']}" if c.get("call") else ""
+        where = f"line {c['line']}" if c.get("line") else "no line of its files"
+        notes.append(f"{c['team']}: robot {c['tag']}'s {c['task']} crashed at {c['t']:g} s, {where}{call}: "
+                     f"{c['message']}")
+    if result.get("crashes") and rerun:
+        notes.append(f"reproduce it: {rerun}")
     forfeit = result.get("forfeit")
     if forfeit:
         notes.append(f"{forfeit['message']} (at {forfeit.get('t', 0):g} s)")

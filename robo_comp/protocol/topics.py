@@ -59,7 +59,8 @@ _POSE = "tag x y"
 #: Every event topic (see the module docstring); the PUB socket uses the name as the first frame.
 TABLE: dict[str, Topic] = {t.name: t for t in (
     # the core
-    _topic("core.started", "router teams", "arena", about="a core started (the arena's public payload)"),
+    _topic("core.started", "router teams", "arena debug_replay",
+           about="a core started (the arena's public payload; who sees debug drawing in replays: DEBUG_REPLAY)"),
     _topic("core.recovered", "events seq seconds", "damage damaged_copy damages lost legacy_records clock",
            about="what a restarted core recovered from its log, and any damage"),
     _topic("core.storage", "ok", "message errno seconds", public="ok errno seconds",
@@ -110,6 +111,9 @@ TABLE: dict[str, Topic] = {t.name: t for t in (
            about="how an upload went"),
     _topic("upload.unloaded", "tags name", public="", about="a module taken away from robots"),
     _topic("sandbox.reset", "tags by results", public="", about="the referee restarted a team's sandbox"),
+    _topic("debug.draw", "tags frames", "team", public="",
+           about="team code's debug drawing: each robot's new frame (robo_comp/protocol/drawing.py); the team's "
+                 "own live, in replays as the match's debug_replay says (AFTER_MATCH_TOPICS)"),
 )}
 
 #: The topic names.
@@ -118,6 +122,14 @@ TOPICS: tuple[str, ...] = tuple(TABLE)
 PUBLIC_TOPICS: dict[str, tuple[str, ...]] = {t.name: t.public for t in TABLE.values() if not t.private}
 #: Topics that reach only the event's team and the referee, live and replayed.
 PRIVATE_TOPICS = frozenset(t.name for t in TABLE.values() if t.private)
+#: Private topics a replay may show everyone, after the match, when the organiser chose so: the
+#: match's ``debug_replay`` option (:data:`DEBUG_REPLAY`), recorded in the log's ``core.started``.
+#: Never on a live public feed.
+AFTER_MATCH_TOPICS = frozenset({"debug.draw"})
+#: The ``debug_replay`` choices: a team's debug drawing is replayed to that team (and the
+#: referee) only, or to everyone.
+DEBUG_REPLAY = ("team", "everyone")
+assert AFTER_MATCH_TOPICS <= PRIVATE_TOPICS
 #: Fields some topic keeps from the public (for tests that fill them with markers).
 PRIVATE_FIELDS = frozenset(f for t in TABLE.values() for f in t.fields - set(t.public))
 
@@ -128,6 +140,14 @@ def public_event(topic: str, data: dict[str, Any]) -> dict[str, Any] | None:
     if fields is None:
         return None
     return {k: data[k] for k in fields if k in data}
+
+
+def replay_public_event(topic: str, data: dict[str, Any], debug_replay: str = "team") -> dict[str, Any] | None:
+    """What a replay shows the public of this event: :func:`public_event`, and the
+    :data:`AFTER_MATCH_TOPICS` too when the match's ``debug_replay`` is ``"everyone"``."""
+    if topic in AFTER_MATCH_TOPICS:
+        return data if debug_replay == "everyone" else None
+    return public_event(topic, data)
 
 
 def check_event(topic: str, data: Any) -> str | None:
@@ -153,11 +173,15 @@ class EventView:
     carried: :func:`public_event`), ``referee`` (everything) or a team's name (what that team's
     consoles were sent live: its own events whole, the events for everyone, the arena, its own
     robots' rows of the positions). Call it with the records in order: it learns the robots'
-    teams from ``robot.registered``. Used by the web replay's views and the MCAP export."""
+    teams from ``robot.registered`` and, from ``core.started``, whether the public view also shows
+    the :data:`AFTER_MATCH_TOPICS` (``debug_replay: everyone``). Used by the web replay's views
+    and the MCAP export."""
 
     def __init__(self, view: str) -> None:
         self.view = view
         self.team_of: dict[int, str | None] = {}  # robot tag -> its team, from robot.registered
+        #: The match's choice for its debug drawing in replays (:data:`DEBUG_REPLAY`), from ``core.started``.
+        self.debug_replay = "team"
 
     def __call__(self, topic: str, team: str | None, data: dict[str, Any]) -> dict[str, Any] | None:
         """The event's data as this view sees it (``None``: not at all)."""
@@ -165,9 +189,11 @@ class EventView:
             tag = data.get("tag")
             if isinstance(tag, int):  # what the core logs; a record without one names no robot
                 self.team_of[tag] = data.get("team")
+        elif topic == "core.started":
+            self.debug_replay = str(data.get("debug_replay") or "team")
         view = self.view
-        if view == "public":
-            return public_event(topic, data)
+        if view == "public":  # what the public feeds carried, and after the match what the match chose
+            return replay_public_event(topic, data, self.debug_replay)
         if view == "referee" or topic == "core.started":
             return data
         if topic == "robot.positions" and team is None:  # the log's batch holds every team's robots
@@ -178,5 +204,5 @@ class EventView:
         return data if team in (view, EVERYONE) else None
 
 
-__all__ = ["EVERYONE", "EventView", "PRIVATE_FIELDS", "PRIVATE_TOPICS", "PUBLIC_TOPICS", "TABLE", "TOPICS", "Topic",
-           "check_event", "public_event"]
+__all__ = ["AFTER_MATCH_TOPICS", "DEBUG_REPLAY", "EVERYONE", "EventView", "PRIVATE_FIELDS", "PRIVATE_TOPICS", "PUBLIC_TOPICS", "TABLE", "TOPICS", "Topic",
+           "check_event", "public_event", "replay_public_event"]

@@ -43,7 +43,7 @@ from robo_comp.sandbox.child import (
 
 __all__ = [
     "PENDING", "Limits", "Sandbox", "poll_many",
-    "Record", "Ready", "RpcCall", "LogLine", "TaskDone", "TaskFailed", "Loaded", "LoadFailed",
+    "Record", "Ready", "Drawing", "RpcCall", "LogLine", "TaskDone", "TaskFailed", "Loaded", "LoadFailed",
     "Unloaded", "SandboxStopped", "SandboxRestarted",
 ]
 
@@ -180,6 +180,19 @@ class TaskFailed(Record):
     message: str
     reason: str
     line: int | None = None
+    #: For ``error``: the frames of the team's files the error went through, outermost first
+    #: (``file:line in function: code``).
+    traceback: list[str] = field(default_factory=list)
+
+
+@dataclass
+class Drawing(Record):
+    """A robot's new frame of debug drawing, as the child sent it: not to be trusted; the robot
+    call table checks it (:func:`robo_comp.protocol.drawing.clean_frame`) before anyone keeps it."""
+
+    run_id: int
+    tag: int
+    shapes: list
 
 
 @dataclass
@@ -752,8 +765,15 @@ class Sandbox:
                 if run.cancelled and why == "error":
                     why = "cancelled"
                 text = str(msg.get("m", ""))[:2000]
+                tb = msg.get("tb")
+                trace = [str(x)[:300] for x in tb[:20]] if type(tb) is list and why == "error" else []
                 self._out.append(TaskFailed(run.id, run.tag, run.task, text, why,
-                                            msg.get("line") if type(msg.get("line")) is int else None))
+                                            msg.get("line") if type(msg.get("line")) is int else None, trace))
+        elif t == "draw":
+            run = self._runs.get(msg.get("r", -1))
+            if run is not None and run.kind == "task":
+                shapes = msg.get("s")  # checked where it is taken: teamcode's ROBOT_CALLS["draw"] (clean_frame)
+                self._out.append(Drawing(run.id, run.tag, shapes if type(shapes) is list else []))
         elif t == "loaded":
             run = self._runs.pop(msg["r"], None)
             if run is None:

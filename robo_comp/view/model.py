@@ -139,6 +139,9 @@ class MatchView:
         self.replay = False  # set by a replay source: the clock line then shows the recording's time
         #: The core's storage fault while it lasts (its event log cannot be written), else None.
         self.storage: str | None = None
+        #: Team code's debug drawing: each robot's newest frame (robo_comp/protocol/drawing.py),
+        #: only in views that may see it (the team's own; a replay as the match chose).
+        self.debug: dict[int, list[list[Any]]] = {}
 
     # ------------------------------------------------------------------ feeding
     def set_arena(self, payload: dict[str, Any]) -> None:
@@ -319,6 +322,17 @@ def _on_storage(m: MatchView, d: dict[str, Any]) -> None:
         m.note(m.storage, "error")
 
 
+def _on_debug(m: MatchView, d: dict[str, Any]) -> None:
+    """Robots' new frames of debug drawing (an empty frame clears the robot's drawing)."""
+    for tag, frame in zip(d.get("tags") or [], d.get("frames") or []):
+        if not isinstance(tag, int):
+            continue
+        if frame:
+            m.debug[tag] = list(frame)
+        else:
+            m.debug.pop(tag, None)
+
+
 def _on_penalty(m: MatchView, d: dict[str, Any]) -> None:
     m.note(f"penalty {d.get('team')}: {d.get('points')} ({d.get('reason', '')})", "error")
 
@@ -340,4 +354,5 @@ _HANDLERS: dict[str, Any] = {
     "broadcast": _on_broadcast,
     "penalty": _on_penalty,
     "core.storage": _on_storage,
+    "debug.draw": _on_debug,
 }
