@@ -61,6 +61,8 @@ def _log_refusal(what: str) -> Reply:
             log.warning("%s refused: %s", what, body.get("message"))
     return on_reply
 
+#: Tags the host's "registered" line names at most.
+SAY_TAGS = 12
 #: Robots per ``reports`` message; the host looks at the core's socket between two messages
 #: (so a stop never waits long behind a big host's reports).
 REPORT_CHUNK = 100
@@ -449,7 +451,10 @@ class RobotHost:
     def _say_up(self) -> None:
         """One line on stdout when the robots are registered (again, after a reconnect), so the
         person who started the host sees it work."""
-        tags = ", ".join(str(r.tag) for r in self.robots.values() if r.tag)
+        all_tags = sorted(r.tag for r in self.robots.values() if r.tag)
+        tags = ", ".join(map(str, all_tags[:SAY_TAGS]))
+        if len(all_tags) > SAY_TAGS:  # a host of a thousand robots says one line, not a page
+            tags += f", ... {all_tags[-1]} ({len(all_tags)} tags)"
         again = f" again (reconnect {self.reconnects}: the core is back)" if self.reconnects else ""
         print(f"robots: team {self.team}: {len(self.robots)} robot(s) registered{again} with the core at "
               f"{self.url}; tags {tags or '-'}", flush=True)
