@@ -66,13 +66,15 @@ def match_scenario(scenario: Any, teams: list[str], robots: int, seconds: float)
 
 
 #: A league match's limits per entrant (see :class:`robo_comp.engine.budget.Budget`): events
-#: and log bytes per robot per simulated second, real seconds of computing and growth of the
-#: worker's memory per match. A normal entrant uses a fifth of them or less (the reference
-#: frontier team: 6 events and 1 KiB per robot-second); going over ends the match as the
-#: entrant's forfeit.
+#: and log bytes per robot per simulated second, CPU seconds of its code, real seconds the
+#: match may wait for its code (a backstop: real time grows with the machine's load) and
+#: memory (its sandbox's and the worker's growth for it) per match. A normal entrant uses a
+#: fifth of them or less (the reference frontier team: 6 events and 1 KiB per robot-second, a
+#: few CPU seconds); going over ends the match as the entrant's forfeit.
 EVENTS_PER_ROBOT_SECOND = 25
 LOG_BYTES_PER_ROBOT_SECOND = 4096
-WALL_SECONDS = 120.0
+CPU_SECONDS = 120.0
+WALL_SECONDS = 480.0
 MEMORY_MIB = 512.0
 
 
@@ -83,7 +85,7 @@ def league_budget(robots: int, seconds: float, spec: dict[str, Any] | None = Non
 
     scale = max(1, robots) * max(1.0, seconds)
     fields: dict[str, Any] = {"events": int(EVENTS_PER_ROBOT_SECOND * scale), "log_bytes": int(LOG_BYTES_PER_ROBOT_SECOND * scale),
-              "wall_seconds": WALL_SECONDS, "memory_mib": MEMORY_MIB}
+              "cpu_seconds": CPU_SECONDS, "wall_seconds": WALL_SECONDS, "memory_mib": MEMORY_MIB}
     fields.update((spec or {}).get("limits") or {})
     return Budget(**fields)
 
@@ -182,7 +184,7 @@ def limits_hit(events: list[dict[str, Any]], team: str, used: dict[str, float], 
     """What ``team``'s code ran into in a match: ``sandbox`` (the messages of the sandbox
     limits that stopped one of its robots' ``play``: time, memory, output), ``held_calls``
     (calls the call budget answered later) and ``use`` (its share of each match limit, 0..1;
-    the wall-clock share is not deterministic and so not in the result)."""
+    the CPU, real-time and memory shares are not deterministic and so not in the result)."""
     stopped = sorted({str(e.get("status")) for e in events
                       if e["topic"] == "task.done" and e["team"] == team and isinstance(e.get("result"), dict)
                       and e["result"].get("reason") == "limit"})
@@ -205,6 +207,6 @@ def ranks_of(scores: dict[str, float], forfeit: str | None = None) -> dict[str, 
     return ranks
 
 
-__all__ = ["COLOURS", "EVENTS_PER_ROBOT_SECOND", "LOG_BYTES_PER_ROBOT_SECOND", "MEMORY_MIB", "PLAY", "RESTARTS",
-           "RETRIES", "WALL_SECONDS", "debug_replay", "league_budget", "limits_hit", "load_match_scenario", "match_scenario",
-           "play_match", "ranks_of"]
+__all__ = ["COLOURS", "CPU_SECONDS", "EVENTS_PER_ROBOT_SECOND", "LOG_BYTES_PER_ROBOT_SECOND", "MEMORY_MIB", "PLAY",
+           "RESTARTS", "RETRIES", "WALL_SECONDS", "debug_replay", "league_budget", "limits_hit", "load_match_scenario",
+           "match_scenario", "play_match", "ranks_of"]

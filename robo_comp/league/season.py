@@ -116,7 +116,7 @@ def submit(store: LeagueStore, team: str, files: dict[str, str], who: str) -> tu
 def submit_reference(store: LeagueStore, count: int = 4, who: str = "reference") -> list[Submission]:
     """Submit a reference field: the first ``count`` reference teams (at most 4), or for more,
     ``count`` entrants of known strength order: ``ref-00`` (strongest) to ``ref-NN``, the
-    frontier team with handicap 0 to NN (each step: its robots start 4 s later)."""
+    frontier team with handicap 0 to NN (each step: its robots start 7 s later)."""
     from robo_comp.league import reference
 
     if count <= len(reference.NAMES):
@@ -289,7 +289,9 @@ def run_format(store: LeagueStore, runner: Any, fmt: str, *, rounds: int | None 
         byes = {t for rnd in {m.round for m in earlier}
                 for t in set(names) - {t for m in earlier if m.round == rnd for t in m.teams}}
         for i in range(rounds or max(1, (len(names) - 1).bit_length())):
-            pairs = schedule.swiss_round(standing(store, names), played, byes)
+            lean = schedule.side_lean(m.teams for m in store.matches()  # as the store's balance counts them
+                                      if m.status != "cancelled" and m.scenario in cfg["scenarios"])
+            pairs = schedule.swiss_round(standing(store, names), played, byes, lean)
             played += [frozenset(p) for p in pairs]
             byes |= set(names) - {t for p in pairs for t in p}
             add(play(store, runner, store.schedule(fmt, base + i, pairs, ranked=ranked, per_round=True), stream=stream))

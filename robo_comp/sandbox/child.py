@@ -2,12 +2,13 @@
 
 Started by :class:`robo_comp.sandbox.parent.Sandbox` as::
 
-    python -s -P -B -c "...; from robo_comp.sandbox.child import main; main()" \
+    python -s -P -B -c "...; seal_child(); from robo_comp.sandbox.child import main; main()" \
         --fd N --limits <msgpack hex>
 
 (``-I`` but for ``-E``: the parent gives the whole environment, and ``PYTHONHASHSEED`` in it
-fixes ``hash()`` per match; a ``deterministic`` child starts itself again once with address
-randomisation off, see :func:`_without_aslr`.)
+fixes ``hash()`` per match; :func:`robo_comp.sandbox.determinism.seal_child` first takes
+memory addresses out of every default repr and hash; a replayable child also starts itself
+again once with address randomisation off, see :func:`_without_aslr`.)
 
 Order of start-up (everything that needs files or new threads happens *before* the limits):
 import all we need → die-with-parent → drop root to ``nobody`` (if root) → start the worker
@@ -175,7 +176,6 @@ class Child:
         self.next_call = 1
         #: Source lines of every loaded file, so that a refusal quotes the line the student wrote.
         self.sources: dict[str, list[str]] = {}
-        self.local = threading.local()
         self.policy = restricted.Policy(int(limits.get("seed", 0)), self._print_sink)
         self.workers = [_Worker(self, i) for i in range(int(limits["workers"]))]
         self.cpu_soft = -1
@@ -202,8 +202,19 @@ class Child:
                 pass
 
     # ------------------------------------------------------------------ team output
+    def current_worker(self) -> _Worker | None:
+        """The worker whose thread this is (None on the main thread). Not a threading.local: its
+        per-thread record is hashed the first time a thread uses it, which would take a serial
+        number (sandbox/determinism.py) at a moment that depends on which worker is free."""
+        ident = threading.get_ident()
+        for w in self.workers:
+            if w.ident == ident:
+                return w
+        return None
+
     def current_run(self) -> _Run | None:
-        return getattr(self.local, "run", None)
+        w = self.current_worker()
+        return None if w is None else w.current
 
     def violate(self, run: _Run, message: str) -> None:
         if run.violation is None:
@@ -240,7 +251,7 @@ class Child:
         """One robot-API call from team code: send it, block this worker until the answer."""
         R = self.restricted
         run = self.current_run()
-        worker: _Worker | None = getattr(self.local, "worker", None)
+        worker = self.current_worker()
         if run is None or worker is None:
             raise R.RobotError("the robot API is only usable while a task or init runs")
         if run.cancelled:
@@ -463,6 +474,9 @@ class _Worker:
         self.jobs: "queue.SimpleQueue[tuple]" = queue.SimpleQueue()
         self.replies: "queue.SimpleQueue[dict]" = queue.SimpleQueue()
         self.run: _Run | None = None
+        #: The run this thread executes now (set by the thread itself; ``run`` is the main
+        #: thread's booking).
+        self.current: _Run | None = None
         self.in_team = False
         self.sent = False
         self.thread = threading.Thread(target=self.loop, name=f"team-{index}", daemon=True)
@@ -494,8 +508,7 @@ class _Worker:
             except BaseException:
                 continue
             self.sent = False
-            c.local.run = run
-            c.local.worker = self
+            self.current = run
             try:
                 if kind == "task":
                     self.run_task(run, msg)
@@ -525,7 +538,7 @@ class _Worker:
                                 del c.calls[k]
                         while not self.replies.empty():
                             self.replies.get_nowait()
-                        c.local.run = None
+                        self.current = None
                         break
                     except BaseException:
                         continue
@@ -808,9 +821,9 @@ ADDR_NO_RANDOMIZE = 0x0040000
 
 
 def _without_aslr() -> None:
-    """Start this process again with address randomisation off (a replayable child: the
-    addresses that reach team code through ``repr()`` of functions and plain objects, default
-    ``hash()`` and the order of their sets then follow the code, not the kernel's dice).
+    """Start this process again with address randomisation off (a replayable child, as a spare:
+    the seal already keeps every address from team code, see
+    :mod:`robo_comp.sandbox.determinism`; ``ROBO_COMP_SANDBOX_ASLR=1`` skips this).
     Returns only when it is already off or the kernel does not let us turn it off."""
     try:
         import ctypes
@@ -849,7 +862,12 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--limits", required=True)
     opts = ap.parse_args(argv)
     limits = msgpack.unpackb(bytes.fromhex(opts.limits), raw=False)
-    if limits.get("deterministic") and argv is None:
+    from robo_comp.sandbox import determinism
+    if limits.get("replayable") and not determinism.sealed():
+        print(f"sandbox: cannot keep memory addresses from team code on this Python "
+              f"({determinism._seal_error}); a replayable sandbox does not run without that", file=sys.stderr)
+        os._exit(EXIT_INTERNAL)
+    if limits.get("aslr_off") and argv is None:
         _without_aslr()
     fd = opts.fd
     low = os.dup(fd)  # the lowest free descriptor: keeps RLIMIT_NOFILE small whatever the parent had open
