@@ -417,18 +417,75 @@ def test_policy_compile_errors_have_line_and_rule():
     assert ei.value.rule == "syntax"
 
 
-def test_rpc_rate_limit_delays_but_does_not_refuse():
-    limits = Limits(cpu_seconds=1, wall_seconds=1.0, rpc_per_second=100.0, rpc_burst=5)
-    src = module("fl", "def work(robot):\n    for i in range(25):\n        robot.sense()\n    return 25")
+LOOP = module("lp", "def work(robot, n):\n    for i in range(n):\n        robot.sense()\n    return n",
+              tasks='"work": {"args": [{"name": "n", "type": "int"}]}')
+
+
+def test_the_call_limiter_never_paces_a_single_loop():
+    """One run calling in a tight loop is never held back, whatever the CPU: the limiter's rate
+    follows the fastest loop it has measured (``Limits.rpc_loops`` times its calls per second), so
+    every turn of the loop earns more than the token it spends. A least rate of 50 calls/s and a
+    burst of 1 show it (before, the fixed rate paced every loop faster than it: 500 calls took
+    10 s here)."""
     host = Host()
-    with Sandbox("red", [1], host, limits) as box:
+    with Sandbox("red", [1], host, Limits(rpc_per_second=50.0, rpc_burst=1)) as box:
+        box.load("lp.py", LOOP)
+        rec = box.run_task(1, "work", [500])
+        assert isinstance(rec, TaskDone) and rec.result == 500
+        assert len(host.calls) == 500
+        assert box.paced_calls == 0
+        assert box.call_rate() == Limits().rpc_loops / box.fastest_loop > 50.0
+
+
+def test_the_default_call_limiter_does_not_pace_a_loop():
+    with Sandbox("red", [1], Host(), Limits()) as box:
+        box.load("lp.py", LOOP)
+        rec = box.run_task(1, "work", [3000])
+        assert isinstance(rec, TaskDone) and rec.result == 3000
+        assert box.paced_calls == 0
+
+
+FLOOD_CALLS = 40
+FLOOD = module("fl", """
+def work(robot):
+    # below the policy (the planted hole gives the real os): call frames written to the sandbox's
+    # own socket, without waiting for any answer
+    for fd in range(3, 32):
+        try:
+            if os.fstat(fd).st_mode & 0o170000 == 0o140000:  # the first socket: the one calls go on
+                os.write(fd, FRAMES)
+                break
+        except OSError:
+            pass
+    return robot.sense()   # answered after the forged calls, which the limiter holds back
+""")
+
+
+def test_the_call_limiter_holds_back_a_flood():
+    """Calls sent without waiting for their answers (forged by team code through the planted hole
+    in the policy, written straight to the sandbox's socket) are held to the limiter's rate after
+    the burst, answered later and never refused; and, sent together, they are no loop: the rate
+    does not rise (docs/sandbox.md, "The call limiter")."""
+    rate, burst = 100.0, 2
+    frames = b"".join(pack({"t": "call", "c": 10**6 + i, "r": 2, "g": 1, "n": "sense", "a": []})
+                      for i in range(FLOOD_CALLS))
+    src = FLOOD.replace("def work", f"FRAMES = {frames!r}\n\n\ndef work", 1)
+    seen: list[float] = []
+
+    def handler(tag: int, name: str, args: list) -> bool:
+        seen.append(time.monotonic())
+        return True
+
+    with Sandbox("red", [1], handler, Limits(rpc_per_second=rate, rpc_burst=burst, test_policy_hole=True)) as box:
         box.load("fl.py", src)
-        t0 = time.monotonic()
-        rec = box.run_task(1, "work")
-        took = time.monotonic() - t0
-        assert isinstance(rec, TaskDone) and rec.result == 25
-        assert took >= 0.18  # 20 calls over the burst at 100/s
-        assert len([c for c in host.calls if c[1] == "sense"]) == 25
+        rec = box.run_task(1, "work", timeout=30.0)
+        assert rec is not None and rec.run_id == 2  # the run the frames name
+        assert isinstance(rec, TaskDone) and rec.result is True, rec
+        assert len(seen) == FLOOD_CALLS + 1  # every call answered, none refused
+        assert box.paced_calls >= FLOOD_CALLS // 2
+        assert box.fastest_loop == float("inf") and box.call_rate() == rate
+        for k, t in enumerate(seen):  # the token bucket: never more than the burst plus the rate
+            assert k + 1 <= burst + rate * (t - seen[0]) + 1
 
 
 def test_child_runs_under_limits():

@@ -537,16 +537,16 @@ class _Replies:
     def __init__(self, sock: socket.socket, cap: int) -> None:
         self.recv = sock.recv
         self.reader = FrameReader(cap)
-        self.cond = threading.Condition(threading.Lock())
+        self.lock = threading.Lock()
+        self.cond = threading.Condition(self.lock)  # (entered through the lock: cheaper)
         self.reading = False
         self.got: dict[int, dict] = {}
         self.waiters = 0
 
     def wait(self, call_id: int, awaited: dict[int, Any]) -> dict:
         """Block until the answer to ``call_id`` has come; ``awaited`` holds the call ids some
-        worker waits for (an answer to another call is a broken protocol)."""
-        cond = self.cond
-        with cond:
+        worker waits for (answers to other calls are dropped)."""
+        with self.lock:
             while True:
                 mine = self.got.pop(call_id, None)
                 if mine is not None:
@@ -555,7 +555,7 @@ class _Replies:
                     self.reading = True
                     break
                 self.waiters += 1
-                cond.wait()
+                self.cond.wait()
                 self.waiters -= 1
         try:
             while mine is None:
@@ -565,25 +565,27 @@ class _Replies:
                 others = {}
                 for msg in self.reader.feed(data):
                     c = msg.get("c")
-                    if msg["t"] != "reply" or type(c) is not int or c not in awaited:
+                    if msg["t"] != "reply" or type(c) is not int:
                         os._exit(EXIT_PROTOCOL)
                     if c == call_id:
                         mine = msg
-                    else:
+                    elif c in awaited:
                         others[c] = msg
+                    # else: an answer to a call no worker made (one forged below the policy): dropped
                 if others:
-                    with cond:
+                    with self.lock:
                         self.got.update(others)
-                        cond.notify_all()
+                        self.cond.notify_all()
         except FrameError:
             os._exit(EXIT_PROTOCOL)
         except MemoryError:
             os._exit(EXIT_MEMORY)
         finally:
-            with cond:
+            with self.lock:
                 self.reading = False
                 if self.waiters:
-                    cond.notify_all()  # one of them reads now
+                    self.cond.notify_all()  # one of them reads now
+        assert mine is not None  # (the loop above ends only with it)
         return mine
 
 

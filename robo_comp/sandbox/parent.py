@@ -292,6 +292,8 @@ class Sandbox:
         self.tags: list[int] = list(tags)
         self.handler = handler
         self.limits = limits or Limits()
+        #: The largest message the parent sends (a module's source fits whatever the limits).
+        self._send_cap = max(self.limits.message_bytes, contract.MAX_SOURCE_BYTES + 4096)
         self.seed = seed
         self.builtin_tasks = tuple(builtin_tasks)
         self.proc: subprocess.Popen | None = None
@@ -314,6 +316,7 @@ class Sandbox:
         self._token_time = time.monotonic()
         #: The shortest time seen between a run's call and its next one (see Limits.rpc_loops).
         self.fastest_loop = math.inf
+        self._rate = self.limits.rpc_per_second  # call_rate(), kept
         self._reads = 0  # reads of the socket so far (calls of one read were sent before any answer)
         #: Robot-API calls the limiter held back (answered later) so far.
         self.paced_calls = 0
@@ -440,7 +443,7 @@ class Sandbox:
                 due = d
         more = []
         if self._throttled and self.limits.rpc_per_second:
-            more.append(self._token_time + max(0.0, 1.0 - self._tokens) / self.call_rate())
+            more.append(self._token_time + max(0.0, 1.0 - self._tokens) / self._rate)
         if self.cooldown_until is not None:
             more.append(self.cooldown_until)
         if self._rout:  # answers wait for room in their socket: look again soon
@@ -471,14 +474,10 @@ class Sandbox:
         if self.sock is None:
             return
         data = pack(msg)
-        if len(data) - 4 > self._send_cap():
+        if len(data) - 4 > self._send_cap:
             raise ValueError("message too large for the sandbox")
         self._outbuf += data
         self._flush()
-
-    def _send_cap(self) -> int:
-        """The largest message the parent sends (a module's source fits whatever the limits)."""
-        return max(self.limits.message_bytes, contract.MAX_SOURCE_BYTES + 4096)
 
     def handle_writable(self) -> list[Record]:
         """Flush queued bytes to the child (call when the socket is writable)."""
@@ -699,13 +698,23 @@ class Sandbox:
                 msg["x"] = True
         try:
             data = pack(msg)
-            if len(data) - 4 > self._send_cap():
+            if len(data) - 4 > self._send_cap:
                 raise ValueError("message too large for the sandbox")
         except (TypeError, ValueError, OverflowError) as exc:
             data = pack({"t": "reply", "c": call_id, "ok": False,
                          "e": f"the host's answer is not plain data or too large ({exc})"})
         if self._rsock is None:
             return
+        if not self._rout:  # most often: straight out, nothing queued
+            try:
+                n = self._rsock.send(data)
+            except (BlockingIOError, InterruptedError):
+                n = 0
+            except OSError:
+                return
+            if n == len(data):
+                return
+            data = data[n:]
         self._rout += data
         self._flush_replies()
 
@@ -916,6 +925,7 @@ class Sandbox:
             period = max(MIN_PERIOD, now - run.last_call)
             if period < self.fastest_loop:
                 self.fastest_loop = period
+                self._rate = self.call_rate()
         run.last_call, run.last_read = now, self._reads
         run.calls.add(call_id)
         self._calls[call_id] = rid
@@ -943,7 +953,7 @@ class Sandbox:
         return rate
 
     def _take_token(self, now: float | None = None) -> bool:
-        rate = self.call_rate()
+        rate = self._rate
         if not rate:
             return True
         if now is None:
