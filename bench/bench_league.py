@@ -81,9 +81,12 @@ def throughput(root: pathlib.Path, runner, matches: int, label: str) -> dict:
         ids = ids[:matches]
         sched = time.perf_counter() - t0
         fig = season.play(store, runner, ids, stream=open("/dev/null", "w"))
-        digests = {m.id: m.result["digest"] for m in store.matches() if m.result}
+        done = [m for m in store.matches() if m.result]
+        digests = {m.id: m.result["digest"] for m in done}
+        cpu = [float(m.result.get("cpu_seconds", 0.0)) for m in done]
     fig["schedule_seconds"] = sched
     fig["digests"] = digests
+    fig["cpu_per_match"] = sum(cpu) / max(1, len(cpu))
     return fig
 
 
@@ -155,8 +158,9 @@ def fair_figures(root: pathlib.Path, args: argparse.Namespace) -> None:
     for i in range(10):
         spec = hostile_spec(i, root)
         here.append(play_match(spec)["digest"])
-    ways = {"in one process": here, "1 worker": replays(LocalRunner(1), root, "one"),
-            "2 workers": replays(LocalRunner(2), root, "two")}
+    with LocalRunner(2) as two:
+        ways = {"in one process": here, "1 worker": replays(LocalRunner(1), root, "one"),
+                "2 workers": replays(two, root, "two")}
     if not args.skip_ray:
         with two_node_ray() as runner:
             ways["Ray, 2 nodes"] = replays(runner, root, "ray")
@@ -177,7 +181,8 @@ def fair_figures(root: pathlib.Path, args: argparse.Namespace) -> None:
         store.configure(**SHORT)
         season.submit_reference(store, 3)
         store.add_submission("flood", {"play.py": (ENTRANTS / "flood.py").read_text()}, "bench")
-        fig = season.run_format(store, LocalRunner(2), "round-robin", stream=open("/dev/null", "w"))
+        with LocalRunner(2) as runner:
+            fig = season.run_format(store, runner, "round-robin", stream=open("/dev/null", "w"))
         done = sum(1 for m in store.matches() if m.status == "done")
         print(f"round robin with the flooding entrant: {done} of {int(fig['matches'])} matches played, "
               f"{int(fig['failed'])} failed; table: {' > '.join(season.standing(store))}")
@@ -202,36 +207,51 @@ def quality(root: pathlib.Path, rounds: int, workers: int, fmt: str = "scrimmage
         for k in range(16):  # ref-00 (no handicap) is the strongest
             store.add_submission(f"ref-{k:02d}", {"play.py": reference.handicapped(base, k)}, "bench")
             truth.append(f"ref-{k:02d}")
-        runner = LocalRunner(workers)
         played = 0
-        for i in range(rounds):
-            chosen = "swiss" if fmt == "swiss" and i > 0 else "scrimmage"
-            fig = season.run_format(store, runner, chosen, rounds=1, stream=open("/dev/null", "w"))
-            played += int(fig["matches"])
-            curve.append((played, kendall_tau(season.standing(store), truth)))
+        with LocalRunner(workers) as runner:
+            for i in range(rounds):
+                chosen = "swiss" if fmt == "swiss" and i > 0 else "scrimmage"
+                fig = season.run_format(store, runner, chosen, rounds=1, stream=open("/dev/null", "w"))
+                played += int(fig["matches"])
+                curve.append((played, kendall_tau(season.standing(store), truth)))
         bt = bradley_terry([m.result["ranks"] for m in store.matches() if m.result])
         bt_tau = kendall_tau(sorted(bt, key=lambda t: -bt[t][0]), truth)
     return curve, bt_tau
 
 
+def _load() -> str:
+    import os
+
+    return "/".join(f"{x:.1f}" for x in os.getloadavg())
+
+
+def _cpu_line(fig: dict) -> str:
+    """CPU a match (worker and sandboxes) and how many cores the run kept busy on average."""
+    busy = fig["cpu_per_match"] * fig["matches"] / fig["wall_seconds"]
+    return f"CPU {fig['cpu_per_match']:.2f} s a match, {busy:.2f} cores busy"
+
+
 def throughput_figures(root: pathlib.Path, args: argparse.Namespace) -> None:
     """Throughput on 1 and 2 local workers (and Ray), the season on paper, and the overhead."""
-    print(f"== throughput: {args.matches} matches of 300 s, 2 teams x 4 robots, office")
+    print(f"== throughput: {args.matches} matches of 300 s, 2 teams x 4 robots, office (load {_load()})")
     one = throughput(root, LocalRunner(1), args.matches, "one")
     rate1 = 3600 * one["matches"] / one["wall_seconds"]
     print(f"1 worker : {one['wall_seconds']:.1f} s, {rate1:.0f} matches/hour/core "
-          f"({one['match_seconds'] / one['matches']:.2f} s a match)")
-    two = throughput(root, LocalRunner(2), args.matches, "two")
+          f"({one['match_seconds'] / one['matches']:.2f} s a match), {_cpu_line(one)} (load {_load()})")
+    with LocalRunner(2) as runner:
+        two = throughput(root, runner, args.matches, "two")
     rate2 = 3600 * two["matches"] / two["wall_seconds"]
     print(f"2 workers: {two['wall_seconds']:.1f} s, {rate2:.0f} matches/hour, speed-up {rate2 / rate1:.2f}x, "
-          f"efficiency {rate2 / rate1 / 2:.0%}; same results: {two['digests'] == one['digests']}")
+          f"efficiency {rate2 / rate1 / 2:.0%}, {_cpu_line(two)}, CPU a match "
+          f"{two['cpu_per_match'] / one['cpu_per_match']:.2f}x one worker's; same results: "
+          f"{two['digests'] == one['digests']} (load {_load()})")
     if not args.skip_ray:
         with two_node_ray() as runner:
             ray_fig = throughput(root, runner, args.matches, "ray")
         rate_r = 3600 * ray_fig["matches"] / ray_fig["wall_seconds"]
         print(f"Ray, 2 nodes x 1 CPU: {ray_fig['wall_seconds']:.1f} s, {rate_r:.0f} matches/hour, speed-up "
-              f"{rate_r / rate1:.2f}x, efficiency {rate_r / rate1 / 2:.0%}; same results: "
-              f"{ray_fig['digests'] == one['digests']}")
+              f"{rate_r / rate1:.2f}x, efficiency {rate_r / rate1 / 2:.0%}, {_cpu_line(ray_fig)}; same results: "
+              f"{ray_fig['digests'] == one['digests']} (load {_load()})")
     per_match = one["match_seconds"] / one["matches"]
     season_matches = 500 * 40 // 2
     print(f"on paper: a 500-team scrimmage season, 40 matches a team = {season_matches:,} matches x "
