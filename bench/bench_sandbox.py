@@ -1,13 +1,16 @@
 """Benchmarks of the team-code sandbox (see docs/perf-sandbox.md).
 
     .venv/bin/python bench/bench_sandbox.py [--quick] [--os-layer]
+    .venv/bin/python bench/bench_sandbox.py --calls-only --reps 5   # issue 31's row: call vs bare, 5 times
 
 1. upload → checked → available: spawn a sandbox and load ``square.py`` (spawn + compile +
    contract + init), and a warm re-upload (new version into a running child).
 2. robot-API round trip from sandboxed team code, with a handler that answers at once:
    the interval between successive calls of ``robot.sense()`` in a loop, seen by the host, in
-   the default configuration and without rate limit and niceness, beside its peer in the same
-   run: a bare msgpack call and answer between two processes over a socketpair.
+   the default configuration (the OS layer on, as ``make test`` and a match run it) and without
+   rate limit and niceness, beside its peer measured just before: a bare msgpack call and
+   answer between two processes over a socketpair (min / median / max, the load average, and
+   how many calls the limiter held back: none, for one loop). ``--reps N`` measures both N times.
 3. isolation: 4 teams on one host loop; two run RPC loops, one spins forever (killed and
    restarted over and over), one allocates without bound. The RPC rate of the two well-behaved
    teams is compared with an undisturbed run.
@@ -92,9 +95,26 @@ def _echo_child(sock: socket.socket, other: socket.socket) -> None:
             sock.sendall(pack({"t": "reply", "c": msg["c"], "ok": True, "v": [1.0, 2.0, 3.0]}))
 
 
+def load() -> str:
+    """The machine's load average (1, 5, 15 minutes), printed with every figure."""
+    import os
+
+    return "load " + " ".join(f"{x:.2f}" for x in os.getloadavg())
+
+
+def spread(gaps: list[float]) -> str:
+    """min / median / max of ``gaps`` (seconds) in microseconds."""
+    return (f"min {min(gaps) * 1e6:.0f} / median {statistics.median(gaps) * 1e6:.0f} / "
+            f"max {max(gaps) * 1e6:.0f} us")
+
+
+BARE_GAPS: list[float] = []
+
+
 def bare_round_trip(calls: int) -> float:
     """Median seconds of a bare msgpack call and answer between two processes over a socketpair
-    (what a robot-API call cannot do without: two processes, one message each way)."""
+    (what a robot-API call cannot do without: two processes, one message each way); the gaps
+    themselves are left in ``BARE_GAPS``."""
     a, b = socket.socketpair()
     child = mp.Process(target=_echo_child, args=(b, a))
     child.start()
@@ -114,6 +134,7 @@ def bare_round_trip(calls: int) -> float:
         child.kill()
         child.join(5)
         print("bench_sandbox: the echo child did not end when its socket closed; killed it", file=sys.stderr)
+    BARE_GAPS[:] = gaps
     return statistics.median(gaps)
 
 
@@ -140,12 +161,13 @@ def bench_rpc(calls: int, limits: Limits, label: str, bare: float) -> None:
             if isinstance(rec, (TaskDone, TaskFailed)) and rec.run_id == rid:
                 done = rec
     total = time.perf_counter() - t0
-    sb.close()
+    sb.close()  # (paced_calls stays readable)
     gaps = [b - a for a, b in zip(stamps, stamps[1:])]
     med = statistics.median(gaps)
     print(f"robot-API round trip (team code -> host handler -> team code), {label}, {len(gaps)} calls: "
-          f"median {med * 1e6:.0f} us = {med / bare:.1f}x the bare round trip, p99 {pct(gaps, 99) * 1e6:.0f} us, "
-          f"mean {total / calls * 1e6:.0f} us, {calls / total:,.0f} calls/s (target median < 2x the bare one)")
+          f"{spread(gaps)}, median {med / bare:.2f}x the bare round trip, p99 {pct(gaps, 99) * 1e6:.0f} us, "
+          f"mean {total / calls * 1e6:.0f} us, {calls / total:,.0f} calls/s, calls the limiter held back "
+          f"{sb.paced_calls} (target median < 2x the bare one; {load()})")
 
 
 def rpc_rate(seconds: float, disturb: bool, rate: float) -> tuple[list[float], dict[str, int]]:
@@ -301,6 +323,8 @@ def main() -> None:
     ap.add_argument("--os-layer", action="store_true",
                     help="only the upload and the robot-API call, with the OS layer on and off")
     ap.add_argument("--seal", action="store_true", help="only what the seal against memory addresses costs")
+    ap.add_argument("--calls-only", action="store_true", help="only the robot-API round trip beside the bare one")
+    ap.add_argument("--reps", type=int, default=1, help="times to measure the round trips (each beside a fresh bare one)")
     opts = ap.parse_args()
     if opts.seal:
         bench_seal(50_000 if opts.quick else 200_000)
@@ -308,13 +332,17 @@ def main() -> None:
     if opts.os_layer:
         bench_os_layer(2000 if opts.quick else 20000, 5 if opts.quick else 20)
         return
-    bench_upload(5 if opts.quick else 20)
+    if not opts.calls_only:
+        bench_upload(5 if opts.quick else 20)
     calls = 2000 if opts.quick else 20000
-    bare = bare_round_trip(calls)
-    print(f"bare msgpack round trip between two processes over a socketpair, {calls} calls: median {bare * 1e6:.0f} us")
-    bench_rpc(calls, Limits(), "default limits", bare)
-    bench_rpc(calls, Limits(rpc_per_second=0, nice=0), "no rate limit, not niced", bare)
-    bench_isolation(2.0 if opts.quick else 6.0)
+    for _ in range(opts.reps):  # each figure beside its peer measured just before it
+        bare = bare_round_trip(calls)
+        print(f"bare msgpack round trip between two processes over a socketpair, {calls} calls: "
+              f"{spread(BARE_GAPS)} ({load()})")
+        bench_rpc(calls, Limits(), "default limits", bare)
+        bench_rpc(calls, Limits(rpc_per_second=0, nice=0), "no rate limit, not niced", bare)
+    if not opts.calls_only:
+        bench_isolation(2.0 if opts.quick else 6.0)
 
 
 if __name__ == "__main__":

@@ -350,11 +350,9 @@ def test_two_local_workers_give_the_results_of_one(tmp_path):
 
 def test_longest_first_orders_by_the_teams_earlier_matches():
     from robo_comp.league.schedule import longest_first
-    from robo_comp.league.store import MatchRow
 
-    def row(mid: int, teams: list[str], cpu: float, scenario: str = "office") -> MatchRow:
-        return MatchRow(mid, "scrimmage", 1, scenario, 1, True, "done", [(t, 1) for t in teams],
-                        {"cpu_seconds": cpu, "sim_seconds": 100.0}, None, 1)
+    def row(mid: int, teams: list[str], cpu: float, scenario: str = "office") -> tuple:
+        return teams, scenario, {"cpu_seconds": cpu, "sim_seconds": 100.0}
 
     def sp(mid: int, a: str, b: str, scenario: str = "office") -> dict:
         return {"id": mid, "scenario": scenario, "seconds": 100,

@@ -152,6 +152,9 @@ class LocalRunner:
         self.workers = max(1, int(workers))
         #: Matches played again after their worker died (match id → times).
         self.replayed: dict[Any, int] = {}
+        #: What the matches played here cost: ``(teams, scenario, result)``; a free worker takes
+        #: the longest expected match left (:func:`robo_comp.league.schedule.longest_first`).
+        self.history: list[tuple[list[str], str, dict[str, Any]]] = []
         self._pool: list[_Worker] = []
 
     @property
@@ -187,7 +190,7 @@ class LocalRunner:
                         if not w.proc.is_alive():  # died while idle: nothing of ours was lost
                             w.stop()
                             pool[k] = w = _Worker(ctx)
-                        w.spec = todo.pop(0)
+                        w.spec = self._next(todo)
                         try:
                             w.conn.send(w.spec)
                         except OSError:  # it died just now: the next wait sees it and plays the match again
@@ -223,6 +226,8 @@ class LocalRunner:
                         continue
                     w.spec = None
                     if kind == "ok":
+                        self.history.append(([e["team"] for e in played.get("entrants", ())],
+                                             str(played.get("scenario")), value))
                         on_result(played, value)
                     else:
                         on_error(played, str(value))
@@ -233,6 +238,17 @@ class LocalRunner:
         finally:
             if not done:  # stopped (or broken): no worker outlives it
                 self.close()
+
+    def _next(self, todo: list[dict[str, Any]]) -> dict[str, Any]:
+        """The spec a free worker plays next: the longest expected from what this runner's matches
+        cost so far (in the given order until it knows)."""
+        if self.history and len(todo) > 1:
+            from robo_comp.league.schedule import longest_first
+
+            first = longest_first(todo, self.history)[0]
+            todo.remove(first)
+            return first
+        return todo.pop(0)
 
     def close(self) -> None:
         """End the workers (they stay up between runs)."""

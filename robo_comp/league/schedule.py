@@ -289,25 +289,23 @@ def champion(seeds: list[str], losses: dict[str, int]) -> str | None:
     return alive[0] if len(alive) == 1 else None
 
 
-def longest_first(specs: list[dict[str, Any]], played: Iterable[Any]) -> list[dict[str, Any]]:
+def longest_first(specs: list[dict[str, Any]],
+                  played: Iterable[tuple[list[str], str, dict[str, Any]]]) -> list[dict[str, Any]]:
     """Match specs in the order that ends a run on several workers soonest: the longest expected
     first, so that the short ones fill the end while the last long one plays (each worker takes
     the next spec as it frees up). A match is expected to cost what its teams' earlier matches on
     the same scenario cost per simulated second (their ``cpu_seconds``: the same on a loaded
     machine; ``wall_seconds`` for results without it), shared among their teams, times its
-    length; a team with no such match counts the mean of those that have one. ``played``: match
-    rows (:class:`~robo_comp.league.store.MatchRow`). Without any history, or for equal
+    length; a team with no such match counts the mean of those that have one. ``played``: the
+    earlier matches as ``(teams, scenario, result)``. Without any history, or for equal
     expectations, the order stays as given."""
     rates: dict[tuple[str, str], list[float]] = {}
-    for m in played:
-        r = m.result
-        if m.status != "done" or not r:
+    for teams, scenario, result in played:
+        spent, sim = result.get("cpu_seconds") or result.get("wall_seconds"), result.get("sim_seconds")
+        if not spent or not sim or not teams:
             continue
-        spent, sim = r.get("cpu_seconds") or r.get("wall_seconds"), r.get("sim_seconds")
-        if not spent or not sim or not m.teams:
-            continue
-        for team in m.teams:
-            rates.setdefault((team, m.scenario), []).append(float(spent) / float(sim) / len(m.teams))
+        for team in teams:
+            rates.setdefault((team, scenario), []).append(float(spent) / float(sim) / len(teams))
     if not rates:
         return list(specs)
     mean = {k: sum(v) / len(v) for k, v in rates.items()}

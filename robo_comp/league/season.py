@@ -175,7 +175,8 @@ def play(store: LeagueStore, runner: Any, ids: list[int] | None = None, *, strea
                                         if m.status in ("scheduled", "failed", "running")]
     # the longest expected first (from the teams' earlier matches): the run ends soonest on
     # several workers; results are rated in match order whatever order they end in
-    specs = schedule.longest_first([store.spec(mid) for mid in todo], store.matches())
+    played = [(m.teams, m.scenario, m.result) for m in store.matches() if m.status == "done" and m.result]
+    specs = schedule.longest_first([store.spec(mid) for mid in todo], played)
     progress = Progress(len(specs), stream)
     t0 = time.perf_counter()
     figures = {"matches": float(len(specs)), "match_seconds": 0.0, "league_seconds": 0.0, "failed": 0.0}
