@@ -304,6 +304,75 @@ def test_two_robots_run_concurrently():
         assert sorted(c[0] for c in moves) == [1] * 4 + [2] * 4
 
 
+COUNTED = module("ct", """
+def work(robot, n):
+    for i in range(n):
+        tag, k = robot.position()
+        if tag != robot.tag or k != i:
+            raise ValueError(f"robot {robot.tag} got the answer {[tag, k]} to its call {i}")
+    return n
+""", tasks='"work": {"args": [{"name": "n", "type": "int"}]}')
+
+
+def test_answers_reach_their_own_run_when_runs_call_at_once():
+    """Three runs calling in tight loops at once: each answer reaches the worker that made the
+    call, in order (the waiting workers take turns reading the answers' socket, and one reads the
+    others' answers for them: sandbox/child.py, _Replies)."""
+    counts: dict[int, int] = {}
+
+    def handler(tag: int, name: str, args: list) -> list[int]:
+        counts[tag] = counts.get(tag, -1) + 1
+        return [tag, counts[tag]]
+
+    with Sandbox("red", [1, 2, 3], handler, FAST) as box:
+        box.load("ct.py", COUNTED)
+        runs = {box.start_task(tag, "work", [400]): tag for tag in (1, 2, 3)}
+        done: dict[int, TaskDone | TaskFailed] = {}
+        end = time.monotonic() + 60
+        while len(done) < 3 and time.monotonic() < end:
+            for r in box.poll(0.05):
+                if isinstance(r, (TaskDone, TaskFailed)):
+                    done[r.run_id] = r
+        assert {rid: getattr(r, "result", r) for rid, r in done.items()} == dict.fromkeys(runs, 400)
+        assert counts == {1: 399, 2: 399, 3: 399}
+
+
+def test_answers_the_child_has_no_room_for_wait_and_go_out_in_order():
+    """The answers' socket full (the child not reading): answers queue in the parent, deadline()
+    asks the host loop back within REPLY_RETRY, and they go out whole and in order once there is
+    room (real sockets; no child process)."""
+    import socket as _socket
+
+    from robo_comp.sandbox.parent import REPLY_RETRY, _Run
+
+    box = Sandbox("red", [1], Host(), FAST, start=False)
+    ours, theirs = _socket.socketpair()
+    ours.setblocking(False)
+    box._rsock = ours
+    box._runs[1] = _Run(1, "task", 1, "work", None, "")
+    big = "x" * 60_000
+    try:
+        for c in range(1, 41):
+            box._calls[c] = 1
+            box._answer(c, ok=True, value=[c, big])
+        assert box._rout  # more than the socket holds
+        due = box.deadline()
+        assert due is not None and due <= time.monotonic() + REPLY_RETRY
+        reader, got = FrameReader(1 << 20), []
+        while len(got) < 40:
+            try:
+                got += reader.feed(theirs.recv(1 << 16))
+            except BlockingIOError:
+                pass
+            box.check_timers()
+            theirs.setblocking(not box._rout)
+        assert [m["v"][0] for m in got] == list(range(1, 41)) and all(m["v"][1] == big for m in got)
+        assert not box._rout and box.deadline() == box._runs[1].deadline  # only the run's own clock now
+    finally:
+        ours.close()
+        theirs.close()
+
+
 def test_respawn_keeps_good_modules():
     src = module("loop", "def spin(robot):\n    while True:\n        pass",
                  tasks='"spin": {"args": []}')
