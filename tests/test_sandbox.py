@@ -15,7 +15,7 @@ from robo_comp.sandbox.parent import (
     PENDING, Limits, LogLine, Loaded, RpcCall, Sandbox, SandboxStopped, TaskDone, TaskFailed,
     poll_many,
 )
-from robo_comp.sandbox.child import FrameError, FrameReader, pack
+from robo_comp.sandbox.child import RECV_BYTES, FrameError, FrameReader, pack
 
 ROOT = pathlib.Path(__file__).parent.parent
 SQUARE = (ROOT / "team_templates" / "extensions" / "square.py").read_text()
@@ -556,6 +556,38 @@ def test_the_call_limiter_holds_back_a_flood():
         for k, t in enumerate(seen):  # the token bucket: never more than the burst plus the rate
             assert k + 1 <= burst + rate * (t - seen[0]) + 1
 
+
+
+def test_calls_sent_without_waiting_do_not_raise_the_limiter_whatever_read_they_come_in():
+    """A flood bigger than one read of the socket (64 KiB): the calls come in several reads, each
+    after the answers to the calls of the read before had gone out, so a read alone cannot tell
+    them from a loop's. Only a call that names the key of its run's last answer (which it can know
+    only by reading that answer) counts as a turn of a loop: the rate stays where it was. (Before,
+    the first call of a later read counted as a loop of some tens of microseconds: fastest_loop
+    67 us, the rate 100 -> 30,000 calls a second.)"""
+    rate, calls = 100.0, 200
+    # the frames are made in team code (the module's source is at most 60 KB): each is one call
+    # frame with its id (a msgpack uint32, 0xce and four bytes) changed
+    frame = pack({"t": "call", "c": 10**6, "r": 2, "g": 1, "n": "sense", "a": ["x" * 1000]})
+    at = frame.index(b"\xa1c\xce") + 2
+    head, tail = frame[:at], frame[at + 5:]
+    assert calls * len(frame) > 2 * RECV_BYTES
+    src = FLOOD.replace("def work", f"HEAD = {head!r}\nTAIL = {tail!r}\nFRAMES = b''.join(\n"
+                        f"    HEAD + b'\\xce' + (10**6 + i).to_bytes(4, 'big') + TAIL for i in range({calls}))"
+                        "\n\n\ndef work", 1)
+    seen: list[list] = []
+
+    def handler(tag: int, name: str, args: list) -> bool:
+        seen.append(args)
+        return True
+
+    with Sandbox("red", [1], handler, Limits(rpc_per_second=rate, rpc_burst=2 * calls,
+                                             test_policy_hole=True)) as box:
+        box.load("fl.py", src)
+        rec = box.run_task(1, "work", timeout=30.0)
+        assert isinstance(rec, TaskDone) and rec.result is True, rec
+        assert len(seen) == calls + 1 and box.paced_calls == 0  # all within the burst, none refused
+        assert box.fastest_loop == float("inf") and box.call_rate() == rate
 
 def test_child_runs_under_limits():
     with Sandbox("red", [1], Host(), FAST) as box:

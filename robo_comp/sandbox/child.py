@@ -154,7 +154,7 @@ def _trim(text: str, n: int = MAX_TEXT) -> str:
 class _Run:
     """One run (a task or a module load) executing in a worker."""
 
-    __slots__ = ("id", "tag", "file", "output", "violation", "cancelled", "drawing")
+    __slots__ = ("id", "tag", "file", "output", "violation", "cancelled", "drawing", "key")
 
     def __init__(self, run_id: int, tag: Any, file: str) -> None:
         self.id = run_id
@@ -165,6 +165,9 @@ class _Run:
         self.cancelled = False
         #: The shapes drawn since the last movement call (sent with it: docs/sandbox.md, "Debug drawing").
         self.drawing: list | None = None
+        #: The key of the last answer to this run's calls, named by its next call: the parent takes
+        #: the time between them as one turn of a loop (its call limiter; sandbox/parent.py).
+        self.key = 0
 
 
 class _Module:
@@ -309,7 +312,7 @@ class Child:
                 raised, worker.raised = worker.raised, False
             if raised:
                 _take_back_async_exc(worker.ident)
-            self.send({"t": "call", "c": call_id, "r": run.id, "g": tag, "n": name, "a": args})
+            self.send({"t": "call", "c": call_id, "r": run.id, "g": tag, "n": name, "a": args, "k": run.key})
         except BaseException as exc:
             with self.state_lock:
                 self.calls.pop(call_id, None)
@@ -320,6 +323,8 @@ class Child:
                 raise R.RobotError(f"{name}: arguments are not plain data: {_trim(str(exc), 200)}") from None
             raise
         reply = self.replies.wait(call_id, self.calls)
+        key = reply.get("k")
+        run.key = key if type(key) is int else 0
         with self.state_lock:
             self.calls.pop(call_id, None)
             worker.waiting = False

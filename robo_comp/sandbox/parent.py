@@ -19,6 +19,7 @@ for tests, tools and simple hosts.
 """
 from __future__ import annotations
 
+import array
 import collections
 import contextlib
 import math
@@ -263,7 +264,9 @@ class _Run:
     budget: float = 0.0
     held: bool = False
     last_call: float = 0.0  # when its last robot-API call came (time.monotonic())
-    last_read: int = -1  # in which read of the socket it came
+    #: The key sent with the answer to its last call; its next call names it when it was sent after
+    #: that answer was read (a turn of a loop: see Sandbox.call_rate). 0: none to name.
+    key: int = 0
 
 
 #: The shortest time between two calls of a run the limiter takes as measured (a floor against a
@@ -317,7 +320,7 @@ class Sandbox:
         #: The shortest time seen between a run's call and its next one (see Limits.rpc_loops).
         self.fastest_loop = math.inf
         self._rate = self.limits.rpc_per_second  # call_rate(), kept
-        self._reads = 0  # reads of the socket so far (calls of one read were sent before any answer)
+        self._keys: list[int] = []  # unguessable keys for the answers, drawn 512 at a time
         #: Robot-API calls the limiter held back (answered later) so far.
         self.paced_calls = 0
         self._good: dict[str, tuple[str, str, ModuleInfo]] = {}  # name -> (file, source, info)
@@ -685,11 +688,14 @@ class Sandbox:
         if rid is None:
             return
         run = self._runs.get(rid)
+        msg: dict[str, Any] = {"t": "reply", "c": call_id, "ok": ok}
         if run is not None:
             run.calls.discard(call_id)
             if run.kind == "task" and not run.cancelled and not run.calls:
                 run.deadline = time.monotonic() + self.limits.wall_seconds
-        msg: dict[str, Any] = {"t": "reply", "c": call_id, "ok": ok}
+            if not self._keys:
+                self._keys = array.array("Q", os.urandom(4096)).tolist()
+            run.key = msg["k"] = self._keys.pop() or 1
         if ok:
             msg["v"] = value
         else:
@@ -769,7 +775,6 @@ class Sandbox:
                 break
             except OSError:
                 data = b""
-            self._reads += 1
             if not data:
                 self._child_gone()
                 break
@@ -919,14 +924,17 @@ class Sandbox:
         if run is None:
             raise KeyError(rid)
         now = time.monotonic()
-        if not run.calls and run.last_read >= 0 and run.last_read != self._reads:
-            # the run's last call was answered before this one was read: one turn of a loop
-            # (calls read together were sent before any answer: they say nothing of a loop)
+        if run.key and msg.get("k") == run.key:
+            # the call names the key of its run's last answer: it was sent after that answer was
+            # read, so the time since that call is one turn of a loop. Calls sent without waiting
+            # cannot know the key (drawn from os.urandom), whichever read of the socket they come
+            # in: they are held to the rate and do not raise it.
             period = max(MIN_PERIOD, now - run.last_call)
             if period < self.fastest_loop:
                 self.fastest_loop = period
                 self._rate = self.call_rate()
-        run.last_call, run.last_read = now, self._reads
+        run.key = 0
+        run.last_call = now
         run.calls.add(call_id)
         self._calls[call_id] = rid
         if run.kind == "task":
