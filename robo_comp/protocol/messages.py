@@ -63,6 +63,9 @@ REQUESTS: dict[str, dict[str, tuple[str, bool]]] = {
     "picture.get": {"id": (_INT, True)},
     "map": {"tag": (_OPT_INT, False), "radius": (_INT, False)},
     "map.delta": {"since": (_INT, True)},
+    # a team's teamwork settings: 'reallocate' moves a lost robot's tasks to teammates (the referee
+    # names the 'team'); without 'reallocate' the reply says the setting
+    "teamwork": {"reallocate": (_BOOL, False), "team": (_STR, False)},
     # team code (see robo_comp/core/uploads.py)
     "upload": {"tags": (_LIST, True), "filename": (_STR, True), "source": (_ANY, True), "kind": (_STR, False),
                "run": (_BOOL, False)},
@@ -99,6 +102,8 @@ REQUESTS: dict[str, dict[str, tuple[str, bool]]] = {
     "picture": {"tag": (_INT, True), "x": (_NUM, False), "y": (_NUM, False), "heading": (_NUM, False),
                 "png": (_BIN, True), "label": (_STR, False)},
     "bump": {"tag": (_INT, True), "x": (_NUM, False), "y": (_NUM, False), "with": (_OPT_INT, False)},
+    # a cell a robot's sensors saw blocked that the map shows free (its team's map gets it)
+    "obstacle": {"tag": (_INT, True), "x": (_INT, True), "y": (_INT, True)},
     "advertise": {"tag": (_INT, True), "tasks": (_LIST, True)},
     "log": {"tag": (_OPT_INT, False), "stream": (_STR, True), "text": (_STR, True)},
     # replies from a robot host to a core-initiated request (stop, upload, unload, extensions)
@@ -117,7 +122,7 @@ CORE_TO_HOST = ("heartbeat", "task.start", "task.interrupt", "stop", "radio", "h
 #: Messages only the organiser's robot hosts send (``STATE/hosts/<team>.token``): they say what
 #: happens in the world (robots, poses, pictures, bumps, task results) and answer for robots.
 HOST_ONLY = frozenset({"register", "report", "reports", "task.next", "task.done", "radio", "leave",
-                       "picture", "bump", "advertise", "log", "reply"})
+                       "picture", "bump", "obstacle", "advertise", "log", "reply"})
 #: Messages every principal may send (a host reports a find for its team's code, reads the map).
 ANY_ROLE = frozenset({"hello", "heartbeat", "bye", "arena", "map", "map.delta", "find"})
 #: Messages of consoles, walls and scripts: a team's or the referee's token.

@@ -29,6 +29,9 @@ TOPICS = (
     # fair play: claims about the world the match did not believe, and robots handed between hosts
     # (both for the referee, and the team whose robot it is; never public)
     "integrity", "robot.handover",
+    # teamwork (issue 33): a lost robot's tasks offered to its team (public without the tasks),
+    # a team's reallocation setting and the obstacles its robots reported (the team's and the referee's)
+    "task.offered", "teamwork", "map.obstacle",
 )
 
 
@@ -39,7 +42,7 @@ PUBLIC_TOPICS: dict[str, tuple[str, ...] | None] = {
     "robot.left": None, "task.given": None, "task.started": None, "task.done": None, "robot.stopped": None,
     "core.started": None, "core.recovered": None, "core.storage": None, "match.phase": None, "score": None,
     "score.change": None, "penalty": None, "disqualified": None, "find.reported": None,
-    "robot.bump": None, "robot.tasks": None,
+    "robot.bump": None, "robot.tasks": None, "task.offered": None,
     # the referee's message is for everyone ("message" is a private key elsewhere: a verdict's reason)
     "broadcast": ("message", "by"),
     # the logged record also names the victims in sight and the image's hash: the team's own
@@ -49,7 +52,8 @@ PUBLIC_TOPICS: dict[str, tuple[str, ...] | None] = {
 }
 #: Topics that reach only the event's team and the referee, live and replayed.
 PRIVATE_TOPICS = frozenset({"radio", "refused", "robot.log", "upload.pending", "upload.sent", "upload.done",
-                            "upload.unloaded", "sandbox.reset", "integrity", "robot.handover"})
+                            "upload.unloaded", "sandbox.reset", "integrity", "robot.handover", "teamwork",
+                            "map.obstacle"})
 assert set(TOPICS) == PUBLIC_TOPICS.keys() | PRIVATE_TOPICS and not PUBLIC_TOPICS.keys() & PRIVATE_TOPICS
 
 

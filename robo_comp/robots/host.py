@@ -134,6 +134,8 @@ class RobotHost:
         self.robots: dict[str, SimRobot] = {}
         self.by_tag: dict[int, SimRobot] = {}
         self.walls = np.zeros((1, 1), dtype=bool)
+        #: What the robots' planners avoid: the map's walls and the obstacles the team reported.
+        self.blocked = self.walls
         self.team: str | None = None
         self.heartbeat = 1.0
         self.state = "down"  # down, hello, arena, registering, up
@@ -257,6 +259,14 @@ class RobotHost:
         """The whole map, asked for again after a delta that did not fit."""
         if ok:
             self.map.apply(body)
+            self._map_obstacles()
+
+    def _map_obstacles(self) -> None:
+        """The obstacles the team's map holds go onto what the planners avoid."""
+        h, w = self.blocked.shape
+        for x, y in self.map.obstacles:
+            if 0 <= x < w and 0 <= y < h:
+                self.blocked[y, x] = True
 
     def _on_hello(self, ok: bool, body: dict[str, Any]) -> None:
         if not ok:
@@ -326,7 +336,10 @@ class RobotHost:
                                                 "stream": stream, "text": text[:2000]}, self.session))
 
     def code_request(self, type_: str, body: dict[str, Any], on_reply: Reply) -> None:
-        """A request to the core on behalf of team code (a find, the radio)."""
+        """A request to the core on behalf of team code (a find, the radio, an obstacle: on this
+        host's map at once)."""
+        if type_ == "obstacle" and 0 <= body["y"] < self.blocked.shape[0] and 0 <= body["x"] < self.blocked.shape[1]:
+            self.blocked[body["y"], body["x"]] = True
         self._send(type_, body, on_reply)
 
     def code_picture(self, r: SimRobot, on_reply: Reply) -> None:
@@ -364,7 +377,8 @@ class RobotHost:
         if self.speed:
             self.world.speed = self.speed
         self.loc = Localization(self.world, external=self.positioning is not None)
-        self.walls = self.world.walls
+        self.walls = scenario.walls  # the map's (the arena's debris is for the robots' sensors to find)
+        self.blocked = self.walls.copy()
         self.fix_gate = PoseGate(self.walls, self.world.speed * float(self.world.speed_map.max(initial=1.0)))
 
     def _create_robots(self, arena: dict[str, Any]) -> None:
@@ -372,7 +386,7 @@ class RobotHost:
         start = [c for c in self.world.free_start_cells(self.team)] if any(
             t["name"] == self.team and t.get("start") for t in arena.get("teams", [])) else []
         taken = set(start)
-        free = [(x, y) for y, x in np.argwhere(~self.walls).tolist() if (x, y) not in taken]
+        free = [(x, y) for y, x in np.argwhere(~self.world.walls).tolist() if (x, y) not in taken]
         need = max(0, min(self.count - len(start), len(free)))
         cells = start + self.rng.sample(free, need)  # seeded: the same cells for the same seed
         prefix = self.prefix or self.team
@@ -505,6 +519,7 @@ class RobotHost:
         if type_ == "map.delta":
             try:
                 self.map.apply(body)
+                self._map_obstacles()
             except Exception as e:  # a delta that does not fit our version: ask for all again
                 log.warning("map delta not applied (%s); fetching the whole map", e)
                 self._send("map.delta", {"since": 0}, self._on_whole_map)
@@ -540,7 +555,7 @@ class RobotHost:
         """Plan in the host's planner thread: the robot waits at its boundary; the loop goes on."""
         occupied = r.others_cells() if step.avoid_robots else set()
         assert r.task is not None
-        r.task.plan = self.planner.submit(plan_around, self.walls, r.free_cell(), step.goal, occupied)
+        r.task.plan = self.planner.submit(plan_around, self.blocked, r.free_cell(), step.goal, occupied)
         return PLANNING
 
     def compute(self, r: SimRobot, step: Compute) -> bool:
@@ -550,6 +565,13 @@ class RobotHost:
     def interrupted(self, r: SimRobot, t: RunningTask, by_task_id: int) -> None:
         """The plugins hear of an interrupt before it takes effect."""
         self.pm.hook.robo_comp_task_interrupted(robot=r, task_name=t.name, task_id=t.id, by_task_id=by_task_id)
+
+    def obstacle(self, r: SimRobot, cell: tuple[int, int]) -> None:
+        """On this host's map at once, and to the core for the team's map (its other hosts get it
+        with the next ``map.delta``)."""
+        x, y = cell
+        self.blocked[y, x] = True
+        self._send("obstacle", {"tag": r.tag, "x": x, "y": y}, _log_refusal("obstacle"))
 
     def capture(self, r: SimRobot, t: RunningTask, label: str) -> None:
         """Take the camera picture at the robot's true pose and upload it as evidence."""

@@ -6,6 +6,16 @@ robot: it asks the generator for a step, hands movements to the robot's driver, 
 lets team code compute (:class:`~robo_comp.robots.steps.Compute`), switches to a task given "now"
 at the next movement boundary (an *interrupt*), ends a task a bump stopped, and reports the end.
 
+Before each :class:`~robo_comp.robots.steps.Move` it looks where the robot is going (teammates
+never run into each other, and what the map does not show is reported): a cell a teammate stands
+in or drives to is waited for (a :class:`~robo_comp.robots.steps.Wait` of :data:`HOLD_STEP`), and
+after :data:`HOLD_REPLAN` the task gets a :class:`~robo_comp.robots.steps.Replan` and plans around
+the teammates; of two robots waiting for each other the one with the higher tag steps aside. A
+cell the robot's sensors see blocked that its team's map shows free is an obstacle: reported
+(:meth:`RuntimeEnv.obstacle`: the team's map, so every teammate's planner routes around it) and
+the task plans again. A move that did not end in its cell (a positioning fix moved the robot)
+answers :class:`~robo_comp.robots.steps.Replan` too: the task plans again from where the robot is.
+
 It does this through a :class:`RuntimeEnv`, which is what differs between its two drivers:
 
 * a robot host (:class:`robo_comp.robots.host.RobotHost`) plans in a thread, uploads pictures to
@@ -26,7 +36,9 @@ from typing import Any, Protocol
 
 from robo_comp.errors import RoboCompError
 from robo_comp.protocol.taskspec import check_args
-from robo_comp.robots.steps import Answer, Capture, CellPath, Compute, Plan, TaskFailed, TaskRun, TaskSpec, no_steps
+from robo_comp.robots.steps import (
+    Answer, Capture, CellPath, Compute, Move, Plan, Replan, Step, TaskFailed, TaskRun, TaskSpec, Wait, no_steps,
+)
 from robo_comp.robots.teamcode import free_cell, in_bounds, stop_status
 from robo_comp.world.planner import find_path
 
@@ -34,6 +46,10 @@ log = logging.getLogger("robo_comp.robots")
 
 #: What :meth:`RuntimeEnv.plan` returns while the path is being found elsewhere.
 PLANNING = object()
+#: Seconds a robot waits at a time for a teammate to clear the cell it is to drive into.
+HOLD_STEP = 0.25
+#: Seconds of waiting for one cell after which the task plans again, around its teammates.
+HOLD_REPLAN = 1.0
 
 
 @dataclass(slots=True)
@@ -47,6 +63,14 @@ class RunningTask:
     pictures: list[int] = field(default_factory=list)
     plan: Future[CellPath | None] | None = None
     answer: Answer = None
+    #: A move waiting for a teammate to clear its cell, and how long it has waited.
+    held: Move | None = None
+    waited: float = 0.0
+    #: The move in progress: the cell it left and the cell it drives to (what teammates keep off).
+    leaving: tuple[int, int] | None = None
+    to: tuple[int, int] | None = None
+    #: What the task gets back when the move in progress ends (the runtime's own step aside).
+    after: Replan | None = None
 
 
 def plan_around(walls: Any, start: tuple[int, int], goal: tuple[int, int],
@@ -67,9 +91,10 @@ def plan_around(walls: Any, start: tuple[int, int], goal: tuple[int, int],
 
 
 class RobotWorld(Protocol):
-    """What a robot sees of the place that runs it (a robot host, or the engine)."""
+    """What a robot sees of the place that runs it (a robot host, or the engine's team side)."""
 
-    walls: Any  # the arena's wall grid [y, x]
+    walls: Any  # the map's wall grid [y, x]
+    blocked: Any  # what the robot's planner avoids: the map's walls and its team's reported obstacles
     robots: dict[str, Any]  # robot id -> every robot run here (a SimRobot)
     world: Any  # the simulated arena (None until known)
     foreign: Any  # other hosts' robots the camera tracks (robo_comp.robots.oneworld.Foreign)
@@ -99,6 +124,19 @@ class SimRobot:
         cell: tuple[int, int] = self.driver.cell()
         return cell
 
+    def pose(self) -> tuple[float, float, float]:
+        """Where the robot believes it is: ``(x, y, heading)``."""
+        x, y, h = self.driver.pose
+        return x, y, h
+
+    def claim(self) -> tuple[tuple[int, int], ...]:
+        """The cells this robot holds: the one it stands in, or, during a move, the one it leaves
+        and the one it drives to (a teammate enters neither)."""
+        t = self.task
+        if t is not None and t.to is not None and t.leaving is not None:
+            return t.leaving, t.to
+        return (self.cell(),)
+
     def in_bounds(self, x: int, y: int) -> bool:
         """True when (x, y) is a free cell of the arena."""
         return in_bounds(self.host.walls, x, y)
@@ -112,13 +150,13 @@ class SimRobot:
         """A 4-connected path from the (free) cell the robot believes it is in to ``goal``, around
         the cells where the other robots here are now; straight through them when there is no
         way around. (Tasks ``yield Plan(goal)`` instead: the host plans that off its loop.)"""
-        return plan_around(self.host.walls, self.free_cell(), goal, self.others_cells())
+        return plan_around(self.host.blocked, self.free_cell(), goal, self.others_cells())
 
     def others_cells(self) -> set[tuple[int, int]]:
-        """The cells the other robots run here stand in now, and those of other hosts' robots the
-        camera sees (:mod:`robo_comp.robots.oneworld`)."""
+        """The cells the other robots run here hold now (:meth:`claim`), and those of other
+        hosts' robots the camera sees (:mod:`robo_comp.robots.oneworld`)."""
         me = self
-        cells = {r.cell() for r in self.host.robots.values() if r is not me}
+        cells = {c for r in self.host.robots.values() if r is not me for c in r.claim()}
         world = self.host.world
         foreign = self.host.foreign
         if world is not None and foreign is not None:
@@ -151,6 +189,10 @@ class RuntimeEnv(Protocol):
 
     def interrupted(self, r: SimRobot, t: RunningTask, by_task_id: int) -> None:
         """Robot ``r``'s task ``t`` is to be interrupted by task ``by_task_id`` (the plugins' hook)."""
+
+    def obstacle(self, r: SimRobot, cell: tuple[int, int]) -> None:
+        """Robot ``r``'s sensors saw ``cell`` blocked where its team's map shows it free: mark it on
+        the robot's own map now (``r.host.blocked``) and report it for the team's map."""
 
 
 class TaskRuntime:
@@ -192,9 +234,18 @@ class TaskRuntime:
 
     def boundary(self, r: SimRobot) -> None:
         """``r``'s driver finished a step (or a bump ended it): end a bumped task, switch to a
-        pending one, or ask the task for its next step."""
+        pending one, or ask the task for its next step (a move that did not end in its cell
+        answers :class:`~robo_comp.robots.steps.Replan`)."""
         bump = r.driver.bump
-        if bump is not None and r.task is not None:
+        t = r.task
+        if t is not None and t.to is not None:
+            to, t.leaving, t.to = t.to, None, None
+            after, t.after = t.after, None
+            if after is not None:
+                t.answer = after
+            elif bump is None and r.cell() != to:  # a fix moved it elsewhere, or it fell short
+                t.answer = Replan("off path", to)
+        if bump is not None and t is not None:
             other = r.host.robots.get(bump.get("other") or "")
             self.done(r, False, stop_status(bump, f"robot {other.tag}" if other is not None else None),
                       reason="bumped")
@@ -202,26 +253,31 @@ class TaskRuntime:
             nxt = r.pending
             self.done(r, False, f"interrupted by task {nxt['task_id']}", reason="interrupted")
             self.start(r, nxt)
-        elif r.task is not None:
+        elif t is not None:
             self.advance(r)
 
     def advance(self, r: SimRobot) -> None:
-        """Ask the task for its next step (the robot is at a movement boundary)."""
+        """Ask the task for its next step (the robot is at a movement boundary); a move waiting for
+        a teammate is looked at again first."""
         t = r.task
         assert t is not None
         while True:
-            try:
-                step = t.gen.send(t.answer)
-                t.answer = None
-            except StopIteration as stop:
-                self.done(r, True, "done", stop.value)
-                return
-            except TaskFailed as e:
-                self.done(r, False, str(e), reason=e.reason, line=e.line)
-                return
-            except Exception as e:  # a task bug must not take the host down
-                self.done(r, False, f"task {t.name} crashed: {e!r}", reason="crashed")
-                return
+            step: Step
+            if t.held is not None:
+                step, t.held = t.held, None
+            else:
+                try:
+                    step = t.gen.send(t.answer)
+                    t.answer = None
+                except StopIteration as stop:
+                    self.done(r, True, "done", stop.value)
+                    return
+                except TaskFailed as e:
+                    self.done(r, False, str(e), e.details or None, reason=e.reason, line=e.line)
+                    return
+                except Exception as e:  # a task bug must not take the host down
+                    self.done(r, False, f"task {t.name} crashed: {e!r}", reason="crashed")
+                    return
             if isinstance(step, Plan):  # the robot waits at its boundary meanwhile
                 path = self.env.plan(r, step)
                 if path is PLANNING:
@@ -233,10 +289,82 @@ class TaskRuntime:
                 if r.task is not t:  # the wait ended it (a bump, a stop, the end of the match)
                     return
                 continue
+            if isinstance(step, Move):
+                if self._move(r, t, step):
+                    return
+                continue  # not driven: the task hears why (t.answer) and goes on
             if isinstance(step, Capture):
                 self.env.capture(r, t, step.label)
             r.driver.begin(step)
             return
+
+    def _move(self, r: SimRobot, t: RunningTask, step: Move) -> bool:
+        """Drive ``step`` if the way is clear; else wait for a teammate, step aside, or answer the
+        task with a :class:`~robo_comp.robots.steps.Replan` (False: nothing was begun)."""
+        here = r.cell()
+        cell = (step.x, step.y)
+        if cell == here:  # a fix put the robot there already
+            return False
+        if max(abs(cell[0] - here[0]), abs(cell[1] - here[1])) != 1:
+            t.answer = Replan("off path", cell)
+            return False
+        blocked = r.host.blocked
+        h, w = blocked.shape
+        if not (0 <= cell[0] < w and 0 <= cell[1] < h) or blocked[cell[1], cell[0]]:
+            t.answer = Replan("wall", cell)
+            return False
+        sees = getattr(r.driver, "sees_blocked", None)
+        if sees is not None and sees(*cell):
+            self.env.obstacle(r, cell)
+            t.answer = Replan("obstacle", cell)
+            return False
+        other = self._holder(r, cell)
+        if other is None:
+            t.waited = 0.0
+            self._drive(r, t, cell, step)
+            return True
+        ot = other.task
+        if ot is not None and ot.held is not None and (ot.held.x, ot.held.y) in r.claim() and r.tag > other.tag:
+            side = self._side_step(r, other)
+            if side is not None:  # two robots waiting for each other: the higher tag makes way
+                t.waited = 0.0
+                self._drive(r, t, side, Move(*side))
+                t.after = Replan("teammate", cell)
+                return True
+        if t.waited >= HOLD_REPLAN:
+            t.waited = 0.0
+            t.answer = Replan("teammate", cell)
+            return False
+        t.held = step
+        t.waited += HOLD_STEP
+        r.driver.begin(Wait(HOLD_STEP))
+        return True
+
+    @staticmethod
+    def _drive(r: SimRobot, t: RunningTask, cell: tuple[int, int], step: Move) -> None:
+        t.leaving, t.to = r.cell(), cell
+        r.driver.begin(step)
+
+    @staticmethod
+    def _holder(r: SimRobot, cell: tuple[int, int]) -> SimRobot | None:
+        """The robot run here (a teammate) that stands in ``cell`` or drives into it, if any."""
+        for o in r.host.robots.values():
+            if o is not r and cell in o.claim():
+                return o
+        return None
+
+    def _side_step(self, r: SimRobot, other: SimRobot) -> tuple[int, int] | None:
+        """A free neighbouring cell of ``r`` off ``other``'s way (the farthest from it), if any."""
+        x, y = r.cell()
+        ox, oy = other.cell()
+        blocked = r.host.blocked
+        h, w = blocked.shape
+        free = [(x + dx, y + dy) for dx, dy in ((1, 0), (-1, 0), (0, 1), (0, -1))
+                if 0 <= x + dx < w and 0 <= y + dy < h and not blocked[y + dy, x + dx]
+                and self._holder(r, (x + dx, y + dy)) is None]
+        if not free:
+            return None
+        return max(free, key=lambda c: (c[0] - ox) ** 2 + (c[1] - oy) ** 2)
 
     def planned(self, r: SimRobot, path: Answer, error: Exception | None = None) -> None:
         """The path robot ``r``'s task waited for (``error``: planning failed, which fails the task)."""
@@ -294,4 +422,4 @@ class TaskRuntime:
         r.pending = None
 
 
-__all__ = ["PLANNING", "plan_around", "RobotWorld", "RunningTask", "RuntimeEnv", "SimRobot", "TaskRuntime"]
+__all__ = ["HOLD_REPLAN", "HOLD_STEP", "PLANNING", "plan_around", "RobotWorld", "RunningTask", "RuntimeEnv", "SimRobot", "TaskRuntime"]

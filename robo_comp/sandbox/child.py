@@ -309,12 +309,16 @@ class Child:
             """Send plain ``data`` to another robot of the team (tag ``to``)."""
             return rpc(tag, "radio", [to, data])
 
+        def report_obstacle(x, y):
+            """Report cell (x, y) blocked where the map shows it free (the team's map gets it)."""
+            return rpc(tag, "report_obstacle", [_num(x, "x"), _num(y, "y")])
+
         def log(text):
             """Write a line to the team's log (counts against the output limit)."""
             sink(str(text) + "\n", "log")
 
         funcs = (move, turn, go_to, sense, position, map_piece, plan, report_find, take_picture, look,
-                 upload_picture, radio, log)
+                 upload_picture, radio, report_obstacle, log)
         items = {f.__name__: f for f in funcs}
         items["tag"] = tag
         return self.restricted.Namespace("robot", items)

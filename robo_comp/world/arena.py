@@ -99,7 +99,9 @@ class Arena:
                  capacity: int = 16) -> None:
         self.scenario = scenario or default_scenario()
         sc = self.scenario
-        self.walls: np.ndarray = sc.walls.copy()
+        #: What blocks a robot: the map's walls and the debris the map does not show.
+        self.debris: np.ndarray = sc.debris_mask()
+        self.walls: np.ndarray = sc.walls | self.debris
         self.height, self.width = self.walls.shape
         self.costs: np.ndarray = sc.cost_grid()
         self.cell_size = sc.cell_size

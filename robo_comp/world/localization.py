@@ -167,6 +167,15 @@ class PositioningSystem:
 # ------------------------------------------------------------------ dead reckoning
 
 
+#: A fix farther from the estimate than this many σ of both (chi-square, 2 degrees of freedom,
+#: 99.7 %) means the estimate is wrong beyond what it believed (a wheel slipped, a turn was
+#: stopped half-way): its variance is raised to what the fix says, so the fix weighs.
+GATE = 11.8
+#: Cells the positioning system's fixes must have moved (at the least; more with noisier fixes:
+#: :meth:`DeadReckoner.track_base`) before their track says which way the robot really drives.
+TRACK_BASE = 2.0
+
+
 class DeadReckoner:
     """A robot's own pose estimate: odometry with drift between fixes, corrected on a fix.
 
@@ -174,7 +183,15 @@ class DeadReckoner:
     the truth by the ``drift`` errors (distance scale error, heading error per turn and
     per cell). :meth:`correct` blends a fix in with a scalar Kalman gain from the
     estimate's variance and the fix noise ``fix_noise`` (σ, cells): with exact fixes the
-    estimate jumps to the fix.
+    estimate jumps to the fix. A fix beyond :data:`GATE` of what the estimate expects raises
+    its variance first (the estimate was wrong, not the fix).
+
+    The heading is corrected too: by a camera's fix, which measures it; by fixes that measure a
+    position only (the HX5's) through their track: between two fixes at least
+    :meth:`track_base` cells apart, the way the fixes moved and the way the estimate moved (by
+    odometry alone) differ by the heading's error, weighed against the heading's own variance
+    (``hvar``, degrees², which grows with turning and driving, and jumps when a movement was
+    stopped half-way: :meth:`interrupted`).
     """
 
     def __init__(self, x: float, y: float, heading: float, drift: Drift | None = None,
@@ -185,8 +202,12 @@ class DeadReckoner:
         self.rng = rng if rng is not None else np.random.default_rng(0)
         self.fix_noise = float(fix_noise)
         self.var = 0.0                  # position variance (cells²) of the estimate
+        self.hvar = 0.0                 # heading variance (degrees²) of the estimate
         self.last_fix: float | None = None
         self.time = time
+        # the fix the next fix's track is measured from, and the way odometry moved the estimate since
+        self.anchor: tuple[float, float] | None = None
+        self.odo_x = self.odo_y = 0.0
 
     def pose(self) -> tuple[float, float, float]:
         """The estimated (x, y, heading)."""
@@ -202,7 +223,9 @@ class DeadReckoner:
         d = self.drift
         if turn:
             self.heading += turn + self.rng.normal(0.0, d.heading * abs(turn) / 90.0) if d.heading else turn
+            self.hvar += (d.heading * abs(turn) / 90.0) ** 2
         if distance:
+            self.hvar += d.heading_per_cell ** 2 * abs(distance)
             if d.heading_per_cell:
                 self.heading += self.rng.normal(0.0, d.heading_per_cell * math.sqrt(abs(distance)))
             scale = 1.0 + (self.rng.normal(0.0, d.distance) if d.distance else 0.0)
@@ -210,6 +233,8 @@ class DeadReckoner:
             hr = math.radians(self.heading)
             self.x += dist * math.cos(hr)
             self.y += dist * math.sin(hr)
+            self.odo_x += dist * math.cos(hr)
+            self.odo_y += dist * math.sin(hr)
             lateral = abs(distance) * math.radians(d.heading_per_cell + d.heading)
             self.var += (d.distance * distance) ** 2 + lateral ** 2
         self.heading %= 360.0
@@ -219,16 +244,57 @@ class DeadReckoner:
         Kalman gain ``var / (var + fix_noise²)``; a fix that measured the ``heading`` too (a
         camera) turns the estimate toward it by the same gain."""
         r2 = self.fix_noise ** 2
+        miss = (fix.x - self.x) ** 2 + (fix.y - self.y) ** 2
+        if gain is None and miss > GATE * (self.var + r2):
+            self.var = max(self.var, miss - r2)  # the estimate is off by more than it believed
+            self.anchor = None  # and its track since the last fix says nothing of the heading
         if gain is None:
             gain = 1.0 if r2 == 0 else self.var / (self.var + r2)
         g = min(max(float(gain), 0.0), 1.0)
+        if heading is None:
+            self._track_heading(fix)
         self.x += g * (fix.x - self.x)
         self.y += g * (fix.y - self.y)
         if heading is not None:
             self.heading = (self.heading + g * ((heading - self.heading + 180.0) % 360.0 - 180.0)) % 360.0
+            self.hvar = (1.0 - g) * self.hvar
         # Posterior variance of a blend with weight g: (1-g)² var + g² r².
         self.var = (1.0 - g) ** 2 * self.var + g * g * r2
         self.last_fix = fix.time
+        if self.anchor is None:
+            self.anchor = (fix.x, fix.y)
+            self.odo_x = self.odo_y = 0.0
+
+    def track_base(self) -> float:
+        """Cells between two fixes before their track corrects the heading: :data:`TRACK_BASE`, more
+        for noisier fixes (the bearing between two fixes is then known to about 10°)."""
+        return max(TRACK_BASE, 8.0 * self.fix_noise)
+
+    def _track_heading(self, fix: Fix) -> None:
+        """Correct the heading from the way the fixes moved against the way the estimate moved."""
+        a = self.anchor
+        if a is None:
+            return
+        fdx, fdy = fix.x - a[0], fix.y - a[1]
+        edx, edy = self.odo_x, self.odo_y
+        moved = math.hypot(edx, edy)
+        base = self.track_base()
+        if moved < base or math.hypot(fdx, fdy) < base / 2:
+            return
+        err = (math.degrees(math.atan2(fdy, fdx) - math.atan2(edy, edx)) + 180.0) % 360.0 - 180.0
+        r2 = math.degrees(math.sqrt(2.0) * self.fix_noise / moved) ** 2  # the bearing's noise, degrees²
+        if err * err > 9.0 * (self.hvar + r2):
+            self.hvar = max(self.hvar, err * err - r2)
+        g = self.hvar / (self.hvar + r2) if self.hvar + r2 > 0 else 0.0
+        self.heading = (self.heading + g * err) % 360.0
+        self.hvar = (1.0 - g) * self.hvar
+        self.anchor = None  # the next track starts at this fix
+
+    def interrupted(self, turn: float = 45.0, distance: float = 0.5) -> None:
+        """A movement was stopped half-way: how far the robot turned (up to ``turn`` degrees) and
+        drove (up to ``distance`` cells) is not known: the variances grow by as much (uniform)."""
+        self.hvar += turn * turn / 3.0
+        self.var += distance * distance / 3.0
 
     def reset(self, x: float, y: float, heading: float | None = None) -> None:
         """Set the estimate to a known pose (e.g. given by the referee)."""
@@ -316,6 +382,12 @@ class Localization:
         # lifted and put down): a camera's fix always weighs, even on a robot standing still
         r.var = max(r.var, CAMERA_PRIOR ** 2)
         r.correct(Fix(tag, x, y, 0.0, time), heading=heading)
+
+    def interrupted(self, tag: str) -> None:
+        """Robot ``tag``'s movement was stopped half-way (a stop, a bump): its estimate knows it is
+        less sure of its heading and position (:meth:`DeadReckoner.interrupted`)."""
+        if tag in self.reckoners or tag in self.arena.tags:
+            self._reckoner(tag).interrupted()
 
     def sigma(self, tag: str) -> float:
         """Robot ``tag``'s position uncertainty σ (cells): it grows while no fix comes."""
