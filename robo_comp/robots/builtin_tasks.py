@@ -16,7 +16,7 @@ BuiltinRun = Generator[Step, Answer, dict[str, Any]]
 #: ``goTo`` that ends farther away (after driving back and waiting for fixes) fails, and every
 #: walk's result says its ``end_error``.
 END_TOLERANCE = 0.5
-#: Plans a walk makes at most (the first and the re-plans after a :class:`Replan`).
+#: Plans in a row a walk makes without driving a cell before it gives up (the way stays blocked).
 MAX_PLANS = 30
 #: Seconds a robot in its goal cell but beyond :data:`END_TOLERANCE` waits for a positioning fix,
 #: and how often.
@@ -33,7 +33,10 @@ def _walk(robot: RobotView, goal: tuple[float, float]) -> Generator[Step, Answer
         raise TaskFailed(f"({gx}, {gy}) is a wall or outside the arena")
     settled = 0
     why = ""
-    for _ in range(MAX_PLANS):
+    stuck = plans = 0
+    while stuck < MAX_PLANS and plans < 10 * MAX_PLANS:
+        stuck += 1
+        plans += 1
         x, y, _h = robot.pose()
         error = math.hypot(x - gx, y - gy)
         if robot.cell() == (gx, gy):
@@ -53,8 +56,10 @@ def _walk(robot: RobotView, goal: tuple[float, float]) -> Generator[Step, Answer
             if isinstance(answer, Replan):  # plan again from where the robot is now
                 why = answer.reason
                 break
+            stuck = 0
     x, y, _h = robot.pose()
-    raise TaskFailed(f"did not reach ({gx}, {gy}) after {MAX_PLANS} plans (the last re-plan: {why or 'off path'})",
+    raise TaskFailed(f"did not reach ({gx}, {gy}) after {plans} plans ({stuck} in a row without driving a cell; "
+                     f"the last re-plan: {why or 'off path'})",
                      details={"end_error": round(math.hypot(x - gx, y - gy), 3)})
 
 

@@ -50,6 +50,19 @@ PLANNING = object()
 HOLD_STEP = 0.25
 #: Seconds of waiting for one cell after which the task plans again, around its teammates.
 HOLD_REPLAN = 1.0
+#: Where the robot believes it is, measured from a cell's centre (cells): within :data:`THERE` it
+#: is in the cell already (a move there is skipped); a move ends off its path beyond
+#: :data:`OFF_PATH` (a fix moved the robot: the task plans again), and the next move's cell must be
+#: within :data:`NEXT` (a neighbour, diagonals included).
+THERE = 0.3
+OFF_PATH = 0.75
+NEXT = 1.75
+
+
+def _off(r: SimRobot, cell: tuple[int, int], limit: float) -> bool:
+    """Whether robot ``r`` believes it is farther than ``limit`` cells from ``cell``'s centre."""
+    x, y, _ = r.driver.pose
+    return (x - cell[0]) ** 2 + (y - cell[1]) ** 2 > limit * limit
 
 
 @dataclass(slots=True)
@@ -243,7 +256,7 @@ class TaskRuntime:
             after, t.after = t.after, None
             if after is not None:
                 t.answer = after
-            elif bump is None and r.cell() != to:  # a fix moved it elsewhere, or it fell short
+            elif bump is None and _off(r, to, OFF_PATH):  # a fix moved it elsewhere, or it fell short
                 t.answer = Replan("off path", to)
         if bump is not None and t is not None:
             other = r.host.robots.get(bump.get("other") or "")
@@ -301,11 +314,10 @@ class TaskRuntime:
     def _move(self, r: SimRobot, t: RunningTask, step: Move) -> bool:
         """Drive ``step`` if the way is clear; else wait for a teammate, step aside, or answer the
         task with a :class:`~robo_comp.robots.steps.Replan` (False: nothing was begun)."""
-        here = r.cell()
         cell = (step.x, step.y)
-        if cell == here:  # a fix put the robot there already
+        if not _off(r, cell, THERE):  # a fix put the robot there already
             return False
-        if max(abs(cell[0] - here[0]), abs(cell[1] - here[1])) != 1:
+        if _off(r, cell, NEXT):
             t.answer = Replan("off path", cell)
             return False
         blocked = r.host.blocked

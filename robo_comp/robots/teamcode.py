@@ -282,9 +282,12 @@ def movement_steps(site: CallSite, name: str, args: list[Any]) -> Generator[Step
     if not in_bounds(walls, *goal):
         raise Refused(f"({goal[0]}, {goal[1]}) is a wall or outside the arena")
     avoid = False  # the first plan around walls only; a re-plan around the teammates in the way too
-    for _ in range(GO_TO_PLANS):
+    stuck = plans = 0
+    while stuck < GO_TO_PLANS and plans < 10 * GO_TO_PLANS:
         if site.cell() == goal:
             return
+        stuck += 1
+        plans += 1
         path = yield Plan(goal, avoid_robots=avoid)  # the host plans off its loop; the bench at once
         if not isinstance(path, list):
             raise Refused(f"no path to ({goal[0]}, {goal[1]})")
@@ -293,12 +296,13 @@ def movement_steps(site: CallSite, name: str, args: list[Any]) -> Generator[Step
             if isinstance(answer, Replan):
                 avoid = True
                 break
+            stuck = 0
     if site.cell() != goal:
-        raise Refused(f"did not reach ({goal[0]}, {goal[1]}) after {GO_TO_PLANS} plans; stopped at {site.cell()}")
+        raise Refused(f"did not reach ({goal[0]}, {goal[1]}) after {plans} plans; stopped at {site.cell()}")
 
 
-#: Plans a team code ``go_to`` makes at most (the first, and one after every move the runtime
-#: answered with a :class:`~robo_comp.robots.steps.Replan`).
+#: Plans in a row a team code ``go_to`` makes without driving a cell before it gives up (a plan
+#: follows every move the runtime answered with a :class:`~robo_comp.robots.steps.Replan`).
 GO_TO_PLANS = 30
 #: What team code is told when a ``move`` could not be made.
 _REPLANS = {"teammate": "a teammate holds", "obstacle": "an obstacle (reported for the team's map) blocks",

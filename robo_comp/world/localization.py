@@ -171,6 +171,12 @@ class PositioningSystem:
 #: 99.7 %) means the estimate is wrong beyond what it believed (a wheel slipped, a turn was
 #: stopped half-way): its variance is raised to what the fix says, so the fix weighs.
 GATE = 11.8
+#: Fixes in a row beyond :data:`GATE` after which the estimate, not the fixes, is taken to be wrong
+#: (a single one is left out as the positioning system's own error).
+DOUBTS = 2
+#: The least position uncertainty (σ, cells) an estimate has when a fix comes: wheels slip, a
+#: robot is nudged; without it an estimate that believes itself exact stops listening to fixes.
+POSE_FLOOR = 0.1
 #: Cells the positioning system's fixes must have moved (at the least; more with noisier fixes:
 #: :meth:`DeadReckoner.track_base`) before their track says which way the robot really drives.
 TRACK_BASE = 2.0
@@ -183,15 +189,15 @@ class DeadReckoner:
     the truth by the ``drift`` errors (distance scale error, heading error per turn and
     per cell). :meth:`correct` blends a fix in with a scalar Kalman gain from the
     estimate's variance and the fix noise ``fix_noise`` (σ, cells): with exact fixes the
-    estimate jumps to the fix. A fix beyond :data:`GATE` of what the estimate expects raises
-    its variance first (the estimate was wrong, not the fix).
+    estimate jumps to the fix.
 
     The heading is corrected too: by a camera's fix, which measures it; by fixes that measure a
     position only (the HX5's) through their track: between two fixes at least
     :meth:`track_base` cells apart, the way the fixes moved and the way the estimate moved (by
     odometry alone) differ by the heading's error, weighed against the heading's own variance
     (``hvar``, degrees², which grows with turning and driving, and jumps when a movement was
-    stopped half-way: :meth:`interrupted`).
+    stopped half-way: :meth:`interrupted`). A fix beyond :data:`GATE` is left out unless the next
+    one is too (:data:`DOUBTS`): then the estimate is wrong and its variance is raised to match.
     """
 
     def __init__(self, x: float, y: float, heading: float, drift: Drift | None = None,
@@ -208,6 +214,7 @@ class DeadReckoner:
         # the fix the next fix's track is measured from, and the way odometry moved the estimate since
         self.anchor: tuple[float, float] | None = None
         self.odo_x = self.odo_y = 0.0
+        self.doubts = 0  # fixes in a row beyond GATE
 
     def pose(self) -> tuple[float, float, float]:
         """The estimated (x, y, heading)."""
@@ -235,7 +242,8 @@ class DeadReckoner:
             self.y += dist * math.sin(hr)
             self.odo_x += dist * math.cos(hr)
             self.odo_y += dist * math.sin(hr)
-            lateral = abs(distance) * math.radians(d.heading_per_cell + d.heading)
+            # sideways, a heading that is off by its σ moves the robot by that much of the distance
+            lateral = abs(distance) * math.radians(d.heading_per_cell + d.heading + math.sqrt(self.hvar))
             self.var += (d.distance * distance) ** 2 + lateral ** 2
         self.heading %= 360.0
 
@@ -244,10 +252,16 @@ class DeadReckoner:
         Kalman gain ``var / (var + fix_noise²)``; a fix that measured the ``heading`` too (a
         camera) turns the estimate toward it by the same gain."""
         r2 = self.fix_noise ** 2
+        if gain is None:  # a robot's pose is never known better than this between two fixes
+            self.var = max(self.var, POSE_FLOOR ** 2)
         miss = (fix.x - self.x) ** 2 + (fix.y - self.y) ** 2
         if gain is None and miss > GATE * (self.var + r2):
-            self.var = max(self.var, miss - r2)  # the estimate is off by more than it believed
+            self.doubts += 1
+            if self.doubts < DOUBTS:  # one fix that far off is more likely the fix's error: left out
+                return
+            self.var = max(self.var, miss - r2)  # fixes keep saying so: the estimate is off
             self.anchor = None  # and its track since the last fix says nothing of the heading
+        self.doubts = 0
         if gain is None:
             gain = 1.0 if r2 == 0 else self.var / (self.var + r2)
         g = min(max(float(gain), 0.0), 1.0)
@@ -304,6 +318,9 @@ class DeadReckoner:
         self.var = 0.0
 
 
+#: Fixes in a row beyond :data:`GATE` after which the estimate, not the fixes, is taken to be wrong
+#: (a single one is left out as the positioning system's own error).
+DOUBTS = 2
 #: The least position uncertainty (σ, cells) a robot's estimate has when a camera fix comes.
 CAMERA_PRIOR = 0.1
 
