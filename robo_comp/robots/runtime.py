@@ -39,6 +39,7 @@ from robo_comp.protocol.taskspec import check_args
 from robo_comp.robots.steps import (
     Answer, Capture, CellPath, Compute, Move, Plan, Replan, Step, TaskFailed, TaskRun, TaskSpec, Wait, no_steps,
 )
+from robo_comp.robots import traffic
 from robo_comp.robots.teamcode import free_cell, in_bounds, stop_status
 from robo_comp.world.planner import find_path
 
@@ -50,6 +51,8 @@ PLANNING = object()
 HOLD_STEP = 0.25
 #: Seconds of waiting for one cell after which the task plans again, around its teammates.
 HOLD_REPLAN = 1.0
+#: Seconds a robot making way waits for the teammate to pass (then it goes on whatever).
+WAY_LIMIT = 20.0
 #: Where the robot believes it is, measured from a cell's centre (cells): within :data:`THERE` it
 #: is in the cell already (a move there is skipped); a move ends off its path beyond
 #: :data:`OFF_PATH` (a fix moved the robot: the task plans again), and the next move's cell must be
@@ -82,8 +85,21 @@ class RunningTask:
     #: The move in progress: the cell it left and the cell it drives to (what teammates keep off).
     leaving: tuple[int, int] | None = None
     to: tuple[int, int] | None = None
-    #: What the task gets back when the move in progress ends (the runtime's own step aside).
-    after: Replan | None = None
+    #: The task's last planned path (where teammates must not wait for it: robots.traffic).
+    path: CellPath | None = None
+    #: Making way for a teammate (:mod:`robo_comp.robots.traffic`), when it does.
+    way: GiveWay | None = None
+
+
+@dataclass(slots=True)
+class GiveWay:
+    """A robot making way for a teammate: the cells still to drive to its refuge, the cells it left
+    (the teammate is to pass them), the teammate's robot id, the seconds it has waited."""
+
+    cells: list[tuple[int, int]]
+    left: list[tuple[int, int]]
+    other: str
+    waited: float = 0.0
 
 
 def plan_around(walls: Any, start: tuple[int, int], goal: tuple[int, int],
@@ -143,12 +159,8 @@ class SimRobot:
         return x, y, h
 
     def claim(self) -> tuple[tuple[int, int], ...]:
-        """The cells this robot holds: the one it stands in, or, during a move, the one it leaves
-        and the one it drives to (a teammate enters neither)."""
-        t = self.task
-        if t is not None and t.to is not None and t.leaving is not None:
-            return t.leaving, t.to
-        return (self.cell(),)
+        """The cells this robot holds (:func:`robo_comp.robots.traffic.claim`): a teammate enters none."""
+        return traffic.claim(self)
 
     def in_bounds(self, x: int, y: int) -> bool:
         """True when (x, y) is a free cell of the arena."""
@@ -253,10 +265,7 @@ class TaskRuntime:
         t = r.task
         if t is not None and t.to is not None:
             to, t.leaving, t.to = t.to, None, None
-            after, t.after = t.after, None
-            if after is not None:
-                t.answer = after
-            elif bump is None and _off(r, to, OFF_PATH):  # a fix moved it elsewhere, or it fell short
+            if bump is None and t.way is None and _off(r, to, OFF_PATH):  # a fix moved it, or it fell short
                 t.answer = Replan("off path", to)
         if bump is not None and t is not None:
             other = r.host.robots.get(bump.get("other") or "")
@@ -276,6 +285,10 @@ class TaskRuntime:
         assert t is not None
         while True:
             step: Step
+            if t.way is not None:
+                if self._give_way(r, t, t.way):
+                    return
+                continue  # the teammate passed: the task plans again (t.answer)
             if t.held is not None:
                 step, t.held = t.held, None
             else:
@@ -296,7 +309,7 @@ class TaskRuntime:
                 if path is PLANNING:
                     self.planning[r.robot_id] = r
                     return
-                t.answer = path
+                t.answer = t.path = path
                 continue
             if isinstance(step, Compute) and self.env.compute(r, step):
                 if r.task is not t:  # the wait ended it (a bump, a stop, the end of the match)
@@ -330,25 +343,49 @@ class TaskRuntime:
             self.env.obstacle(r, cell)
             t.answer = Replan("obstacle", cell)
             return False
-        other = self._holder(r, cell)
+        other = traffic.holder(r, cell)
         if other is None:
             t.waited = 0.0
             self._drive(r, t, cell, step)
             return True
+        t.held = step  # waiting for the cell (as the teammate sees it, deciding who makes way)
         ot = other.task
-        if ot is not None and ot.held is not None and (ot.held.x, ot.held.y) in r.claim() and r.tag > other.tag:
-            side = self._side_step(r, other)
-            if side is not None:  # two robots waiting for each other: the higher tag makes way
-                t.waited = 0.0
-                self._drive(r, t, side, Move(*side))
-                t.after = Replan("teammate", cell)
-                return True
+        if ot is not None and ot.held is not None and (ot.held.x, ot.held.y) in r.claim():
+            cells = traffic.make_way(r, other)
+            if cells is not None:  # two robots waiting for each other: this one makes way
+                t.held, t.waited = None, 0.0
+                t.way = GiveWay(cells, [r.cell()], other.robot_id)
+                return self._give_way(r, t, t.way)
         if t.waited >= HOLD_REPLAN:
-            t.waited = 0.0
+            t.held, t.waited = None, 0.0
             t.answer = Replan("teammate", cell)
             return False
-        t.held = step
         t.waited += HOLD_STEP
+        r.driver.begin(Wait(HOLD_STEP))
+        return True
+
+    def _give_way(self, r: SimRobot, t: RunningTask, way: GiveWay) -> bool:
+        """Drive on to the refuge, or wait there until the teammate has passed (True: a step began);
+        False once the way is made: the task gets a :class:`~robo_comp.robots.steps.Replan`."""
+        other = r.host.robots.get(way.other)
+        if way.waited >= WAY_LIMIT or (not way.cells and traffic.passed(other, way.left)):
+            t.way = None
+            t.answer = Replan("teammate", way.left[0])
+            return False
+        if way.cells:
+            nxt = way.cells[0]
+            sees = getattr(r.driver, "sees_blocked", None)
+            if sees is not None and sees(*nxt):
+                self.env.obstacle(r, nxt)
+                t.way = None
+                t.answer = Replan("obstacle", nxt)
+                return False
+            if traffic.holder(r, nxt) is None:
+                way.cells.pop(0)
+                way.left.append(r.cell())
+                self._drive(r, t, nxt, Move(*nxt))
+                return True
+        way.waited += HOLD_STEP
         r.driver.begin(Wait(HOLD_STEP))
         return True
 
@@ -356,27 +393,6 @@ class TaskRuntime:
     def _drive(r: SimRobot, t: RunningTask, cell: tuple[int, int], step: Move) -> None:
         t.leaving, t.to = r.cell(), cell
         r.driver.begin(step)
-
-    @staticmethod
-    def _holder(r: SimRobot, cell: tuple[int, int]) -> SimRobot | None:
-        """The robot run here (a teammate) that stands in ``cell`` or drives into it, if any."""
-        for o in r.host.robots.values():
-            if o is not r and cell in o.claim():
-                return o
-        return None
-
-    def _side_step(self, r: SimRobot, other: SimRobot) -> tuple[int, int] | None:
-        """A free neighbouring cell of ``r`` off ``other``'s way (the farthest from it), if any."""
-        x, y = r.cell()
-        ox, oy = other.cell()
-        blocked = r.host.blocked
-        h, w = blocked.shape
-        free = [(x + dx, y + dy) for dx, dy in ((1, 0), (-1, 0), (0, 1), (0, -1))
-                if 0 <= x + dx < w and 0 <= y + dy < h and not blocked[y + dy, x + dx]
-                and self._holder(r, (x + dx, y + dy)) is None]
-        if not free:
-            return None
-        return max(free, key=lambda c: (c[0] - ox) ** 2 + (c[1] - oy) ** 2)
 
     def planned(self, r: SimRobot, path: Answer, error: Exception | None = None) -> None:
         """The path robot ``r``'s task waited for (``error``: planning failed, which fails the task)."""
@@ -389,6 +405,7 @@ class TaskRuntime:
             self.done(r, False, f"planning failed: {error!r}", reason="crashed")
             return
         t.answer = path
+        t.path = path if isinstance(path, list) else None
         self.advance(r)
 
     def take_plans(self) -> None:
@@ -434,4 +451,4 @@ class TaskRuntime:
         r.pending = None
 
 
-__all__ = ["HOLD_REPLAN", "HOLD_STEP", "PLANNING", "plan_around", "RobotWorld", "RunningTask", "RuntimeEnv", "SimRobot", "TaskRuntime"]
+__all__ = ["GiveWay", "HOLD_REPLAN", "HOLD_STEP", "PLANNING", "plan_around", "RobotWorld", "RunningTask", "RuntimeEnv", "SimRobot", "TaskRuntime"]

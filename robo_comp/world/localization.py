@@ -304,10 +304,15 @@ class DeadReckoner:
         self.hvar = (1.0 - g) * self.hvar
         self.anchor = None  # the next track starts at this fix
 
-    def interrupted(self, turn: float = 45.0, distance: float = 0.5) -> None:
+    def interrupted(self, turn: float = 45.0, distance: float = 0.5, grid: bool = False) -> None:
         """A movement was stopped half-way: how far the robot turned (up to ``turn`` degrees) and
-        drove (up to ``distance`` cells) is not known: the variances grow by as much (uniform)."""
-        self.hvar += turn * turn / 3.0
+        drove (up to ``distance`` cells) is not known: the variances grow by as much (uniform). A
+        ``grid`` robot (the ER1 way: it stands only facing along the grid, and settles there when
+        stopped) takes the grid's nearest heading instead."""
+        if grid:
+            self.heading = (round(self.heading / 90.0) * 90.0) % 360.0
+        else:
+            self.hvar += turn * turn / 3.0
         self.var += distance * distance / 3.0
 
     def reset(self, x: float, y: float, heading: float | None = None) -> None:
@@ -402,9 +407,14 @@ class Localization:
 
     def interrupted(self, tag: str) -> None:
         """Robot ``tag``'s movement was stopped half-way (a stop, a bump): its estimate knows it is
-        less sure of its heading and position (:meth:`DeadReckoner.interrupted`)."""
+        less sure of its heading and position, or, on a grid4 arena, settles on the grid as the
+        robot does (:meth:`DeadReckoner.interrupted`)."""
         if tag in self.reckoners or tag in self.arena.tags:
-            self._reckoner(tag).interrupted()
+            rk = self._reckoner(tag)
+            dist, turn = self.arena.odometry(tag, reset=True)  # what it drove since the last update first
+            if dist or turn:
+                rk.advance(dist, turn)
+            rk.interrupted(grid=self.arena.drive == "grid4")
 
     def sigma(self, tag: str) -> float:
         """Robot ``tag``'s position uncertainty σ (cells): it grows while no fix comes."""
