@@ -205,7 +205,7 @@ def takeover(a: argparse.Namespace) -> None:
                 rows = wait_robots(red, 2)
                 doomed = next(r for r in rows if r["robot_id"] == "doomed-1")
                 red.request("give", tag=doomed["tag"], task="goTo", args=[40, 20])
-                given = red.request("give", tag=doomed["tag"], task="goTo", args=[10, 10], queue=True)
+                given = red.request("give", tag=doomed["tag"], task="goTo", args=[10, 23], queue=True)
                 wait_for(lambda: any(e["data"].get("tag") == doomed["tag"] for e in m.logged_events("task.started")),
                          10, "the goTo to start")
                 time.sleep(0.5)
