@@ -38,6 +38,7 @@ from robo_comp.core.competition import Competition
 from robo_comp.protocol.curve import ServerKeys, ZapHandler, load_server_keys, secure_plain_server, secure_server
 from robo_comp.core.mapdesk import MapDesk
 from robo_comp.core.teamdesk import TeamDesk
+from robo_comp.core.videodesk import VideoDesk
 from robo_comp.core.uploads import UploadDesk
 from robo_comp.core.eventlog import EventLog, StorageFault
 from robo_comp.core.guard import (
@@ -201,7 +202,8 @@ class Core:
         self.competition = Competition(self, self, self.match, self.state_dir, lambda: self.events)
         self.uploads = UploadDesk(self, self, self.state_dir, approve_uploads or scenario.approve_uploads)
         self.teamdesk = TeamDesk(self, self)
-        for desk in (self.competition, self.maps, self.uploads, self.teamdesk):
+        self.videodesk = VideoDesk(self, self, self.state_dir)
+        for desk in (self.competition, self.maps, self.uploads, self.teamdesk, self.videodesk):
             self._handlers.update(desk.handlers())
         self.recovered: RecoveryReport | None = None
         if log_path.exists() and log_path.stat().st_size > 0:

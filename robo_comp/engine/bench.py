@@ -11,6 +11,7 @@ replay``, the wall, the web page and the consoles show like any recorded match.
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
@@ -32,6 +33,7 @@ from robo_comp.robots.steps import Compute, Plan, TaskSpec
 from robo_comp.robots.teamcode import Reply, TeamCode
 from robo_comp.sandbox.parent import LogLine, Sandbox
 from robo_comp.world.scenario import DEFAULT_SCENARIO, resolve_scenario
+from robo_comp.world.video import FPS, encode_webm
 
 if TYPE_CHECKING:
     from robo_comp.sandbox.contract import ModuleInfo
@@ -241,6 +243,8 @@ class Bench:
         self._directives: deque[tuple[SimRobot, str, dict[str, Any]]] = deque()
         #: Robots whose host failed (:meth:`lose`): they hold still, report nothing, get nothing.
         self.down: set[int] = set()
+        #: The videos filmed (WebM bytes by id; the match has their records).
+        self.videos: dict[int, bytes] = {}
         self._plans: dict[int, deque[TaskStep]] = {}
         self._outcomes: dict[int, list[dict[str, Any]]] = {}
         self._on_done: Callable[[int, dict[str, Any]], Iterable[TaskStep] | None] | None = None
@@ -543,6 +547,21 @@ class Bench:
         pid, _ = self.picture(r, label)
         t.pictures.append(pid)
 
+    def frame(self, r: SimRobot) -> Any:
+        """A frame of ``r``'s camera at its true pose."""
+        return self.arena.camera_image(r.robot_id)
+
+    def video(self, r: SimRobot, t: RunningTask, frames: list[Any], label: str) -> None:
+        """The video written at once (no simulated time passes), kept in :attr:`videos`, recorded by
+        the match where it tracks the robot (as the core records a host's video)."""
+        data = encode_webm(frames)
+        x, y, h = r.driver.truth()
+        rec = self.match.video(self.match.registry.get(r.tag), {"x": float(x), "y": float(y), "heading": float(h)},
+                               seconds=round(len(frames) / FPS, 3), frames=len(frames), label=label,
+                               sha256=hashlib.sha256(data).hexdigest()[:16])
+        self.videos[rec["id"]] = data
+        t.videos.append(rec["id"])
+
     def compute(self, r: SimRobot, step: Compute) -> bool:
         """Wait for robot ``r``'s team code, with the simulated clock stopped (step-locked)."""
         team = self.team_of[r.tag]
@@ -625,6 +644,8 @@ class Bench:
                                                                "x": ev.data["x"], "y": ev.data["y"]})
         self.loc.update()
         self._report()
+        if self.runtime.filming:
+            self.runtime.film(dt)
         for tag in self.tags:
             r = self.by_tag[tag]
             if r.driver.step is not None and r.driver.update(dt):

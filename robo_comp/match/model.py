@@ -33,6 +33,7 @@ from robo_comp.match.plausibility import MAX_NOISE, MAX_SIGMA, PoseGate
 from robo_comp.match.registry import Registry, RobotRecord
 from robo_comp.match.tasks import TaskMachine, TaskRecord
 from robo_comp.match.teamwork import TeamWork
+from robo_comp.match.videos import Videos
 from robo_comp.protocol import wire
 from robo_comp.protocol.messages import MAX_RADIO, RADIO_RATE
 from robo_comp.protocol.states import RobotStatus, TaskMode, TaskState
@@ -75,6 +76,8 @@ class Match:
         #: A lost robot's work offered and moved to teammates; the obstacles each team reported.
         self.teamwork = TeamWork(self.registry, self.tasks, out, pm, self._give_moved,
                                  self.contest.disqualified_robots.__contains__)
+        #: The videos robots filmed (examineArea's turn on the spot).
+        self.videos = Videos(out, wall)
         self.robots_per_team = robots_per_team
         fastest_zone = max([1.0, *(z.speed_factor for z in scenario.zones)])
         #: The fastest a robot may drive (cells/s): a host's declared speed is cut to it.
@@ -206,6 +209,12 @@ class Match:
     def set_reallocate(self, team: str, on: bool, by: str) -> dict[str, Any]:
         """Turn ``team``'s built-in reallocation of a lost robot's tasks on or off."""
         return self.teamwork.set_reallocate(self.contest.team_arg(team), on, by)
+
+    def video(self, r: RobotRecord, claim: dict[str, Any], **meta: Any) -> dict[str, Any]:
+        """Robot ``r`` filmed a video (``claim``: where its host says; judged like a picture's
+        place); recorded and announced with the next id."""
+        x, y, heading = self.judged_pose(r, claim, "video")
+        return self.videos.record(r.team, r.tag, x, y, heading, **meta)
 
     def obstacle(self, r: RobotRecord, x: Any, y: Any) -> bool:
         """Robot ``r`` reports cell ``(x, y)`` blocked where the map shows it free: on its team's map

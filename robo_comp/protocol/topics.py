@@ -32,6 +32,8 @@ TOPICS = (
     # teamwork (issue 33): a lost robot's tasks offered to its team (public without the tasks),
     # a team's reallocation setting and the obstacles its robots reported (the team's and the referee's)
     "task.offered", "teamwork", "map.obstacle",
+    # a video a robot filmed (examineArea): the public sees that and where, the film is the team's
+    "video",
 )
 
 
@@ -47,6 +49,7 @@ PUBLIC_TOPICS: dict[str, tuple[str, ...] | None] = {
     "broadcast": ("message", "by"),
     # the logged record also names the victims in sight and the image's hash: the team's own
     "picture": ("id", "tag", "team", "x", "y", "heading", "t"),
+    "video": ("id", "tag", "team", "x", "y", "heading", "t", "seconds"),
     # the running match clock as the log records it (a replay shows it; the machine's boot clock is not public)
     "match.clock": ("phase", "elapsed", "remaining", "duration", "outage"),
 }

@@ -5,7 +5,9 @@ import math
 from collections.abc import Generator
 from typing import Any
 
-from robo_comp.robots.steps import Answer, Capture, Move, Plan, Replan, RobotView, Step, TaskFailed, TaskSpec, Turn, Wait
+from robo_comp.robots.steps import (
+    Answer, Capture, Move, Plan, Record, Replan, RobotView, Step, TaskFailed, TaskSpec, Turn, Wait,
+)
 
 #: A built-in task's generator: steps out, the runtime's :data:`Answer` in, a result dict at the end.
 #: A task of your own can be typed the same way.
@@ -83,14 +85,16 @@ def follow_path(robot: RobotView, points: list[list[float]]) -> BuiltinRun:
 
 
 def examine_area(robot: RobotView, x: int, y: int) -> BuiltinRun:
-    """Go to (x, y), turn 360° in four quarter turns and take a picture at each.
+    """Go to (x, y), turn 360° in four quarter turns and take a picture at each, filming the turn.
 
-    The runtime adds the uploaded pictures' ids to the result as ``pictures``: cite them as
-    evidence when reporting a find."""
+    The runtime adds the uploaded pictures' ids to the result as ``pictures`` (cite them as
+    evidence when reporting a find) and the video's as ``videos``."""
     error = yield from _walk(robot, (x, y))
+    yield Record(f"examine-{x}-{y}")
     for quarter in range(4):
         yield Capture(f"examine-{x}-{y}-{quarter * 90}")
         yield Turn(90)
+    yield Record(None)
     return {"examined": [x, y], "end_error": round(error, 3)}
 
 
@@ -103,7 +107,7 @@ BUILTIN_TASKS: list[TaskSpec] = [
              [{"name": "points", "type": "points", "description": "cells to visit in order, [[x, y], ...]"}],
              "visit several cells in order"),
     TaskSpec("examineArea", examine_area, _XY,
-             "go to a cell, turn 360 degrees and take pictures"),
+             "go to a cell, turn 360 degrees, take pictures and film it"),
 ]
 
 

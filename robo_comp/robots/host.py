@@ -20,7 +20,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -43,6 +43,7 @@ from robo_comp.world.localization import Localization
 from robo_comp.world.mapservice import MapView
 from robo_comp.world.planner import warm_up
 from robo_comp.world.sensors import warm_up as sensors_warm_up
+from robo_comp.world.video import FPS, encode_webm
 from robo_comp.world.public import scenario_from_payload
 from robo_comp.world.scenario import Scenario
 
@@ -199,6 +200,8 @@ class RobotHost:
         self.released: set[str] = set()
         #: robot id -> its task.done not yet answered by the core (sent again on re-registering).
         self.unacked_done: dict[str, dict[str, Any]] = {}
+        #: Videos being written in the planner thread: (job, robot, task, the request's body).
+        self._videos: list[tuple[Future[bytes], SimRobot, RunningTask, dict[str, Any]]] = []
 
     FIX_SILENCE = 2.0
     """Seconds without a message from the camera after which the host connects to it afresh."""
@@ -582,6 +585,47 @@ class RobotHost:
                                "label": label[:64]},
                    lambda ok, body: self._on_picture(t, ok, body))
 
+    def frame(self, r: SimRobot) -> Any:
+        """A frame of the camera at the robot's true pose (the simulated arena's view)."""
+        assert self.world is not None
+        return self.world.camera_image(r.robot_id)
+
+    def video(self, r: SimRobot, t: RunningTask, frames: list[Any], label: str) -> None:
+        """Written as WebM in the planner thread (a second of the loop's time otherwise), then sent
+        to the core from the loop (:meth:`_send_videos`); its id goes into the task's result."""
+        x, y, heading = r.driver.truth()
+        t.uploads += 1
+        job = self.planner.submit(encode_webm, frames)
+        self._videos.append((job, r, t, {"tag": r.tag, "x": x, "y": y, "heading": heading, "label": label,
+                                         "frames": len(frames), "seconds": round(len(frames) / FPS, 3)}))
+
+    def _send_videos(self) -> None:
+        """Send the videos written since the last look."""
+        waiting = []
+        for job, r, t, body in self._videos:
+            if not job.done():
+                waiting.append((job, r, t, body))
+                continue
+            try:
+                data = job.result()
+            except RoboCompError as e:
+                t.uploads -= 1
+                log.warning("robot %s: no video: %s", r.robot_id, e.message)
+                continue
+            self._send("video", dict(body, webm=data), self._video_reply(t))
+        self._videos = waiting
+
+    @staticmethod
+    def _video_reply(t: RunningTask) -> Reply:
+        """What the core's answer to a video does: its id into the task's result."""
+        def on_reply(ok: bool, body: dict[str, Any]) -> None:
+            t.uploads -= 1
+            if ok:
+                t.videos.append(body["id"])
+            else:
+                log.warning("video refused: %s", body.get("message"))
+        return on_reply
+
     @staticmethod
     def _on_picture(t: RunningTask, ok: bool, body: dict[str, Any]) -> None:
         """The core kept the picture: its id becomes evidence in the task's result."""
@@ -639,6 +683,10 @@ class RobotHost:
                 self.runtime.boundary(r)
         if self.runtime.planning:
             self.runtime.take_plans()
+        if self.runtime.filming:
+            self.runtime.film(dt)
+        if self._videos:
+            self._send_videos()
         if self.foreign.seen:
             self.foreign.expire(self.world, time.monotonic())
 

@@ -37,11 +37,13 @@ from typing import Any, Protocol
 from robo_comp.errors import RoboCompError
 from robo_comp.protocol.taskspec import check_args
 from robo_comp.robots.steps import (
-    Answer, Capture, CellPath, Compute, Move, Plan, Replan, Step, TaskFailed, TaskRun, TaskSpec, Wait, no_steps,
+    Answer, Capture, CellPath, Compute, Move, Plan, Record, Replan, Step, TaskFailed, TaskRun, TaskSpec, Wait,
+    no_steps,
 )
 from robo_comp.robots import traffic
 from robo_comp.robots.teamcode import free_cell, in_bounds, stop_status
 from robo_comp.world.planner import find_path
+from robo_comp.world.video import FPS, MAX_FRAMES
 
 log = logging.getLogger("robo_comp.robots")
 
@@ -53,6 +55,9 @@ HOLD_STEP = 0.25
 HOLD_REPLAN = 1.0
 #: Seconds a robot making way waits for the teammate to pass (then it goes on whatever).
 WAY_LIMIT = 20.0
+#: A task whose video is being uploaded looks again every UPLOAD_STEP seconds, for UPLOAD_WAIT at most.
+UPLOAD_STEP = 0.05
+UPLOAD_WAIT = 10.0
 #: Where the robot believes it is, measured from a cell's centre (cells): within :data:`THERE` it
 #: is in the cell already (a move there is skipped); a move ends off its path beyond
 #: :data:`OFF_PATH` (a fix moved the robot: the task plans again), and the next move's cell must be
@@ -89,6 +94,22 @@ class RunningTask:
     path: CellPath | None = None
     #: Making way for a teammate (:mod:`robo_comp.robots.traffic`), when it does.
     way: GiveWay | None = None
+    #: The video being filmed (a :class:`~robo_comp.robots.steps.Record` started it) and the ids of
+    #: those uploaded.
+    film: Film | None = None
+    videos: list[int] = field(default_factory=list)
+    #: Videos sent and not yet answered (a host's): the task waits for their ids before it goes on.
+    uploads: int = 0
+    upload_wait: float = 0.0
+
+
+@dataclass(slots=True)
+class Film:
+    """A video being filmed: its label, its frames, seconds until the next frame."""
+
+    label: str
+    frames: list[Any] = field(default_factory=list)
+    due: float = 0.0
 
 
 @dataclass(slots=True)
@@ -212,6 +233,12 @@ class RuntimeEnv(Protocol):
     def task_ended(self, r: SimRobot, task_id: int, ok: bool, status: str, result: Any) -> None:
         """Robot ``r``'s task ``task_id`` ended: tell the match."""
 
+    def frame(self, r: SimRobot) -> Any:
+        """A frame of ``r``'s camera now (an RGB array) for the video being filmed."""
+
+    def video(self, r: SimRobot, t: RunningTask, frames: list[Any], label: str) -> None:
+        """Make ``frames`` a video and upload it as ``r``'s evidence; its id goes into ``t.videos``."""
+
     def interrupted(self, r: SimRobot, t: RunningTask, by_task_id: int) -> None:
         """Robot ``r``'s task ``t`` is to be interrupted by task ``by_task_id`` (the plugins' hook)."""
 
@@ -227,6 +254,8 @@ class TaskRuntime:
         self.env = env
         #: Robots waiting for a path planned elsewhere, by robot id.
         self.planning: dict[str, SimRobot] = {}
+        #: Robots filming, by robot id.
+        self.filming: dict[str, SimRobot] = {}
 
     def start(self, r: SimRobot, task: dict[str, Any]) -> None:
         """Begin ``task`` (``task_id``, ``name``, ``args``) on ``r``, validated again here, as the
@@ -285,6 +314,10 @@ class TaskRuntime:
         assert t is not None
         while True:
             step: Step
+            if t.uploads > 0 and t.upload_wait < UPLOAD_WAIT:  # its video's id is to be in the result
+                t.upload_wait += UPLOAD_STEP
+                r.driver.begin(Wait(UPLOAD_STEP))
+                return
             if t.way is not None:
                 if self._give_way(r, t, t.way):
                     return
@@ -319,6 +352,9 @@ class TaskRuntime:
                 if self._move(r, t, step):
                     return
                 continue  # not driven: the task hears why (t.answer) and goes on
+            if isinstance(step, Record):
+                self._record(r, t, step.label)
+                continue
             if isinstance(step, Capture):
                 self.env.capture(r, t, step.label)
             r.driver.begin(step)
@@ -389,6 +425,30 @@ class TaskRuntime:
         r.driver.begin(Wait(HOLD_STEP))
         return True
 
+    def _record(self, r: SimRobot, t: RunningTask, label: str | None) -> None:
+        """Start filming (a frame now), or stop and hand the video to the env to upload."""
+        if label is not None:
+            t.film = Film(label[:64], [self.env.frame(r)], 1.0 / FPS)
+            self.filming[r.robot_id] = r
+            return
+        self.filming.pop(r.robot_id, None)
+        film, t.film = t.film, None
+        if film is not None and film.frames:
+            self.env.video(r, t, film.frames, film.label)
+
+    def film(self, dt: float) -> None:
+        """``dt`` seconds passed: a frame for each video being filmed when one is due."""
+        for rid, r in list(self.filming.items()):
+            t = r.task
+            film = t.film if t is not None else None
+            if film is None:
+                del self.filming[rid]
+                continue
+            film.due -= dt
+            if film.due <= 0 and len(film.frames) < MAX_FRAMES:
+                film.due += 1.0 / FPS
+                film.frames.append(self.env.frame(r))
+
     @staticmethod
     def _drive(r: SimRobot, t: RunningTask, cell: tuple[int, int], step: Move) -> None:
         t.leaving, t.to = r.cell(), cell
@@ -436,6 +496,9 @@ class TaskRuntime:
             result = dict(result or {}, reason=reason, **({"line": line} if line is not None else {}))
         if t.pictures and (result is None or isinstance(result, dict)):
             result = dict(result or {}, pictures=list(t.pictures))
+        if t.videos and (result is None or isinstance(result, dict)):
+            result = dict(result or {}, videos=list(t.videos))
+        self.filming.pop(r.robot_id, None)  # a film not stopped by its task is not uploaded
         r.task = None
         t.gen.close()  # team code still running is cancelled here
         r.driver.halt()
@@ -451,4 +514,4 @@ class TaskRuntime:
         r.pending = None
 
 
-__all__ = ["GiveWay", "HOLD_REPLAN", "HOLD_STEP", "PLANNING", "plan_around", "RobotWorld", "RunningTask", "RuntimeEnv", "SimRobot", "TaskRuntime"]
+__all__ = ["Film", "GiveWay", "HOLD_REPLAN", "HOLD_STEP", "PLANNING", "plan_around", "RobotWorld", "RunningTask", "RuntimeEnv", "SimRobot", "TaskRuntime"]

@@ -69,6 +69,16 @@ class Plan:
 
 
 @dataclass(frozen=True, slots=True)
+class Record:
+    """Start filming with the camera (``label``: the video's name), or, with ``label`` None, stop
+    and upload the video; the robot goes on meanwhile (the runtime takes a frame every
+    ``1 / robo_comp.world.video.FPS`` seconds). Takes no time itself. The video's id comes with
+    the task's result (``videos``), as pictures' do."""
+
+    label: str | None = None
+
+
+@dataclass(frozen=True, slots=True)
 class Replan:
     """What comes back for a :class:`Move` the robot did not make, or that did not end where it
     should: plan again from where the robot is. ``reason`` is ``"teammate"`` (a teammate held the
@@ -81,7 +91,7 @@ class Replan:
     cell: tuple[int, int] | None = None
 
 
-Step = Move | Turn | Capture | Wait | Compute | Plan
+Step = Move | Turn | Capture | Wait | Compute | Plan | Record
 
 #: A planned path: cells from the robot's cell to the goal, both included.
 CellPath = list[tuple[int, int]]

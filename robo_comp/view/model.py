@@ -90,9 +90,10 @@ class Robot:
 
 @dataclass(slots=True)
 class Thing:
-    """Something on the map a user can click: a find, a discovery, a known object or a picture."""
+    """Something on the map a user can click: a find, a discovery, a known object, a picture or a
+    video."""
 
-    kind: str  # "find", "discovery", "object", "picture"
+    kind: str  # "find", "discovery", "object", "picture", "video"
     id: Any
     x: float
     y: float
@@ -110,6 +111,10 @@ class Thing:
         if self.kind == "picture":
             return [int(self.id)]
         return [int(p) for p in self.info.get("evidence") or [] if isinstance(p, int)]
+
+    def videos(self) -> list[int]:
+        """Video ids that belong to this thing (the video itself)."""
+        return [int(self.id)] if self.kind == "video" else []
 
 
 @dataclass(slots=True)
@@ -305,6 +310,11 @@ def _on_picture(m: MatchView, d: dict[str, Any]) -> None:
     m.things[t.key] = t
 
 
+def _on_video(m: MatchView, d: dict[str, Any]) -> None:
+    t = Thing("video", d.get("id"), float(d.get("x", 0)), float(d.get("y", 0)), d.get("team"), "", dict(d))
+    m.things[t.key] = t
+
+
 def _on_broadcast(m: MatchView, d: dict[str, Any]) -> None:
     m.note(str(d.get("message") or ""), "broadcast")
 
@@ -337,6 +347,7 @@ _HANDLERS: dict[str, Any] = {
     "find.reported": lambda m, d: m._find(d),
     "map.discovery": _on_discovery,
     "picture": _on_picture,
+    "video": _on_video,
     "broadcast": _on_broadcast,
     "penalty": _on_penalty,
     "core.storage": _on_storage,

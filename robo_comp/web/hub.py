@@ -243,6 +243,8 @@ class Hub:
             return {"kind": t.kind, "id": t.id, "team": t.team, "state": t.state, "x": t.x, "y": t.y, "info": t.info}
         if op == "picture":
             raise FieldError("pictures belong to the team that took them: enter that team's token to see them")
+        if op == "video":
+            raise FieldError("videos belong to the team that filmed them: enter that team's token to see them")
         raise FieldError(f"unknown request {op!r}")
 
     async def close(self) -> None:
@@ -436,4 +438,12 @@ class TeamHub(LinkedHub):
             reply = await self.link.request("picture.get", id=_int(body, "id"))
             return {"id": body.get("id"), "png": "data:image/png;base64," + jsonable(reply.get("png", b"")),
                     "label": reply.get("label", ""), "tag": reply.get("tag")}
+        if op == "video":
+            return await self._video(_int(body, "id"))
         return await super().ask(op, body)
+
+    async def _video(self, vid: int) -> dict[str, Any]:
+        """Video ``vid`` as a data URL the page's ``<video>`` plays (the core decides who may see it)."""
+        reply = await self.link.request("video.get", id=vid)
+        return {"id": vid, "webm": "data:video/webm;base64," + jsonable(reply.get("webm", b"")),
+                "label": reply.get("label", ""), "tag": reply.get("tag"), "seconds": reply.get("seconds")}

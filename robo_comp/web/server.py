@@ -50,7 +50,7 @@ IDLE_CLOSE = 30.0
 #: Headers on every HTTP response: the page loads only its own scripts and styles, talks only
 #: to its own host, cannot be framed, and sends no Referer (a view key in a link stays private).
 SECURITY_HEADERS = {
-    "content-security-policy": "default-src 'none'; script-src 'self'; style-src 'self'; img-src 'self' data:; "
+    "content-security-policy": "default-src 'none'; script-src 'self'; style-src 'self'; img-src 'self' data:; media-src data:; "
                                "connect-src 'self'; base-uri 'none'; frame-ancestors 'none'",
     "referrer-policy": "no-referrer",
     "x-frame-options": "DENY",
@@ -381,6 +381,8 @@ class Connection:
             return {"took_ms": round(await pb.seek(msg.get("t")) * 1000, 3)}
         elif op == "picture":
             return {"id": msg.get("id"), "png": self.gw.recording.picture(pb.view, whole(msg, "id"))}
+        elif op == "video":
+            return {"id": msg.get("id"), "webm": self.gw.recording.video(pb.view, whole(msg, "id"))}
         elif op in ("monitor", "find"):
             return {"note": "a replay's page answers from its own state"}
         else:

@@ -175,6 +175,8 @@ export class Renderer {
         const q = r * 0.6;
         ctx.rect(cx - q, cy - q * 0.75, 2 * q, 1.5 * q);
         ctx.fillStyle = "#7ab8ff";
+      } else if (th.kind === "video") {
+        videoMark(ctx, cx, cy, r);
       } else {
         ctx.arc(cx, cy, r * 0.7, 0, Math.PI * 2);
         ctx.fillStyle = "#ff8c00";
@@ -305,4 +307,11 @@ export class Renderer {
     }
     return best;
   }
+}
+
+// A video filmed (examineArea): a play triangle, in the colour of the page's legend.
+function videoMark(ctx, cx, cy, r) {
+  const q = r * 0.75;
+  ctx.moveTo(cx - q * 0.6, cy - q); ctx.lineTo(cx + q, cy); ctx.lineTo(cx - q * 0.6, cy + q); ctx.closePath();
+  ctx.fillStyle = "#c77dff";
 }
