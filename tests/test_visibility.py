@@ -74,6 +74,12 @@ def every_topic() -> list[tuple[str, str | None, dict[str, Any]]]:
         "integrity": (None, {"kind": "pose", "tag": 101, "team": "red", "count": 1, "x": 2, "y": 8,
                              "message": SECRET}),
         "robot.handover": ("red", {"tag": 101, "by": "referee", "from": SECRET}),
+        "task.offered": ("red", {"tag": 101, "team": "red", "reallocate": True, "message": SECRET,
+                                 "tasks": [{"task_id": 1, "name": "goTo", "args": [SECRET], "to": 102}]}),
+        "teamwork": ("red", {"team": "red", "reallocate": True, "by": SECRET}),
+        "map.obstacle": ("red", {"tag": 101, "team": "red", "x": SECRET, "y": SECRET}),
+        "video": ("red", {"id": 1, "tag": 101, "team": "red", "x": 4, "y": 8, "heading": 0, "t": T0, "seconds": 5.0,
+                          "frames": SECRET, "label": SECRET, "sha256": SECRET}),
     }
     out = []
     for topic in P.TOPICS:

@@ -95,7 +95,7 @@ class TeamWork:
                         chosen[t.id] = mate
                         load[mate.tag] += 1
         self.out.emit("task.offered", r.team, {
-            "tag": r.tag, "team": r.team, "reason": why, "reallocate": on,
+            "tag": r.tag, "team": r.team, "message": why, "reallocate": on,
             "tasks": [dict(o, to=chosen[o["task_id"]].tag if o["task_id"] in chosen else None) for o in offered]})
         moved = []
         for t in waiting:

@@ -293,7 +293,7 @@ def _teamwork_sentence(who: str, topic: str, d: dict[str, Any]) -> str:
     if waiting:
         parts.append(", ".join(waiting) + (" wait for it" if not d.get("reallocate") else " found no teammate")
                      + (" ('ctl teamwork on' moves them)" if not d.get("reallocate") else ""))
-    return f"{who} {d.get('reason', 'is gone')}: its task(s) offered to the team; " + "; ".join(parts)
+    return f"{who} {d.get('message', 'is gone')}: its task(s) offered to the team; " + "; ".join(parts)
 
 
 def describe_event(e: LogEntry) -> str:
