@@ -509,10 +509,12 @@ class Match:
 
     # ------------------------------------------------------------------ views
     def snapshot(self, team: str | None) -> dict[str, Any]:
-        """What ``team`` (None: the referee) sees of the match now: robots, clock, scores, finds."""
+        """What ``team`` (None: the referee) sees of the match now: robots, clock, scores, finds, the
+        videos its robots filmed."""
         c = self.contest
         return {"robots": [r.summary() for r in self.registry.of_team(team)], "match": c.state(),
-                "score": c.board.table(), "finds": [f for f in c.judge.finds if team is None or f["team"] == team]}
+                "score": c.board.table(), "finds": [f for f in c.judge.finds if team is None or f["team"] == team],
+                "videos": [v for v in self.videos.records.values() if team is None or v["team"] == team]}
 
 
 __all__ = ["MAX_RESULT", "MAX_SPEED_FACTOR", "Match"]

@@ -171,7 +171,8 @@ class MatchView:
         self.panel_version += 1
 
     def load_snapshot(self, snap: dict[str, Any]) -> None:
-        """Start from a ``snapshot`` reply (arena, robots and, when present, match, score, finds)."""
+        """Start from a ``snapshot`` reply (arena, robots and, when present, match, score, finds,
+        videos)."""
         self.set_arena(snap["arena"])
         self.robots.clear()
         for row in snap.get("robots") or []:
@@ -186,6 +187,8 @@ class MatchView:
             self.score = list(snap["score"])
         for f in snap.get("finds") or []:
             self._find(f)
+        for v in snap.get("videos") or []:
+            _on_video(self, v)
         self.version += 1
         self.panel_version += 1
 

@@ -301,7 +301,7 @@ export class Renderer {
       if (d < bd) { bd = d; best = { robot: r.tag }; }
     }
     if (best) return best;
-    for (const [key, th] of this.model.things) {
+    for (const [key, th] of [...this.model.things].reverse()) {  // the newest first: it is drawn on top
       const dx = cam.ox + (th.x + 0.5) * s - sx, dy = cam.oy + (th.y + 0.5) * s - sy, d = dx * dx + dy * dy;
       if (d < bd) { bd = d; best = { thing: key }; }
     }
