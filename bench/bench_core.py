@@ -246,7 +246,7 @@ def stop_latency(state: Path, robots: int, samples: int) -> list[float]:
     host = start_robots(state, "blue", robots, "--report-hz", "10", "--speed", "0.5")
     try:
         c = Client(str(state), (state / "teams/blue.token").read_text().strip(), timeout=10)
-        t_end = time.monotonic() + 30
+        t_end = time.monotonic() + 120  # a host of hundreds of robots starts slowly on a loaded machine
         while len([r for r in c.robots() if r["status"] == "connected"]) < robots:
             assert time.monotonic() < t_end, "robots did not register"
             time.sleep(0.2)

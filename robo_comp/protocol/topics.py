@@ -10,7 +10,10 @@ the referee) and what it says. Everything takes visibility and parsing from here
   recorded match shown to the public shows exactly what the live public feed showed, never more;
 * :class:`EventView` is what a recorded match's views (public, a team's, the referee's) see;
 * :func:`check_event` says what is wrong with an event (an unknown topic, a missing or unknown
-  field): the tests check every event a core logs and every event the engine logs with it.
+  field): the tests check every event a core logs and every event the engine logs with it;
+* :func:`readable` is what the viewers' fold (:class:`robo_comp.view.model.MatchView`, which the
+  wall and the web gateway share, and the consoles' model) asks before it folds an event: one
+  that lacks what the table says it carries (a damaged or hostile log, say) is skipped.
 
 A topic missing from the table is never public and fails :func:`check_event`: a new topic is
 added here first, with its fields and its public ones.
@@ -166,6 +169,19 @@ def check_event(topic: str, data: Any) -> str | None:
     if unknown:
         return f"{topic}: fields not in the table: {', '.join(sorted(map(str, unknown)))}"
     return None
+
+
+def readable(topic: str, data: Any) -> bool:
+    """Whether a viewer may fold this event: a map holding what the table says the event always
+    carries, in its full view or in its public one (what a public feed carries of it); a topic
+    not in the table is the viewer's own business (it ignores what it does not know)."""
+    t = TABLE.get(topic)
+    if t is None:
+        return True
+    if not isinstance(data, dict):
+        return False
+    keys = data.keys()
+    return t.required <= keys or (not t.private and t.required & set(t.public) <= keys)
 
 
 class EventView:

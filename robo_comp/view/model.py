@@ -15,6 +15,7 @@ import numpy as np
 
 from robo_comp.protocol import unpack_walls
 from robo_comp.protocol.clock import HeardClock
+from robo_comp.protocol.topics import readable
 
 #: Trail points kept per robot (the last N positions at least ``TRAIL_STEP`` cells apart).
 TRAIL_LEN = 48
@@ -136,6 +137,8 @@ class MatchView:
         self.version = 0
         self.panel_version = 0  # changes with everything but positions (the panel redraws on it)
         self.events = 0
+        #: Events not folded: they lacked what the topic table says they carry.
+        self.skipped = 0
         self.replay = False  # set by a replay source: the clock line then shows the recording's time
         #: The core's storage fault while it lasts (its event log cannot be written), else None.
         self.storage: str | None = None
@@ -188,8 +191,12 @@ class MatchView:
         self.panel_version += 1
 
     def apply(self, topic: str, d: dict[str, Any]) -> None:
-        """Apply one event (public or full view); unknown topics are ignored."""
+        """Apply one event (public or full view); unknown topics are ignored, and so is an event
+        that lacks what protocol/topics.py's table says it carries (counted in ``skipped``)."""
         self.events += 1
+        if not readable(topic, d):
+            self.skipped += 1
+            return
         handler = _HANDLERS.get(topic)
         if handler is not None:
             handler(self, d)
