@@ -67,7 +67,7 @@ class TeamWork:
         """Turn ``team``'s built-in reallocation on or off (``teamwork`` event); turned on, the
         tasks of its robots lost before are offered and moved now. Returns the ``teamwork`` reply."""
         self.reallocate[team] = bool(on)
-        self.out.emit("teamwork", team, {"team": team, "reallocate": bool(on), "by": by}, public=False)
+        self.out.emit("teamwork", team, {"team": team, "reallocate": bool(on), "by": by})
         moved: list[int] = []
         if on:
             for r in self.registry.of_team(team):
@@ -170,7 +170,7 @@ class TeamWork:
         if len(known) >= MAX_OBSTACLES:
             raise TooLargeError(f"team {r.team} has reported {MAX_OBSTACLES} obstacles, the most a match keeps")
         known[(x, y)] = r.tag
-        self.out.emit("map.obstacle", r.team, {"tag": r.tag, "team": r.team, "x": x, "y": y}, public=False)
+        self.out.emit("map.obstacle", r.team, {"tag": r.tag, "team": r.team, "x": x, "y": y})
         return True
 
     def cells(self, team: str | None) -> Iterable[tuple[str, tuple[int, int]]]:

@@ -109,10 +109,12 @@ class TaskFailed(Exception):
     of team code that raised, where known."""
 
     def __init__(self, message: str, reason: str = "failed", line: int | None = None,
-                 details: dict[str, Any] | None = None) -> None:
+                 traceback: list[str] | None = None, details: dict[str, Any] | None = None) -> None:
         super().__init__(message)
         self.reason = reason
         self.line = line
+        #: Team code's traceback through its own files (``file:line in function: code``), where known.
+        self.traceback = traceback or []
         #: More for the task's result (plain data), e.g. a ``goTo``'s ``end_error``.
         self.details = details or {}
 
