@@ -107,6 +107,18 @@ def test_a_lost_robots_running_and_queued_tasks_move_to_the_nearest_idle_teammat
         assert not events(out, "robot.bump")
 
 
+def test_the_team_console_says_where_a_lost_robots_work_went():
+    from robo_comp.tui.model import LogEntry, describe_event
+
+    with Bench(parse_scenario(TWO_WAYS, "two_ways.toml"), teams={"red": 3, "blue": 1}) as bench:
+        lost, (first, second) = lose_mid_task(bench, reallocate=True)
+        ev = next(e for e in bench.events if e["topic"] == "task.offered")
+        data = {k: v for k, v in ev.items() if k not in ("t", "topic", "team")}
+        line = describe_event(LogEntry(ev["t"], "task.offered", "red", data))
+        assert line.startswith(f"robot {lost} was lost (its host stopped): its task(s) offered to the team; moved ")
+        assert f"goTo(10, 5) #{first} → robot " in line and f"goTo(8, 1) #{second} → robot " in line
+
+
 def test_without_reallocation_the_work_is_offered_and_waits_for_the_lost_robot():
     with Bench(parse_scenario(TWO_WAYS, "two_ways.toml"), teams={"red": 3, "blue": 1}) as bench:
         lost, (first, second) = lose_mid_task(bench, reallocate=False)
@@ -281,28 +293,31 @@ def test_fixes_correct_a_drifting_heading_and_goto_ends_where_it_says():
 
 
 def test_goto_fails_beyond_the_tolerance_and_says_its_end_error():
-    """No positioning system to speak of and odometry that is 30 % off: the robot ends its walk in
-    the goal cell as far as it knows, but too far from its centre, and no fix comes to settle it."""
+    """A robot with no positioning system to speak of is stopped twice in the middle of a move (a
+    grid robot settles back on its cell; its estimate does not know how far it got): it believes it
+    is in its goal cell but 0.6 cells from its centre, and no fix comes to settle it."""
     sc = parse_scenario('''
 name = "blind"
 seed = 1
-map = { width = 30, height = 8 }
+map = { width = 12, height = 8 }
 [[teams]]
 name = "red"
-start = { x = 1, y = 1, w = 1, h = 1 }
+start = { x = 3, y = 3, w = 1, h = 1 }
 robots = 1
 [positioning]
 rate = 0.001
-[drift]
-distance = 0.3
 ''', "blind.toml")
     with Bench(sc, "red", robots=1, seed=0) as bench:
-        failed = None
-        for gx in (25, 3, 27, 2, 26, 4, 28, 1):
-            done = bench.run_match({101: [("goTo", [gx, 1])]}, seconds=120).outcomes[101][-1]
-            if not done["ok"]:
-                failed = done
-                break
-        assert failed is not None
-        assert f"beyond the tolerance of {END_TOLERANCE} cells" in failed["status"]
-        assert failed["result"]["end_error"] > END_TOLERANCE and failed["result"]["reason"] == "failed"
+        r = bench.by_tag[101]
+        for heading in (0.0, 90.0):  # east, then south: stopped after 0.44 of the cell each time
+            bench.arena.command(r.robot_id, "face", heading)
+            bench.arena.step(1.5)
+            bench.arena.command(r.robot_id, "forward", 1.0)
+            bench.arena.step(0.22)
+            r.driver.halt()
+            bench.loc.update()
+        assert bench.true_cell(101) == (3, 3) and r.cell() == (3, 3)
+        done = bench.run_match({101: [("goTo", [3, 3])]}, seconds=30).outcomes[101][-1]
+        assert not done["ok"]
+        assert f"beyond the tolerance of {END_TOLERANCE} cells" in done["status"], done
+        assert done["result"]["end_error"] > END_TOLERANCE and done["result"]["reason"] == "failed"

@@ -15,6 +15,8 @@ from robo_comp.world.arena import Arena
 from robo_comp.world.localization import Localization
 
 CAPTURE_SECONDS = 0.2
+#: How far (cells) before what its front sensor sees a freely driving robot stops.
+STOP_SHORT = 0.02
 
 
 class PoseReadings:
@@ -108,8 +110,13 @@ class ArenaDriver(PoseReadings):
             x, y, h = self.pose
             dx, dy = step.x - x, step.y - y
             turn = (math.degrees(math.atan2(dy, dx)) - h + 180.0) % 360.0 - 180.0
+            dist = math.hypot(dx, dy)
+            if self.arena.drive != "grid4":  # a grid4 robot drives whole cells; a free one stops short
+                # of what its front sensor sees rather than touch it (a believed distance a little long)
+                dist = min(dist, max(0.0, self.arena.clearance(self.tag, self.arena.pose(self.tag).heading + turn)
+                                     - STOP_SHORT))
             self.arena.command(self.tag, "turn", turn)
-            self.arena.command(self.tag, "forward", math.hypot(dx, dy), append=True)
+            self.arena.command(self.tag, "forward", dist, append=True)
         elif isinstance(step, Turn):
             self.arena.command(self.tag, "turn", step.degrees)
         else:
@@ -122,6 +129,12 @@ class ArenaDriver(PoseReadings):
             self.loc.interrupted(self.tag)
         self.arena.command(self.tag, "halt")
         self.step = None
+
+    @property
+    def grid_exact(self) -> bool:
+        """Whether a move ends exactly in its cell (a grid4 robot settles on the grid); a freely
+        driving one may end a little long (robots.traffic keeps teammates out of the cell beyond)."""
+        return self.arena.drive == "grid4"
 
     def sees_blocked(self, x: int, y: int) -> bool:
         """Whether the robot's range sensors see the neighbouring cell ``(x, y)`` (where it believes
@@ -139,4 +152,7 @@ class ArenaDriver(PoseReadings):
             return False
         if self.bump is not None:  # stopped half-way by a bump
             self.loc.interrupted(self.tag)
-        return self._step_ended(self.bump is None and self.arena.is_moving(self.tag), dt)
+        ended = self._step_ended(self.bump is None and self.arena.is_moving(self.tag), dt)
+        if ended and self.bump is None:
+            self.loc.settled(self.tag)
+        return ended

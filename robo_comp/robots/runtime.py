@@ -10,7 +10,8 @@ Before each :class:`~robo_comp.robots.steps.Move` it looks where the robot is go
 never run into each other, and what the map does not show is reported): a cell a teammate stands
 in or drives to is waited for (a :class:`~robo_comp.robots.steps.Wait` of :data:`HOLD_STEP`), and
 after :data:`HOLD_REPLAN` the task gets a :class:`~robo_comp.robots.steps.Replan` and plans around
-the teammates; of two robots waiting for each other the one with the higher tag steps aside. A
+the teammates; of two robots waiting for each other one makes way (:mod:`robo_comp.robots.traffic`:
+the one with the nearer refuge off the other's path drives there and waits until it has passed). A
 cell the robot's sensors see blocked that its team's map shows free is an obstacle: reported
 (:meth:`RuntimeEnv.obstacle`: the team's map, so every teammate's planner routes around it) and
 the task plans again. A move that did not end in its cell (a positioning fix moved the robot)

@@ -30,6 +30,7 @@ class SimRobot(Protocol):
     robot_id: str
     task: Any
     host: Any
+    driver: Any
 
     def cell(self) -> Cell:
         """The cell the robot believes it is in."""
@@ -39,10 +40,15 @@ REFUGE_DEPTH = 40
 
 def claim(r: SimRobot) -> tuple[Cell, ...]:
     """The cells robot ``r`` holds: the one it stands in, or, during a move, the one it leaves and
-    the one it drives to."""
+    the one it drives to, and, for a robot that may end a move a little long (one that drives
+    freely, not cell by cell on a grid), the cell beyond (a teammate entering it meanwhile would be
+    touched)."""
     t = r.task
     if t is not None and t.to is not None and t.leaving is not None:
-        return t.leaving, t.to
+        if getattr(r.driver, "grid_exact", False):
+            return t.leaving, t.to
+        beyond = (2 * t.to[0] - t.leaving[0], 2 * t.to[1] - t.leaving[1])
+        return t.leaving, t.to, beyond
     return (r.cell(),)
 
 

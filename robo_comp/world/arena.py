@@ -693,6 +693,15 @@ class Arena:
                 "robots": [{"tag": t, "team": self.team_of(t), **self.pose(t).to_dict()} for t in self._slot],
                 "victims": [v.to_dict() for v in self.victims]}
 
+    def clearance(self, tag: str, heading: float, max_cells: float = 4.0) -> float:
+        """How far (cells) robot ``tag`` can drive along ``heading`` before its front reaches a
+        wall or another robot: what its front range sensor reads, less its reach (``max_cells``
+        when nothing is that near)."""
+        s = self._slot_of(tag)
+        d = float(cast_rays(self._blocked(), self.x[s:s + 1], self.y[s:s + 1], np.array([math.radians(heading)]),
+                            max_cells + BODY_REACH)[0])
+        return min(max_cells, d - BODY_REACH)
+
     # for the ray caster users
     def ray_distance(self, x: float, y: float, heading: float, max_cells: float = 1000.0) -> float:
         """Distance in cells from (x, y) along ``heading`` to the first wall (``inf`` if none)."""

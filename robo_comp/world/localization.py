@@ -405,6 +405,17 @@ class Localization:
         r.var = max(r.var, CAMERA_PRIOR ** 2)
         r.correct(Fix(tag, x, y, 0.0, time), heading=heading)
 
+    def settled(self, tag: str) -> None:
+        """Robot ``tag`` finished a step. A grid4 robot (the ER1 way: it turns only by quarters)
+        stands facing along the grid then, and knows it: its estimate's heading takes the grid's
+        nearest (its turns' small errors do not add up into a heading that drifts sideways)."""
+        if self.arena.drive == "grid4" and (tag in self.reckoners or tag in self.arena.tags):
+            rk = self._reckoner(tag)
+            dist, turn = self.arena.odometry(tag, reset=True)  # what it drove since the last update first
+            if dist or turn:
+                rk.advance(dist, turn)
+            rk.heading = (round(rk.heading / 90.0) * 90.0) % 360.0
+
     def interrupted(self, tag: str) -> None:
         """Robot ``tag``'s movement was stopped half-way (a stop, a bump): its estimate knows it is
         less sure of its heading and position, or, on a grid4 arena, settles on the grid as the
