@@ -381,7 +381,7 @@ class TaskRuntime:
             self.env.obstacle(r, cell)
             t.answer = Replan("obstacle", cell)
             return False
-        other = traffic.holder(r, cell)
+        other = traffic.holder(r, cell) or traffic.crossing(r, cell)
         if other is None:
             t.waited = 0.0
             self._drive(r, t, cell, step)

@@ -60,6 +60,22 @@ def holder(r: SimRobot, cell: Cell) -> SimRobot | None:
     return None
 
 
+def crossing(r: SimRobot, cell: Cell) -> SimRobot | None:
+    """For a robot that may end a move a little long: the teammate that is driving into the cell
+    beyond ``cell`` (as seen from ``r``) or holds it as its own cell beyond, if one does. (A teammate
+    standing there its front sensor sees, and it stops short; one arriving during the move it
+    would not.)"""
+    if getattr(r.driver, "grid_exact", False):
+        return None
+    here = r.cell()
+    beyond = (2 * cell[0] - here[0], 2 * cell[1] - here[1])
+    for o in r.host.robots.values():
+        t = o.task
+        if o is not r and t is not None and t.to is not None and beyond in claim(o)[1:]:
+            return o
+    return None
+
+
 def wants(r: SimRobot) -> set[Cell]:
     """The cells robot ``r`` is still to drive through: its move waiting for a cell, and the rest of
     its task's planned path from where it is (unknown for team code's own moves)."""
@@ -126,4 +142,4 @@ def passed(other: SimRobot | None, cells: Iterable[Cell]) -> bool:
     return not (wants(other) & set(cells))
 
 
-__all__ = ["REFUGE_DEPTH", "SimRobot", "claim", "holder", "make_way", "passed", "refuge", "wants"]
+__all__ = ["REFUGE_DEPTH", "SimRobot", "claim", "crossing", "holder", "make_way", "passed", "refuge", "wants"]

@@ -215,6 +215,7 @@ class DeadReckoner:
         self.anchor: tuple[float, float] | None = None
         self.odo_x = self.odo_y = 0.0
         self.doubts = 0  # fixes in a row beyond GATE
+        self.heading_doubts = 0  # tracks in a row beyond 3σ of the heading's and the bearing's noise
 
     def pose(self) -> tuple[float, float, float]:
         """The estimated (x, y, heading)."""
@@ -260,7 +261,6 @@ class DeadReckoner:
             if self.doubts < DOUBTS:  # one fix that far off is more likely the fix's error: left out
                 return
             self.var = max(self.var, miss - r2)  # fixes keep saying so: the estimate is off
-            self.anchor = None  # and its track since the last fix says nothing of the heading
         self.doubts = 0
         if gain is None:
             gain = 1.0 if r2 == 0 else self.var / (self.var + r2)
@@ -297,12 +297,16 @@ class DeadReckoner:
             return
         err = (math.degrees(math.atan2(fdy, fdx) - math.atan2(edy, edx)) + 180.0) % 360.0 - 180.0
         r2 = math.degrees(math.sqrt(2.0) * self.fix_noise / moved) ** 2  # the bearing's noise, degrees²
+        self.anchor = None  # the next track starts at this fix
         if err * err > 9.0 * (self.hvar + r2):
-            self.hvar = max(self.hvar, err * err - r2)
+            self.heading_doubts += 1
+            if self.heading_doubts < DOUBTS:  # one track that far off is more likely the fixes' noise
+                return
+            self.hvar = max(self.hvar, err * err - r2)  # tracks keep saying so: the heading is off
+        self.heading_doubts = 0
         g = self.hvar / (self.hvar + r2) if self.hvar + r2 > 0 else 0.0
         self.heading = (self.heading + g * err) % 360.0
         self.hvar = (1.0 - g) * self.hvar
-        self.anchor = None  # the next track starts at this fix
 
     def interrupted(self, turn: float = 45.0, distance: float = 0.5, grid: bool = False) -> None:
         """A movement was stopped half-way: how far the robot turned (up to ``turn`` degrees) and
