@@ -9,7 +9,7 @@
   is a ``robot.bump`` whose ``with`` is a robot of the bumping robot's own team. Target: 0.
 * ``--end-error``: ``goTo`` under noisy positioning (the office with positioning noise σ 0.5
   cells, 20 % of fixes lost, and a stop in the middle of a turn before every other ``goTo``, the
-  issue's case): per ``goTo`` the distance between the robot's *true* pose and the goal at the
+  issue's case; ``--drive free`` for robots that drive any heading and distance): per ``goTo`` the distance between the robot's *true* pose and the goal at the
   end (what the arena knows) and the end error the task reported; p50/p95/max against the
   tolerance (``robo_comp.robots.builtin_tasks.END_TOLERANCE``).
 * ``--takeover``: a real core, two robot hosts of one team (real processes: one robot, and two
@@ -138,8 +138,9 @@ def end_error(a: argparse.Namespace) -> None:
     from robo_comp.world.scenario import load_scenario, resolve_scenario
 
     sc = load_scenario(resolve_scenario("office"))
-    noisy = dataclasses.replace(sc, positioning=dataclasses.replace(sc.positioning, noise=0.5, dropout=0.2))
-    print(f"goTo end error: office, positioning noise σ {noisy.positioning.noise} cells, "
+    noisy = dataclasses.replace(sc, positioning=dataclasses.replace(sc.positioning, noise=0.5, dropout=0.2),
+                                kinematics=dataclasses.replace(sc.kinematics, drive=a.drive))
+    print(f"goTo end error: office ({a.drive} driving), positioning noise σ {noisy.positioning.noise} cells, "
           f"{noisy.positioning.dropout:.0%} of fixes lost, a stop mid-turn before every other goTo, "
           f"{a.goto} goTos on 4 robots; tolerance {END_TOLERANCE} cells; load: {uptime()}")
     import random
@@ -165,7 +166,8 @@ def end_error(a: argparse.Namespace) -> None:
                 n += 1
                 d = done[-1] if done else None
                 if d is None or not d["ok"]:
-                    why = "did not end in 120 s" if d is None else d["status"].split(" at (")[0][:60]
+                    why = "did not end in 120 s" if d is None else d["status"].split(" at (")[0].split(" after ")[0]
+                    why = why.split(" (")[0][:60]
                     failed[why] = failed.get(why, 0) + 1
                     continue
                 p = bench.arena.pose(bench.by_tag[tag].robot_id)
@@ -234,6 +236,8 @@ def main() -> int:
     ap.add_argument("--seconds", type=float, default=120.0)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--goto", type=int, default=200)
+    ap.add_argument("--drive", choices=("grid4", "free"), default="grid4",
+                    help="--end-error: how the robots drive (grid4, the office's; free: any heading and distance)")
     ap.add_argument("--reps", type=int, default=3)
     ap.add_argument("--heartbeat", type=float, default=0.5)
     ap.add_argument("--baseline", default="", help="git revision to measure --bumps on as well ('' to skip)")

@@ -175,8 +175,11 @@ GATE = 11.8
 #: (a single one is left out as the positioning system's own error).
 DOUBTS = 2
 #: The least position uncertainty (σ, cells) an estimate has when a fix comes: wheels slip, a
-#: robot is nudged; without it an estimate that believes itself exact stops listening to fixes.
+#: robot is nudged; without it an estimate that believes itself exact stops listening to fixes. It is
+#: at least FLOOR_SHARE of the fixes' own noise: a filter that listens too little to noisy fixes lags
+#: behind a robot whose heading is a little off (measured: bench/bench_teamwork.py --end-error).
 POSE_FLOOR = 0.1
+FLOOR_SHARE = 0.5
 #: Cells the positioning system's fixes must have moved (at the least; more with noisier fixes:
 #: :meth:`DeadReckoner.track_base`) before their track says which way the robot really drives.
 TRACK_BASE = 2.0
@@ -254,7 +257,7 @@ class DeadReckoner:
         camera) turns the estimate toward it by the same gain."""
         r2 = self.fix_noise ** 2
         if gain is None:  # a robot's pose is never known better than this between two fixes
-            self.var = max(self.var, POSE_FLOOR ** 2)
+            self.var = max(self.var, max(POSE_FLOOR, FLOOR_SHARE * self.fix_noise) ** 2)
         miss = (fix.x - self.x) ** 2 + (fix.y - self.y) ** 2
         if gain is None and miss > GATE * (self.var + r2):
             self.doubts += 1
@@ -421,15 +424,17 @@ class Localization:
             rk.heading = (round(rk.heading / 90.0) * 90.0) % 360.0
 
     def interrupted(self, tag: str) -> None:
-        """Robot ``tag``'s movement was stopped half-way (a stop, a bump): its estimate knows it is
-        less sure of its heading and position, or, on a grid4 arena, settles on the grid as the
-        robot does (:meth:`DeadReckoner.interrupted`)."""
+        """Robot ``tag``'s movement was stopped half-way (a stop, a bump). On a grid4 arena the robot
+        settles back on the grid, which its wheels do not measure: its estimate settles on the grid
+        too and is less sure of its position (:meth:`DeadReckoner.interrupted`). A freely driving
+        robot's wheels measured the part of the movement it made: nothing changes."""
         if tag in self.reckoners or tag in self.arena.tags:
             rk = self._reckoner(tag)
             dist, turn = self.arena.odometry(tag, reset=True)  # what it drove since the last update first
             if dist or turn:
                 rk.advance(dist, turn)
-            rk.interrupted(grid=self.arena.drive == "grid4")
+            if self.arena.drive == "grid4":  # it settled back on the grid, unmeasured (a free robot's
+                rk.interrupted(grid=True)      # wheels measured the part of the movement it made)
 
     def sigma(self, tag: str) -> float:
         """Robot ``tag``'s position uncertainty σ (cells): it grows while no fix comes."""
