@@ -8,7 +8,11 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
+from robo_comp.errors import ForbiddenError, NotYoursError
 from robo_comp.testing import start_match, wait_for, wait_robots
+from robo_comp.world.video import WEBM_MAGIC
 
 TWO_WAYS = """
 name = "two ways"
@@ -80,7 +84,7 @@ def test_a_robot_whose_host_is_killed_mid_task_has_its_work_done_by_a_teammate(t
         assert not [e for e in m.logged_events("robot.bump") if e["data"].get("with") == lost]
 
 
-def test_debris_a_robot_finds_reaches_its_teams_map_and_only_its_teams(tmp_path):
+def test_debris_and_videos_reach_their_team_and_only_their_team(tmp_path):
     scenario = tmp_path / "two_ways.toml"
     scenario.write_text(TWO_WAYS)
     with start_match(tmp_path / "state", scenario) as m:
@@ -99,3 +103,16 @@ def test_debris_a_robot_finds_reaches_its_teams_map_and_only_its_teams(tmp_path)
         assert blue.request("map")["obstacles"] == []  # blue's robots must find it themselves
         assert m.referee().request("map")["obstacles"] == [[4, 3]]
         assert not m.logged_events("robot.bump")
+        # a team's token speaks for no robot: only the organiser's host reports what the world holds
+        with pytest.raises(ForbiddenError):
+            red.request("obstacle", tag=tag, x=5, y=5)
+        # examineArea films; the film is the team's and the referee's
+        tid = red.give(tag, "examineArea", [4, 5])["task_id"]
+        d = wait_for(lambda: next((e["data"] for e in m.logged_events("task.done") if e["data"]["task_id"] == tid),
+                                  None), 60, "examineArea to end")
+        assert d["ok"] and d["result"]["videos"] == [1], d
+        film = red.request("video.get", id=1)
+        assert film["webm"].startswith(WEBM_MAGIC) and film["frames"] >= 30 and film["tag"] == tag
+        with pytest.raises(NotYoursError):
+            blue.request("video.get", id=1)
+        assert (m.state / "videos" / "1.webm").stat().st_mode & 0o777 == 0o600
