@@ -46,6 +46,7 @@ from robo_comp.core.guard import (
     SWEEP_SECONDS,
     ConnectionGuard,
     GuardLimits,
+    copy_received,
     raise_fd_limit,
 )
 from robo_comp.private_files import private_dir
@@ -148,6 +149,7 @@ class Core:
         self.next_core_req = 1
         # The core owns its context: the ZAP endpoint (the transport's credential check) is one per context.
         self.ctx = zmq.Context()
+        copy_received(self.ctx)  # a received frame holds its own size, not a shared 8 KiB buffer (see guard.py)
         # Connections are file descriptors: take all the process may have, and bound them (see bind)
         nofile = raise_fd_limit()
         self.ctx.set(zmq.MAX_SOCKETS, max(1024, min(nofile, 65_535)))
@@ -245,7 +247,7 @@ class Core:
             self.port = self.router.bind_to_random_port(f"tcp://{self.host}")
         else:
             self.router.bind(f"tcp://{self.host}:{self.port}")
-        self._guard = ConnectionGuard.watch(self.router, self.port, self.limits)
+        self._guard = ConnectionGuard.watch(self.router, self.port, self.limits, hold=True)
         self._zap.admit = self._admit
         self.pub = self.ctx.socket(zmq.PUB)
         self.pub.setsockopt(zmq.LINGER, 0)
@@ -349,7 +351,8 @@ class Core:
                 if self._slices:  # background work left: look at the socket, then do the next slice
                     timeout = 0.0
                 pub_guard = self._pub_guard
-                if pub_guard is not None and pub_guard.sweeping:  # what PUB's subscribers sent, looked at often
+                # what each connection sent (PUB's subscribers) or holds (the ROUTER's), looked at often
+                if (pub_guard is not None and pub_guard.sweeping) or (self._guard is not None and self._guard.sweeping):
                     timeout = min(timeout, SWEEP_SECONDS)
                 if poller.poll(math.ceil(timeout * 1000)):
                     if self._guard is not None:  # connections counted before their handshakes are judged
@@ -364,6 +367,8 @@ class Core:
                 now = time.monotonic()
                 if pub_guard is not None:
                     pub_guard.sweep(now)
+                if self._guard is not None:
+                    self._guard.sweep(now)
                 if self.pending_stops:
                     self._expire_stops(now)
                 if self.uploads.busy:
@@ -412,6 +417,8 @@ class Core:
             self._key_owner = owner if isinstance(owner, str) else None
             # the rest of the message as bytes (cheaper than a Frame per part)
             frames = [first.bytes, *router.recv_multipart()] if first.more else [first.bytes]
+            if self._guard is not None:  # what this connection was handed, against what it sent (guard.py)
+                self._guard.took(first, frames)
             self.stats["received"] += 1
             ident = frames[0]
             if len(frames) != 2:
