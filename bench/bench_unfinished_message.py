@@ -2,7 +2,7 @@
 never finishes (docs/security.md, "What remains, exactly"), before and after the core weighed each
 connection's bytes (``core/guard.py``), in one run.
 
-    .venv/bin/python bench/bench_unfinished_message.py [--mib 256] [--baseline REV] [--shapes ...]
+    .venv/bin/python bench/bench_unfinished_message.py [--mib 256] [--baseline REV] [--shapes ...] [--cost]
 
 Real core processes (``robo-comp core``): this tree's, and ``--baseline``'s (default
 ``6cadcd9``, main before the bound; ``''`` skips it), exported with ``git archive``. A raw ZMTP
@@ -14,6 +14,13 @@ as it can; 2 MiB (over it); empty parts (2 bytes each on the wire, the most part
 per shape: what the peer sent before the cut, and the core's peak resident memory above its
 baseline (``VmHWM``, reset before each attack; so a bound that held only between two samples
 still shows) and what it still held after the peer closed.
+
+``--cost`` measures instead what the bound costs, in this process with real sockets: the core's
+count of each message it receives (``ConnectionGuard.took``, ZMQ_SRCFD included) in ns per
+message, against the same receive loop without it (best of 7, interleaved); one look at
+``--connections`` connections (the kernel's counters of each) in µs per connection; and the CPU
+an idle core uses with 20 idle clients connected (its loop now wakes every 10 ms to glance at its
+memory), this tree's core and ``--baseline``'s, interleaved.
 """
 from __future__ import annotations
 
@@ -41,6 +48,16 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 BASELINE_REV = "6cadcd9"
 MiB = 1 << 20
 SHAPES = {"512k": (512 << 10, 0), "1m": (wire.MAX_FRAME, 0), "2m": (2 * MiB, 0), "empty": (0, 0), "paced40": (40, 1)}
+
+
+def export(rev: str, tmp: pathlib.Path) -> pathlib.Path:
+    """The ``robo_comp`` of git revision ``rev`` in a folder under ``tmp``."""
+    old = tmp / "baseline"
+    old.mkdir()
+    archive = subprocess.run(["git", "-C", str(ROOT), "archive", rev, "robo_comp"], capture_output=True,
+                             check=True).stdout
+    subprocess.run(["tar", "-x", "-C", str(old)], input=archive, check=True)
+    return old
 
 
 def start_core(tree: pathlib.Path, state: pathlib.Path) -> subprocess.Popen[bytes]:
@@ -111,6 +128,87 @@ def run(name: str, tree: pathlib.Path, tmp: pathlib.Path, shapes: list[str], tot
         stop_all([core])
 
 
+def cost(connections: int, messages: int) -> None:
+    """ns a message of the core's count, µs a connection of a look (see the module's help)."""
+    from robo_comp.core.guard import ConnectionGuard, GuardLimits
+    ctx = zmq.Context()
+    router = ctx.socket(zmq.ROUTER)
+    router.setsockopt(zmq.RCVHWM, 0)
+    port = router.bind_to_random_port("tcp://127.0.0.1")
+    guard = ConnectionGuard.watch(router, port, GuardLimits(connections + 100), hold=True)
+    dealers = []
+    for _ in range(connections):
+        d = ctx.socket(zmq.DEALER)
+        d.setsockopt(zmq.SNDHWM, 0)
+        d.connect(f"tcp://127.0.0.1:{port}")
+        dealers.append(d)
+    report = b"\x85" + b"x" * 120  # a report's size
+
+    def receive(count: bool) -> float:
+        for i in range(messages):
+            dealers[i % connections].send(report)
+        t0 = time.perf_counter_ns()
+        for _ in range(messages):
+            router.poll(5000)
+            first = router.recv(zmq.NOBLOCK, copy=False)
+            frames = [first.bytes, *router.recv_multipart()] if first.more else [first.bytes]
+            if count:
+                guard.took(first, frames)
+        return (time.perf_counter_ns() - t0) / messages
+
+    receive(True)
+    guard.serve()
+    looks = []  # first: the runs without the count below leave the guard's counts behind
+    for _ in range(20):
+        guard.next_sweep = 0.0
+        t0 = time.perf_counter_ns()
+        guard.sweep(time.monotonic())
+        looks.append((time.perf_counter_ns() - t0) / 1000 / max(1, len(guard.holding)))
+    assert guard.cut_total == 0, "the look cut a connection that held nothing"
+    runs: dict[bool, list[float]] = {False: [], True: []}
+    for _ in range(7):
+        for count in (False, True):
+            runs[count].append(receive(count))
+    plain, counted = min(runs[False]), min(runs[True])
+    load = " ".join(f"{x:.2f}" for x in os.getloadavg())
+    print(f"the core's receive loop, {messages:,} messages of {len(report)} bytes over {connections} connections, best "
+          f"of 7: {plain:,.0f} ns a message without the count, {counted:,.0f} ns with it ({counted - plain:+,.0f} ns); "
+          f"one look at {len(guard.holding)} connections: {min(looks):.2f} µs a connection (median "
+          f"{sorted(looks)[len(looks) // 2]:.2f}); load {load}")
+    guard.close()
+    for d in dealers:
+        d.close(0)
+    router.close(0)
+    ctx.term()
+
+
+def idle_cpu(tree: pathlib.Path, tmp: pathlib.Path, name: str, seconds: float = 10.0) -> float:
+    """CPU milliseconds a second of the core of ``tree``, idle, with 20 idle clients connected."""
+    from robo_comp.client import Client
+    state = tmp / f"idle-{name}"
+    core = start_core(tree, state)
+    try:
+        token = (state / "teams" / "red.token").read_text().strip()
+        clients = [Client(str(state), token) for _ in range(20)]
+        for c in clients:
+            c.connect()
+        time.sleep(1.0)
+        pid = core.pid
+
+        def cpu() -> float:
+            fields = pathlib.Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+            return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+        c0, t0 = cpu(), time.monotonic()
+        time.sleep(seconds)
+        used = (cpu() - c0) / (time.monotonic() - t0) * 1000
+        for c in clients:
+            c.close()
+        return used
+    finally:
+        stop_all([core])
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--mib", type=int, default=256, help="MiB of the unfinished message at most (default 256; "
@@ -118,7 +216,25 @@ def main() -> int:
     ap.add_argument("--baseline", default=BASELINE_REV, help="git revision of the 'before' core ('' to skip)")
     ap.add_argument("--shapes", nargs="*", default=list(SHAPES), choices=list(SHAPES))
     ap.add_argument("--paced", type=float, default=20.0, help="µs between two paced parts (default 20)")
+    ap.add_argument("--cost", action="store_true", help="measure what the bound costs instead (see above)")
+    ap.add_argument("--connections", type=int, default=200, help="connections of --cost (default 200)")
+    ap.add_argument("--messages", type=int, default=100_000, help="messages of each --cost run (default 100,000)")
     a = ap.parse_args()
+    if a.cost:
+        cost(a.connections, a.messages)
+        if a.baseline:
+            with tempfile.TemporaryDirectory() as tmp_name:
+                tmp = pathlib.Path(tmp_name)
+                old = export(a.baseline, tmp)
+                got: dict[str, list[float]] = {"before": [], "after": []}
+                for rep in range(2):
+                    for name, tree in ([("before", old), ("after", ROOT)] if rep == 0 else
+                                       [("after", ROOT), ("before", old)]):
+                        got[name].append(idle_cpu(tree, tmp, f"{name}{rep}"))
+                print(f"an idle core with 20 idle clients, CPU ms a second (2 interleaved runs of 10 s each): before "
+                      f"({a.baseline}) {', '.join(f'{v:.1f}' for v in got['before'])}; after "
+                      f"{', '.join(f'{v:.1f}' for v in got['after'])}; load {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+        return 0
     load = " ".join(f"{x:.2f}" for x in os.getloadavg())
     print(f"libzmq {zmq.zmq_version()}, pyzmq {zmq.__version__}; ZMQ_MAXMSGSIZE {wire.SOCKET_MAX_FRAME:,} bytes; "
           f"{os.cpu_count()} CPUs, load {load}")
@@ -126,12 +242,7 @@ def main() -> int:
         tmp = pathlib.Path(tmp_name)
         trees = [("after", ROOT)]
         if a.baseline:
-            old = tmp / "baseline"
-            old.mkdir()
-            archive = subprocess.run(["git", "-C", str(ROOT), "archive", a.baseline, "robo_comp"],
-                                     capture_output=True, check=True).stdout
-            subprocess.run(["tar", "-x", "-C", str(old)], input=archive, check=True)
-            trees.insert(0, (f"before ({a.baseline})", old))
+            trees.insert(0, (f"before ({a.baseline})", export(a.baseline, tmp)))
         for name, tree in trees:
             run(name, tree, tmp, a.shapes, a.mib * MiB, a.paced)
     print(f"load at the end {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
