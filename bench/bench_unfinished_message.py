@@ -231,9 +231,10 @@ def main() -> int:
                     for name, tree in ([("before", old), ("after", ROOT)] if rep == 0 else
                                        [("after", ROOT), ("before", old)]):
                         got[name].append(idle_cpu(tree, tmp, f"{name}{rep}"))
+                load = " ".join(f"{x:.2f}" for x in os.getloadavg())
                 print(f"an idle core with 20 idle clients, CPU ms a second (2 interleaved runs of 10 s each): before "
                       f"({a.baseline}) {', '.join(f'{v:.1f}' for v in got['before'])}; after "
-                      f"{', '.join(f'{v:.1f}' for v in got['after'])}; load {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+                      f"{', '.join(f'{v:.1f}' for v in got['after'])}; load {load}")
         return 0
     load = " ".join(f"{x:.2f}" for x in os.getloadavg())
     print(f"libzmq {zmq.zmq_version()}, pyzmq {zmq.__version__}; ZMQ_MAXMSGSIZE {wire.SOCKET_MAX_FRAME:,} bytes; "

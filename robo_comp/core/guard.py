@@ -10,8 +10,9 @@ ZAP handler asks :meth:`ConnectionGuard.admit` about every principal that proved
 only :attr:`GuardLimits.kept` connections are left, only the referee and the organiser's hosts
 get in. The PUB socket (the public feed, no credential) is watched the same way, and a
 subscriber that sends more than :data:`PUB_INBOUND` bytes is cut (:meth:`ConnectionGuard.sweep`).
-Cuts and refusals are counted per address and logged once a beat (see the core's ``_tick``). A connection that never completes its handshake is closed by libzmq after
-:data:`HANDSHAKE_SECONDS` (ZMQ_HANDSHAKE_IVL).
+Cuts and refusals are counted per address and logged once a beat (see the core's ``_tick``). A
+connection that never completes its handshake is closed by libzmq after :data:`HANDSHAKE_SECONDS`
+(ZMQ_HANDSHAKE_IVL).
 
 **What a connection holds.** libzmq reads each connection as fast as it can and keeps the parts
 of a multipart message until its last part comes: ZMQ_MAXMSGSIZE bounds one part, nothing bounds
@@ -168,7 +169,8 @@ class _Kernel:
         return received
 
     def unread(self, fd: int) -> int:
-        """Bytes the connection on descriptor ``fd`` received that nobody read yet (``FIONREAD``; 0 if it cannot say)."""
+        """Bytes the connection on descriptor ``fd`` received that nobody read yet (``FIONREAD``; 0
+        if it cannot say)."""
         try:
             fcntl.ioctl(fd, termios.FIONREAD, self._unread)
         except OSError:
@@ -361,7 +363,7 @@ class ConnectionGuard:
             rows.append((held, fd, stuck))
         # after the counts: a message complete by then is handed or waiting now (only one read per
         # connection, at most a frame, can be read and not yet passed on by libzmq's I/O thread)
-        waiting = bool(self.holder.get(zmq.EVENTS) & zmq.POLLIN)
+        waiting = bool(int(self.holder.get(zmq.EVENTS)) & zmq.POLLIN)
         total = 0.0
         kept: list[tuple[float, int]] = []
         for held, fd, stuck in rows:  # those that hold something
