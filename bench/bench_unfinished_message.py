@@ -105,13 +105,21 @@ def attack(state: pathlib.Path, token: bytes, part: int, total: int, paced_us: f
     seconds = time.perf_counter() - t0
     time.sleep(0.5)  # the core's I/O thread takes in what reached it
     peak = core_peak(state) - base
+    if not cut:  # all of it sent: did the core cut it afterwards?
+        s.settimeout(0.5)
+        try:
+            cut = s.recv(1) == b""
+        except TimeoutError:
+            pass
+        except OSError:
+            cut = True
     s.close()
     time.sleep(1.0)
     after = core_rss(state) - base
     shown = f"{part // 1024:,} KiB" if part >= 1024 else f"{part} B"
     return (f"parts of {shown}{' one per send' if paced_us else ''}: the peer sent {sent / MiB:,.1f} MiB "
-            f"in {seconds:.2f} s, {'then the core cut it' if cut else 'never cut'}; the core's peak "
-            f"{peak / MiB:+,.0f} MiB, {after / MiB:+,.0f} MiB after the peer closed")
+            f"in {seconds:.2f} s, {'and the core cut it' if cut else 'never cut'}; the core's peak "
+            f"{round(peak / MiB):+,d} MiB, {round(after / MiB):+,d} MiB after the peer closed")
 
 
 def run(name: str, tree: pathlib.Path, tmp: pathlib.Path, shapes: list[str], total: int, paced_us: float) -> None:
