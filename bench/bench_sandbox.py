@@ -14,6 +14,10 @@
 4. ``--os-layer`` (instead of 1–3): the cold upload and the robot-API round trip with the OS
    layer on (bubblewrap and the seccomp filter, sandbox/oswall.py and sysfilter.py), with
    bubblewrap but the filter left out, and off, interleaved in the same run.
+5. ``--seal`` (instead of 1–3): what the seal against memory addresses (sandbox/determinism.py)
+   costs team code: CPU time per operation (best of 3) of attribute writes on a team object,
+   set insertions of team objects and of a function, f-strings of a function and dicts keyed
+   by a class, run under the policy in a fresh process sealed and in one not sealed.
 """
 from __future__ import annotations
 
@@ -231,12 +235,76 @@ def bench_os_layer(calls: int, n: int) -> None:
     oswall.wall = with_filter
 
 
+SEAL_CODE = r'''
+import sys, time
+if sys.argv[1] == "sealed":
+    from robo_comp.sandbox.determinism import seal
+    seal()
+from robo_comp.sandbox.policy import Policy, compile_team
+SRC = """
+class Thing:
+    def __init__(self):
+        self.n = 0
+def helper():
+    return 0
+def writes(n):
+    t = Thing()
+    for i in range(n):
+        t.n = i
+def team_set(n):
+    s = set()
+    objs = [Thing() for i in range(100)]
+    for i in range(n):
+        s.add(objs[i % 100])
+def function_set(n):
+    s = set()
+    for i in range(n):
+        s.add(helper)
+def fstring(n):
+    for i in range(n):
+        x = f"{helper}"
+def class_key(n):
+    for i in range(n):
+        d = {int: 1}
+"""
+g = Policy(0, lambda t: None).make_globals("team.b")
+exec(compile_team(SRC, "b.py"), g)
+n = int(sys.argv[2])
+for name in ("writes", "team_set", "function_set", "fstring", "class_key"):
+    best = float("inf")
+    for _ in range(3):
+        t = time.process_time()
+        g[name](n)
+        best = min(best, time.process_time() - t)
+    print(name, best / n * 1e9)
+'''
+
+
+def bench_seal(n: int) -> None:
+    """CPU ns per operation of team code in a sealed and in an unsealed process."""
+    import subprocess
+
+    got: dict[str, dict[str, float]] = {}
+    for mode in ("not-sealed", "sealed"):
+        out = subprocess.run([sys.executable, "-s", "-P", "-B", "-c", SEAL_CODE, mode, str(n)],
+                             capture_output=True, text=True, check=True, cwd=ROOT)
+        got[mode] = {k: float(v) for k, v in (line.split() for line in out.stdout.splitlines())}
+    print(f"seal cost, CPU ns per operation (best of 3 x {n}):")
+    for name in got["sealed"]:
+        a, b = got["not-sealed"][name], got["sealed"][name]
+        print(f"  {name:13} not sealed {a:6.0f}  sealed {b:6.0f}  ({b - a:+.0f} ns)")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="fewer repetitions")
     ap.add_argument("--os-layer", action="store_true",
                     help="only the upload and the robot-API call, with the OS layer on and off")
+    ap.add_argument("--seal", action="store_true", help="only what the seal against memory addresses costs")
     opts = ap.parse_args()
+    if opts.seal:
+        bench_seal(50_000 if opts.quick else 200_000)
+        return
     if opts.os_layer:
         bench_os_layer(2000 if opts.quick else 20000, 5 if opts.quick else 20)
         return

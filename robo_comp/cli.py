@@ -128,7 +128,7 @@ def _start_core(args: argparse.Namespace, state: Path) -> tuple[Any, bool]:
              "scenario_sha256": matchfile.scenario_hash(args.scenario),
              "practice": args.practice, "approve_uploads": args.approve_uploads, "rules": args.rules,
              "curve": args.curve, "pose_hz": args.pose_hz, "heartbeat": args.heartbeat, "port": args.port,
-             "robots": args.robots, "max_speed": args.max_speed}
+             "robots": args.robots, "max_speed": args.max_speed, "debug_replay": args.debug_replay}
     settings, recovering = matchfile.resolve(state, given, args.override)
     scenario_file = settings.get("scenario")
     if recovering and scenario_file and not args.scenario:
@@ -148,6 +148,7 @@ def _start_core(args: argparse.Namespace, state: Path) -> tuple[Any, bool]:
                 curve=bool(settings.get("curve")), pose_hz=settings.get("pose_hz", 10.0),
                 robots_per_team=settings.get("robots"), max_speed=settings.get("max_speed"),
                 max_connections=args.max_connections, max_per_address=args.max_per_address)
+    core.debug_replay = settings.get("debug_replay") or "team"  # recorded in the log's core.started
     try:
         core.bind(lambda: matchfile.write(state, {
             "teams": core.tokens.teams, "scenario": scenario_file,
@@ -156,7 +157,7 @@ def _start_core(args: argparse.Namespace, state: Path) -> tuple[Any, bool]:
             "rules": settings.get("rules"), "curve": bool(settings.get("curve")),
             "pose_hz": settings.get("pose_hz", 10.0), "heartbeat": core.heartbeat,
             "port": core.port, "robots": core.match.robots_per_team,
-            "max_speed": settings.get("max_speed")}))
+            "max_speed": settings.get("max_speed"), "debug_replay": core.debug_replay}))
     except OSError:
         core.close()
         raise
@@ -305,6 +306,10 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--advertise", metavar="NAME",
                    help="let robots and consoles on the LAN find this core by name (--core mdns:NAME), over "
                         "mDNS on the interface of --host (off by default; docs/organiser.md)")
+    c.add_argument("--debug-replay", choices=("team", "everyone"),
+                   help="who sees a team's debug drawing (robot.draw_dot/line/text) in replays: only that team "
+                        "and the referee (default), or everyone after the match; live it is always the team's "
+                        "own (recorded in the log)")
     c.add_argument("--override", action="store_true",
                    help="on a restart, apply options that contradict the recovered match (and record them)")
     c.add_argument("--max-connections", type=_positive_int, metavar="N",

@@ -19,7 +19,7 @@ from conftest import HEARTBEAT, wait_for, wait_robots  # noqa: E402
 from robo_comp.cli import main as cli_main  # noqa: E402
 from robo_comp.errors import RoboCompError  # noqa: E402
 from robo_comp.launch import start_core  # noqa: E402
-from robo_comp.protocol import EVERYONE, PRIVATE_KEYS, PRIVATE_TOPICS, PUBLIC_TOPICS, public_event, unpack_walls  # noqa: E402
+from robo_comp.protocol import EVERYONE, PRIVATE_TOPICS, PUBLIC_TOPICS, public_event, unpack_walls  # noqa: E402
 from robo_comp.protocol.logfile import read_log  # noqa: E402
 from robo_comp.testing import Match  # noqa: E402
 
@@ -159,7 +159,7 @@ def test_a_public_export_carries_nothing_private(played, tmp_path, capsys):
     records = list(read_log(played.log))
     # the log holds private records and private fields: a test that can fail
     assert "refused" in {r.topic for r in records} & PRIVATE_TOPICS
-    assert any(PRIVATE_KEYS & r.data.keys() for r in records if r.topic in PUBLIC_TOPICS)
+    assert any(r.data.keys() - set(PUBLIC_TOPICS[r.topic]) for r in records if r.topic in PUBLIC_TOPICS)
     assert any(r.topic == "picture" and "victims" in r.data for r in records)
     got, types, _ = export(played, tmp_path / "public.mcap")
     assert "view public" in capsys.readouterr().out
@@ -170,10 +170,7 @@ def test_a_public_export_carries_nothing_private(played, tmp_path, capsys):
     by_seq = {r.seq: r for r in records}
     for e in shown:
         fields, data = PUBLIC_TOPICS[e["topic"]], e["data"]
-        if fields is None:
-            assert not PRIVATE_KEYS & data.keys(), e
-        else:
-            assert data.keys() <= set(fields), e
+        assert data.keys() <= set(fields), e
         rec = by_seq[e["seq"]]
         assert data.keys() == public_event(rec.topic, rec.data).keys()
     # the topics made from records carry the same public view
@@ -181,7 +178,8 @@ def test_a_public_export_carries_nothing_private(played, tmp_path, capsys):
         (_, m), = got[topic]
         assert json.loads(m.data) == public_event(record_topic, next(r.data for r in records if r.topic == record_topic))
     for _, m in got["/tasks"]:
-        assert not PRIVATE_KEYS & json.loads(m.data).keys()
+        task = json.loads(m.data)  # a task record: the event's public fields, its topic and team
+        assert task.keys() <= set(PUBLIC_TOPICS[task["event"]]) | {"event", "team"}, task
 
 
 def test_a_team_export_carries_that_team_s_records_only(played, tmp_path):

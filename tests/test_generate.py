@@ -98,7 +98,7 @@ def test_a_league_match_on_a_generated_map_shows_on_the_wall(tmp_path):
     src.advance(model)
     assert model.arena is not None and (model.arena.width, model.arena.height) == (64, 48)
     assert (model.arena.walls == load_walls(tmp_path / "g.log")).all()
-    assert sorted(model.robots) == [101, 102, 201, 202]
+    assert sorted(model.robots) == [101, 102, 103, 104]
     pygame.display.init()
     from robo_comp.wall.render import Renderer
     from robo_comp.wall.view import TileSpec, ViewState

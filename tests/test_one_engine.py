@@ -132,3 +132,44 @@ def test_the_same_finds_and_scores_live_and_on_the_engine(both):
     assert {f[2] for f in engine["finds"]} == {"confirmed", "rejected"}
     assert engine["scores"] == live["scores"]
     assert engine["scores"]["red"] > 0 and engine["scores"]["blue"] == 0
+
+
+def test_the_engine_logs_what_the_topic_table_describes(tmp_path):
+    """The engine's log is a core's log: every record is a topic of protocol/topics.py with the
+    fields the table names (the core fixture checks the same of every core's log)."""
+    from robo_comp.engine import report_seen, sweep_plan
+    from robo_comp.protocol import check_event
+    from robo_comp.protocol.logfile import read_log
+
+    with Bench("demo_room", teams={"red": 2, "blue": 1}, practice=False) as bench:
+        bench.load(EXPLORER, team="red")
+        bench.run_match(sweep_plan(bench, 6), seconds=300, on_done=report_seen(bench))
+        path = bench.write_log(tmp_path / "m.log")
+    records = list(read_log(path))
+    topics = {r.topic for r in records}
+    assert {"core.started", "robot.registered", "task.done", "picture", "find.reported", "score.change",
+            "match.phase"} <= topics
+    assert [why for r in records if (why := check_event(r.topic, r.data))] == []
+
+
+def test_a_league_match_plays_by_the_league_s_scoring_rules(tmp_path):
+    """``league init --rules`` reaches every match (as ``core --rules`` reaches a live one): the
+    same entrants scored by the time-attack rules of tests/rules_timeattack.py (any report near a
+    victim, no evidence needed, 100 points) against the default rules (no evidence: a false report)."""
+    from robo_comp.league.engine import play_match
+
+    reporter = ('MANIFEST = {"name": "rep", "version": "1", "kind": "extension", "tasks": {"play": {"args": ['
+                '{"name": "w", "type": "int"}, {"name": "h", "type": "int"}, {"name": "i", "type": "int"}, '
+                '{"name": "n", "type": "int"}]}}}\n\n'
+                'def play(robot, w, h, i, n):\n    if i == 0:\n        robot.report_find(9, 5, "adult", [])\n'
+                '    return 0\n')
+    sitter = ('MANIFEST = {"name": "sit", "version": "1", "kind": "extension", "tasks": {"play": {"args": ['
+              '{"name": "w", "type": "int"}, {"name": "h", "type": "int"}, {"name": "i", "type": "int"}, '
+              '{"name": "n", "type": "int"}]}}}\n\ndef play(robot, w, h, i, n):\n    return 0\n')
+    spec = {"id": 1, "scenario": "demo_room", "seed": 0, "seconds": 20, "robots": 1, "log": None,
+            "entrants": [{"team": "alpha", "version": "1", "files": {"rep.py": reporter}},
+                         {"team": "beta", "version": "1", "files": {"sit.py": sitter}}]}
+    default = play_match(spec)
+    timed = play_match(dict(spec, rules="rules_timeattack:plugin"))
+    assert default["scores"]["alpha"] == -5.0  # no picture cites the victim: a false report
+    assert timed["scores"]["alpha"] == 100.0 and timed["victims"]["alpha"] == ["v1"]

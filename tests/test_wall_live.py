@@ -17,6 +17,7 @@ import pygame  # noqa: E402
 import pytest  # noqa: E402
 
 from conftest import wait_for, wait_robots  # noqa: E402
+from robo_comp.view import colours as C  # noqa: E402
 from robo_comp.wall import render as R  # noqa: E402
 from robo_comp.wall.app import LiveSource, WallApp  # noqa: E402
 from robo_comp.view.model import MatchView  # noqa: E402
@@ -244,7 +245,7 @@ def test_cli_screenshots_live_and_from_a_replay_in_tiles(core, tmp_path):
                     "--screenshot", str(shot), "--size", "900x560"))
     img = pygame.image.load(str(shot))
     arena = ref.arena()
-    colours = {t["name"]: R.hex_rgb(t["colour"]) for t in arena["teams"]}
+    colours = {t["name"]: C.hex_rgb(t["colour"]) for t in arena["teams"]}
     geom = MapGeometry.of(Layout.of((900, 560)), arena["width"], arena["height"], ViewState())
     for row in rows:  # every robot, in its team's colour, where the core says it is
         assert tuple(img.get_at(geom.cell_centre(row["x"], row["y"])))[:3] == colours[row["team"]]

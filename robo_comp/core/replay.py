@@ -78,8 +78,7 @@ class ReplayCore(Core):
         """Play what is due, then heartbeats to watchers (a replay has no robots to lose and no
         clock of its own to run)."""
         self.advance()
-        if self._refused_anon:
-            self._log_refused()
+        self.access.tell_refused()
         hb = P.request("heartbeat", 0, {"t": time.time(), "core_id": self.core_id})
         for ident, s in list(self.sessions.items()):
             if s.watching or s.tags:
@@ -131,7 +130,7 @@ class ReplayCore(Core):
                 r = robots.get(tag)
                 if r is not None:
                     self.match.posed.setdefault(r.team, set()).add(tag)
-            self._publish_positions()
+            self.feed.publish_now()
         elif rec.topic not in ("core.started", "core.recovered"):
             self.emit(rec.topic, rec.team, rec.data, log_it=False)
 

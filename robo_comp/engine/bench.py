@@ -21,7 +21,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from robo_comp.engine.budget import CALL_BURST, PICTURE_CALLS, Budget, CallBuckets, Forfeit, rss_mib
+from robo_comp.engine.budget import CALL_BURST, PICTURE_CALLS, Budget, CallBuckets, Forfeit
+from robo_comp.engine.usage import EntrantMeter
 from robo_comp.engine.plans import TaskStep
 from robo_comp.errors import BadTaskError, FieldError, RoboCompError, UnavailableError
 from robo_comp.protocol.states import Phase
@@ -130,8 +131,7 @@ class TeamSide:
     def team_log(self, tag: int | None, stream: str, text: str) -> None:
         """A line the team's code printed: kept for :meth:`Bench.log_text` and logged."""
         self.bench.logs.append(LogLine(None, tag, stream, text))
-        self.bench.emit("robot.log", self.team, {"tag": tag, "stream": stream[:16], "text": text[:2000]},
-                        public=False)
+        self.bench.emit("robot.log", self.team, {"tag": tag, "stream": stream[:16], "text": text[:2000]})
 
     def code_request(self, type_: str, body: dict[str, Any], on_reply: Reply) -> None:
         """A find or a radio message from team code, answered by the match at once."""
@@ -154,6 +154,15 @@ class TeamSide:
         """A picture for team code, judged by the match as the core judges a host's picture."""
         pid, seen = self.bench.picture(r)
         on_reply(True, {"id": pid, "seen": seen})
+
+    def team_draw(self, tags: list[int], frames: list[list[Any]]) -> None:
+        """The robots' new frames of debug drawing, logged as ``debug.draw`` for the team (as a
+        core logs a host's ``draw``); costs nothing: no match limit counts it."""
+        bench = self.bench
+        data = {"team": self.team, "tags": tags, "frames": frames}
+        t = round(bench.arena.time, 6)
+        bench.events.append({**data, "t": t, "topic": "debug.draw", "team": self.team})
+        bench._records.append(("debug.draw", self.team, data, t))
 
 
 class Bench:
@@ -226,12 +235,14 @@ class Bench:
         #: The event log of every run so far: dicts with ``t``, ``topic``, ``team`` and the event's data.
         self.events: list[dict[str, Any]] = []
         self._records: list[tuple[str, str | None, dict[str, Any], float]] = []  # the core log's records
+        self.debug_replay = "team"  # who sees team code's debug drawing in a replay (protocol.topics.DEBUG_REPLAY)
         self.finds: list[dict[str, Any]] = []
         self.calls: list[tuple[int, str, list[Any]]] = []
         self.logs: list[LogLine] = []
-        #: Per team: events its robots caused, their bytes as JSON lines, real seconds its code computed.
-        self.used: dict[str, dict[str, float]] = {t: {"events": 0.0, "log_bytes": 0.0, "wall_seconds": 0.0}
-                                                  for t in self.teams}
+        #: Per team: events its robots caused, their bytes as JSON lines, real seconds the match
+        #: waited for its code and the CPU seconds its code used.
+        self.used: dict[str, dict[str, float]] = {t: {"events": 0.0, "log_bytes": 0.0, "wall_seconds": 0.0,
+                                                      "cpu_seconds": 0.0} for t in self.teams}
         #: Set when an entrant went over a match limit; the match then ends (see :class:`Budget`).
         self.forfeit: Forfeit | None = None
         self._directives: deque[tuple[SimRobot, str, dict[str, Any]]] = deque()
@@ -239,7 +250,8 @@ class Bench:
         self._outcomes: dict[int, list[dict[str, Any]]] = {}
         self._on_done: Callable[[int, dict[str, Any]], Iterable[TaskStep] | None] | None = None
         self._wall_end = math.inf
-        self._rss0 = rss_mib()
+        #: CPU, real time and memory per entrant, for the match limits (robo_comp/engine/usage.py).
+        self.meter = EntrantMeter(self.teams, lambda team: self.sides[team].code.sb)
         self._next_memory_check = 256
         self._next_sample = 0.0
         self._next_report = 0.0
@@ -388,7 +400,7 @@ class Bench:
                 raise FieldError(f"robot {tag} is not on the bench; its robots are {self.tags}")
             self._plans.setdefault(tag, deque()).extend((str(n), list(a)) for n, a in steps)
         self._wall_end = t0 + timeout
-        self._rss0 = rss_mib()  # the match's growth counts from here (modules loaded)
+        self.meter.start()  # the match's costs count from here (modules loaded)
         self._next_memory_check = 256
         try:
             self._sample()
@@ -406,6 +418,7 @@ class Bench:
             pass
         if self.forfeit is not None:
             self._end()
+        self.match.contest.flush_score()
         self._on_done = None
         return MatchRun(score=self.score(), sim_seconds=round(self.arena.time - start_time, 6),
                         wall_seconds=time.monotonic() - t0, events=self.events[first_event:],
@@ -444,7 +457,8 @@ class Bench:
 
         names = [t.name for t in self.scenario.teams] or list(self.teams)
         head: list[tuple[str, str | None, dict[str, Any], float]] = [
-            ("core.started", None, {"router": "bench", "teams": names, "arena": arena_payload(self.scenario, names)},
+            ("core.started", None, {"router": "bench", "teams": names, "arena": arena_payload(self.scenario, names),
+                                    "debug_replay": self.debug_replay},
              0.0)]
         return write_log(Path(path), head + self._records)
 
@@ -460,8 +474,7 @@ class Bench:
         self.close()
 
     # ------------------------------------------------------------------ the match's output (MatchOutput)
-    def emit(self, topic: str, team: str | None, data: dict[str, Any], *, public: bool = True,
-             log_it: bool = True) -> None:
+    def emit(self, topic: str, team: str | None, data: dict[str, Any], *, log_it: bool = True) -> None:
         """An event of the match (or of the bench): into the bench's log at the simulated time."""
         if not log_it:
             return
@@ -518,15 +531,19 @@ class Bench:
         deadline = min(self._wall_end, t0 + 3600.0)
         answered = side.code.wait_run(step.run_id, deadline)
         used = self.used[team]
-        used["wall_seconds"] += time.monotonic() - t0
-        limit = self.budget.wall_seconds
-        if limit is not None and used["wall_seconds"] > limit:
-            self._lose(team, "wall_seconds", f"its code computed for more than {limit:g} s of real time in the match")
+        waited = time.monotonic() - t0
+        used["wall_seconds"] += waited
+        cpu = used["cpu_seconds"] = self.meter.wait(team, waited)
+        b = self.budget
+        if b.cpu_seconds is not None and cpu > b.cpu_seconds:
+            self._lose(team, "cpu_seconds", f"its code computed for more than {b.cpu_seconds:g} s of CPU time in the match")
+        elif b.wall_seconds is not None and used["wall_seconds"] > b.wall_seconds:
+            self._lose(team, "wall_seconds", f"the match waited more than {b.wall_seconds:g} s of real time for its code")
         if self.forfeit is not None:
             raise _Ended()
         if not answered:
-            if self.budget.wall_seconds is not None:  # a league match: the slowest entrant forfeits
-                slow = max(self.teams, key=lambda t: (self.used[t]["wall_seconds"], -self.teams.index(t)))
+            if self.budget.wall_seconds is not None:  # a league match: the most computing entrant forfeits
+                slow = max(self.teams, key=lambda t: (self.meter.read_cpu(t), -self.teams.index(t)))
                 self._lose(slow, "wall_seconds", "the match ran out of real time, and its code computed the longest")
                 raise _Ended()
             raise AssertionError("the bench ran out of real time (run_match timeout): team code "
@@ -595,12 +612,14 @@ class Bench:
         for tag in self.tags:
             r = self.by_tag[tag]
             if r.driver.step is not None and r.driver.update(dt):
-                self.runtime.boundary(r)
+                with self.meter.serving(self.team_of[tag]):  # what serving a robot grows is its team's
+                    self.runtime.boundary(r)
                 self._carry_out()
         self.match.contest.tick()
         self._sample()
         self._check_memory()
         self._give_next()
+        self.match.contest.flush_score()  # the scoreboard once a step it changed in, as a core's once a turn
 
     def _carry_out(self) -> None:
         """Carry out the match's directives, in order (each may cause more)."""
@@ -610,9 +629,11 @@ class Bench:
                 if r.task is None or r.task.id != body["task_id"]:
                     if r.task is not None:
                         r.driver.halt()
-                    self.runtime.start(r, body)
+                    with self.meter.serving(self.team_of.get(r.tag)):
+                        self.runtime.start(r, body)
             elif type_ == "task.interrupt":
-                self.runtime.interrupt(r, body)
+                with self.meter.serving(self.team_of.get(r.tag)):
+                    self.runtime.interrupt(r, body)
             elif type_ == "stop":
                 self.runtime.halt(r)
             elif type_ == "radio":
@@ -685,6 +706,8 @@ class Bench:
             tags = sorted(moved)
             moved.clear()
             self.emit("robot.positions", None, self.match.position_sample(tags))
+        for side in self.sides.values():
+            side.code.flush_drawing()  # team code's debug drawing, at the same ticks
         self.match.posed.clear()  # no live feed to conflate for
 
     def _end(self) -> None:
@@ -722,8 +745,8 @@ class Bench:
             self.forfeit = Forfeit(team, limit, f"team {team} forfeits the match: {why}", round(self.arena.time, 6))
 
     def _check_memory(self) -> None:
-        """Charge growth of this process over :attr:`Budget.memory_mib` to the entrant that
-        logged the most."""
+        """An entrant whose memory (:meth:`EntrantMeter.memory_mib`) is over
+        :attr:`Budget.memory_mib` forfeits."""
         limit = self.budget.memory_mib
         if limit is None or self.forfeit is not None:
             return
@@ -731,11 +754,11 @@ class Bench:
         if self._next_memory_check > 0:
             return
         self._next_memory_check = 256
-        grown = rss_mib() - self._rss0
-        if grown > limit:
-            team = max(self.teams, key=lambda t: (self.used[t]["log_bytes"], -self.teams.index(t)))
-            self._lose(team, "memory_mib", f"the match grew by {grown:.0f} MiB (limit {limit:g} MiB), most of it "
-                                           f"for what its robots logged ({self.used[team]['log_bytes'] / 2**20:.1f} MiB)")
+        for team in self.teams:
+            mib = self.meter.memory_mib(team)
+            if mib > limit:
+                self._lose(team, "memory_mib", f"its robots took {mib:.1f} MiB of memory in the match (limit "
+                                               f"{limit:g} MiB: its sandbox's growth and the worker's while serving them)")
 
 
 def _json_line(event: dict[str, Any]) -> str:

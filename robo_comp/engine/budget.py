@@ -9,13 +9,13 @@ time; this is its simulated price.
 
 The other limits are per **entrant** (team) and per match; None: no limit. Going over one ends
 the match as that entrant's forfeit (:class:`Forfeit`): ``events`` (events its robots caused),
-``log_bytes`` (their size, as JSON lines), ``wall_seconds`` (real time its code computed) and
-``memory_mib`` (growth of this process during the match, charged to the entrant with the most
-logged bytes).
+``log_bytes`` (their size, as JSON lines), ``cpu_seconds`` (CPU time of its sandbox's
+processes), ``wall_seconds`` (real time the match waited for its code: a backstop, it grows with
+the machine's load) and ``memory_mib`` (its sandbox's growth plus this process's growth while its
+robots were served); see :mod:`robo_comp.engine.usage`.
 """
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 
 #: Calls that take no time one robot may make at once (the call budget's burst).
@@ -35,12 +35,13 @@ class Budget:
     log_bytes: int | None = None
     wall_seconds: float | None = None
     memory_mib: float | None = None
+    cpu_seconds: float | None = None
 
 
 @dataclass(frozen=True)
 class Forfeit:
     """Why a match ended early: ``team`` went over ``limit`` (``events``, ``log_bytes``,
-    ``wall_seconds``, ``memory_mib``); ``message`` says it to the student; ``t`` is the
+    ``cpu_seconds``, ``wall_seconds``, ``memory_mib``); ``message`` says it to the student; ``t`` is the
     simulated time."""
 
     team: str
@@ -77,13 +78,4 @@ class CallBuckets:
         return wait
 
 
-def rss_mib() -> float:
-    """This process's resident memory in MiB (0 where /proc is not there)."""
-    try:
-        with open("/proc/self/statm") as f:
-            return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
-    except (OSError, ValueError, IndexError):
-        return 0.0
-
-
-__all__ = ["Budget", "CALL_BURST", "CallBuckets", "Forfeit", "PICTURE_CALLS", "rss_mib"]
+__all__ = ["Budget", "CALL_BURST", "CallBuckets", "Forfeit", "PICTURE_CALLS"]

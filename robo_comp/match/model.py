@@ -224,7 +224,7 @@ class Match:
         """The referee handed robot ``r`` from its host to the next that registers it."""
         self.lifecycle.lost(r, "handed over by the referee; waiting for its next host")
         r.session = None
-        self.out.emit("robot.handover", r.team, {"tag": r.tag, "by": by, "from": old}, public=False)
+        self.out.emit("robot.handover", r.team, {"tag": r.tag, "by": by, "from": old})
 
     # ------------------------------------------------------------------ tasks
     def _task_started(self, r: RobotRecord, t: TaskRecord) -> None:
@@ -328,7 +328,7 @@ class Match:
             if t.status is RobotStatus.CONNECTED and t.session is not None:
                 self.out.to_host(t, "radio", dict(body, tag=t.tag))
                 delivered += 1
-        self.out.emit("radio", r.team, dict(body, delivered=delivered), public=False)
+        self.out.emit("radio", r.team, dict(body, delivered=delivered))
         return delivered
 
     # ------------------------------------------------------------------ poses and claims
@@ -369,7 +369,7 @@ class Match:
         for (tag, kind), (count, why) in sorted(rows.items()):
             r = self.registry.robots[tag]
             self.out.emit("integrity", None, {"kind": kind, "tag": tag, "team": r.team, "count": count,
-                                              "x": r.x, "y": r.y, "message": why}, public=False)
+                                              "x": r.x, "y": r.y, "message": why})
 
     def pose_refusal(self, r: RobotRecord, x: float, y: float, sigma: float, now: float) -> str:
         """Why robot ``r`` could not be at ``(x, y)`` now ("" when it could: ``PoseGate.admit``, and

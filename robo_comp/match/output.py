@@ -17,11 +17,10 @@ if TYPE_CHECKING:
 class MatchOutput(Protocol):
     """Where the match's events and directives go."""
 
-    def emit(self, topic: str, team: str | None, data: dict[str, Any], *, public: bool = True,
-             log_it: bool = True) -> None:
-        """An event of ``topic`` (see :mod:`robo_comp.protocol.topics`) about ``team`` (None: the
-        match's own; ``"*"``: for everyone). ``public`` False: never on a public feed; ``log_it``
-        False: not recorded (the live position feed)."""
+    def emit(self, topic: str, team: str | None, data: dict[str, Any], *, log_it: bool = True) -> None:
+        """An event of ``topic`` about ``team`` (None: the match's own; ``"*"``: for everyone); who
+        may see what of it is the table's (:mod:`robo_comp.protocol.topics`). ``log_it`` False: not
+        recorded (the live position feed)."""
 
     def to_host(self, r: RobotRecord, type_: str, body: dict[str, Any]) -> None:
         """A directive to the host that runs robot ``r``: ``task.start``, ``task.interrupt``,

@@ -31,6 +31,7 @@ from robo_comp import protocol as P
 from robo_comp.client import open_dealer
 from robo_comp.match.plausibility import PoseGate
 from robo_comp.protocol.curve import ClientKeys, load_public, secure_client
+from robo_comp.protocol.session import ClientSession
 from robo_comp.errors import FieldError, RoboCompError
 from robo_comp.plugins.manager import get_plugin_manager
 from robo_comp.robots.oneworld import Foreign, is_real, merge_readings
@@ -60,6 +61,8 @@ def _log_refusal(what: str) -> Reply:
             log.warning("%s refused: %s", what, body.get("message"))
     return on_reply
 
+#: Tags the host's "registered" line names at most.
+SAY_TAGS = 12
 #: Robots per ``reports`` message; the host looks at the core's socket between two messages
 #: (so a stop never waits long behind a big host's reports).
 REPORT_CHUNK = 100
@@ -128,25 +131,20 @@ class RobotHost:
         self.rng = random.Random(seed)
         self.seed = seed
         self.sock: zmq.Socket | None = None
-        #: The session secret the core gave at hello; every later message carries it.
-        self.session: str | None = None
+        #: The session with the core (protocol/session.py): hello, the secret, heartbeats, a restarted core.
+        self.s = ClientSession(token, "robots")
         self.poller = zmq.Poller()
         self.robots: dict[str, SimRobot] = {}
         self.by_tag: dict[int, SimRobot] = {}
         self.walls = np.zeros((1, 1), dtype=bool)
         self.team: str | None = None
-        self.heartbeat = 1.0
         self.state = "down"  # down, hello, arena, registering, up
         self.replies: dict[int, Reply] = {}
-        self.next_id = 1
-        self.last_rx = 0.0
-        self.last_tx = 0.0
         self.state_since = 0.0
         self._running = False
         self.reconnects = 0
         self._waiting = 0
         self.holding = False
-        self.core_id: str | None = None
         self.world: Arena | None = None
         self.loc: Localization | None = None
         #: The team's map as the map service shares it, kept current by pushed deltas.
@@ -190,13 +188,20 @@ class RobotHost:
         #: Robots another host still holds (E_HELD): asked for again once a heartbeat, quietly.
         self.held: set[str] = set()
         self._held_retry = 0.0
-        #: This host process, the same across its reconnects: its hello on a new connection ends the session
-        #: of its old one at once (whose late frames would otherwise keep its robots for three heartbeats).
-        self.instance = P.new_instance_id()
         #: Robots the referee handed over to another host: this host leaves them alone.
         self.released: set[str] = set()
         #: robot id -> its task.done not yet answered by the core (sent again on re-registering).
         self.unacked_done: dict[str, dict[str, Any]] = {}
+
+    @property
+    def heartbeat(self) -> float:
+        """The core's heartbeat interval in seconds."""
+        return self.s.heartbeat
+
+    @property
+    def session(self) -> str | None:
+        """The session secret of the current connection (every message after hello carries it)."""
+        return self.s.secret
 
     FIX_SILENCE = 2.0
     """Seconds without a message from the camera after which the host connects to it afresh."""
@@ -224,17 +229,21 @@ class RobotHost:
     # ------------------------------------------------------------------ sending
     def _send(self, type_: str, body: dict[str, Any], on_reply: Reply | None = None) -> None:
         assert self.sock is not None
-        rid = self.next_id
-        self.next_id += 1
+        rid, frame = self.s.frame(type_, body, time.monotonic())
         if on_reply is not None:
             self.replies[rid] = on_reply
-        self.sock.send(P.request(type_, rid, body, self.session))
-        self.last_tx = time.monotonic()
+        self.sock.send(frame)
+
+    def _notify(self, type_: str, body: dict[str, Any], sock: zmq.Socket | None = None) -> None:
+        """A message that wants no answer (reports, printed lines), on ``sock`` (default: the host's)."""
+        sock = sock or self.sock
+        assert sock is not None
+        sock.send(self.s.frame(type_, body, time.monotonic(), rid=0)[1])
 
     def _answer(self, rid: int, body: dict[str, Any]) -> None:
         assert self.sock is not None
-        self.sock.send(P.ok_reply(rid, body, self.session))
-        self.last_tx = time.monotonic()
+        self.sock.send(P.ok_reply(rid, body, self.s.secret))
+        self.s.last_tx = time.monotonic()
 
     # ------------------------------------------------------------------ connection
     def _open(self) -> None:
@@ -242,12 +251,13 @@ class RobotHost:
         if self.sock is not None:
             self.poller.unregister(self.sock)
             self.sock.close(0)
-        self.session = None  # a new connection opens a new session
         self.sock = open_dealer(self.ctx, self.url, self.curve, self.token, SNDHWM=100_000, RCVHWM=100_000)
         self.poller.register(self.sock, zmq.POLLIN)
         self.replies.clear()
         self._set_state("hello")
-        self._send("hello", {"token": self.token, "client": "robots", "instance": self.instance}, self._on_hello)
+        rid, frame = self.s.hello(self.s.last_rx)  # a new connection opens a new session
+        self.replies[rid] = self._on_hello
+        self.sock.send(frame)
 
     def _set_state(self, state: str) -> None:
         self.state = state
@@ -262,9 +272,7 @@ class RobotHost:
         if not ok:
             raise SystemExit(f"robots: the core refused us: {body.get('message')}")
         self.team = body["team"]
-        self.session = body.get("session")
-        self.heartbeat = float(body.get("heartbeat", 1.0))
-        self.core_id = body.get("core_id")
+        self.s.opened(body)
         self._set_state("arena")
         self._send("arena", {}, self._on_arena)
 
@@ -322,8 +330,12 @@ class RobotHost:
     def team_log(self, tag: int | None, stream: str, text: str) -> None:
         """Forward a line team code printed (or a sandbox notice) to the team's consoles."""
         if self.state == "up" and self.sock is not None:
-            self.sock.send(P.request("log", 0, {"tag": tag if tag in self.by_tag else None,
-                                                "stream": stream, "text": text[:2000]}, self.session))
+            self._notify("log", {"tag": tag if tag in self.by_tag else None, "stream": stream, "text": text[:2000]})
+
+    def team_draw(self, tags: list[int], frames: list[list[Any]]) -> None:
+        """Send the robots' new frames of debug drawing to the core (for the team's views only)."""
+        if self.state == "up" and self.sock is not None:
+            self.sock.send(P.request("draw", 0, {"tags": tags, "frames": frames}, self.session))
 
     def code_request(self, type_: str, body: dict[str, Any], on_reply: Reply) -> None:
         """A request to the core on behalf of team code (a find, the radio)."""
@@ -439,14 +451,17 @@ class RobotHost:
     def _say_up(self) -> None:
         """One line on stdout when the robots are registered (again, after a reconnect), so the
         person who started the host sees it work."""
-        tags = ", ".join(str(r.tag) for r in self.robots.values() if r.tag)
+        all_tags = sorted(r.tag for r in self.robots.values() if r.tag)
+        tags = ", ".join(map(str, all_tags[:SAY_TAGS]))
+        if len(all_tags) > SAY_TAGS:  # a host of a thousand robots says one line, not a page
+            tags += f", ... {all_tags[-1]} ({len(all_tags)} tags)"
         again = f" again (reconnect {self.reconnects}: the core is back)" if self.reconnects else ""
         print(f"robots: team {self.team}: {len(self.robots)} robot(s) registered{again} with the core at "
               f"{self.url}; tags {tags or '-'}", flush=True)
 
     def _lost_core(self, now: float) -> None:
         """Halt every robot and start reconnecting."""
-        self._reconnect(f"lost the core (silent for {now - self.last_rx:.1f} s)")
+        self._reconnect(f"lost the core (silent for {now - self.s.last_rx:.1f} s)")
 
     def _reconnect(self, why: str) -> None:
         """Hello and register again on a fresh socket; robots hold still meanwhile."""
@@ -462,20 +477,22 @@ class RobotHost:
 
     # ------------------------------------------------------------------ messages from the core
     def _dispatch(self, frame: bytes) -> None:
-        self.last_rx = time.monotonic()
         try:
             msg = P.unpack(frame)
-            type_ = msg["type"]
-            rid = msg.get("id", 0)
-            body = msg.get("body") or {}
-        except Exception:
-            log.error("unreadable message from the core; ignored")
+            checked = P.validate_to_host(msg)  # the field table of what the core sends hosts
+        except Exception as e:
+            self.s.last_rx = time.monotonic()
+            log.error("a message from the core that this host cannot take, ignored: %s",
+                      getattr(e, "message", None) or e.__class__.__name__)
+            return
+        type_, rid = checked.type, checked.id
+        body = msg.get("body") or {}
+        over = self.s.heard(msg, time.monotonic())
+        if over is not None and self.state == "up":  # the core forgot this session, or restarted
+            self._reconnect(over.value)
             return
         if type_ == "reply":
             exc = P.reply_error(msg)
-            if exc is not None and exc.code == "E_AUTH" and self.state == "up":
-                self._reconnect("the core does not know this connection")
-                return
             cb = self.replies.pop(rid, None)
             if cb is not None:  # an error reaches the callback as {"code", "message", "details"}
                 cb(exc is None, body if exc is None else {"code": exc.code, "message": exc.message,
@@ -484,8 +501,6 @@ class RobotHost:
                 log.warning("core: %s", exc.message)
             return
         if type_ == "heartbeat":
-            if self.state == "up" and body.get("core_id") not in (None, self.core_id):
-                self._reconnect("the core restarted")
             return
         if type_ == "event":
             return
@@ -516,8 +531,7 @@ class RobotHost:
         if type_ == "stop":
             if r is None:
                 assert self.sock is not None  # the stop came in on it
-                self.sock.send(P.error_reply(rid, RoboCompError("no such robot on this host"),
-                                             self.session))
+                self.sock.send(P.error_reply(rid, RoboCompError("no such robot on this host"), self.s.secret))
                 return
             self.runtime.halt(r)
             self._answer(rid, {"tag": r.tag, "x": r.driver.x, "y": r.driver.y, "heading": r.driver.heading})
@@ -591,7 +605,7 @@ class RobotHost:
         before is in the future now, and would hold back heartbeats, reports and sensing until the
         clock caught up. Take them all as now."""
         log.warning("the clock went back; the host goes on from now")
-        self.last_tx = self.last_rx = self.state_since = now
+        self.s.last_tx = self.s.last_rx = self.state_since = now
         for r in self.robots.values():
             r.last_report = min(r.last_report, now)
             r.last_sensed = min(r.last_sensed, now)
@@ -628,8 +642,7 @@ class RobotHost:
             sensors = self._sense([r]).get(r.tag)
         body = self._pose_rows([r], now, {r.tag: sensors} if sensors is not None else {})
         assert self.sock is not None  # a task ends on a connected host (its task.done follows on this socket)
-        self.sock.send(P.request("reports", 0, body, self.session))
-        self.last_tx = now
+        self._notify("reports", body)
 
     def _pose_rows(self, robots: list[SimRobot], now: float,
                    readings: dict[int, dict[str, Any]]) -> dict[str, Any]:
@@ -702,8 +715,7 @@ class RobotHost:
                     return
             chunk = due[start:start + REPORT_CHUNK]
             body = self._pose_rows(chunk, now, {r.tag: readings[r.tag] for r in chunk if r.tag in readings})
-            sock.send(P.request("reports", 0, body, self.session))
-        self.last_tx = now
+            self._notify("reports", body, sock)
 
     def _drain(self) -> None:
         """Handle what the core has sent, without waiting (also between chunks of a tick's work);
@@ -768,7 +780,7 @@ class RobotHost:
                     continue
             if moved and self.state == "up" and self.sock is not None:
                 rows = list(moved.values())
-                self.sock.send(P.request("reports", 0, self._pose_rows(rows, time.monotonic(), {}), self.session))
+                self._notify("reports", self._pose_rows(rows, time.monotonic(), {}))
 
     def _fix_plausible(self, r: SimRobot, x: float, y: float, sigma: float) -> bool:
         """Whether a camera fix of robot ``r`` is one it could have driven to since the fixes taken
@@ -829,7 +841,7 @@ class RobotHost:
         # The planner thread holds the GIL in its numpy glue: make the loop's wait for it short
         # (CPython's default lets a thread keep it 5 ms before it must hand it over).
         sys.setswitchinterval(0.0005)
-        self.last_rx = time.monotonic()
+        self.s.last_rx = time.monotonic()
         self._open()
         last = time.monotonic()
         next_tick = last + self.tick
@@ -865,18 +877,18 @@ class RobotHost:
                         next_report = now + self.report_interval
                 last = now
                 next_tick = now + self.tick
-                if self.state == "up" and now - self.last_tx > self.heartbeat:
+                if self.state == "up" and self.s.beat_due(now):
                     self._send("heartbeat", {})
                 if self.held and self.state == "up" and now >= self._held_retry:
                     self._held_retry = now + self.heartbeat
                     for rid in list(self.held):
                         if rid in self.robots and rid not in self.released:
                             self._register(self.robots[rid])
-                silent = now - self.last_rx
                 # connecting takes handshake round trips (PLAIN or CURVE, then hello and register): on
                 # a slow link a fresh connection gets HANDSHAKE_PATIENCE before it is given up
-                patience = 3 * self.heartbeat if self.state == "up" else max(3 * self.heartbeat, HANDSHAKE_PATIENCE)
-                if silent > 3 * self.heartbeat and now - self.state_since > patience:
+                beats = 3 * self.heartbeat
+                patience = beats if self.state == "up" else max(beats, HANDSHAKE_PATIENCE)
+                if self.s.silent(now) and now - self.state_since > patience:
                     self._lost_core(now)
         if leave and self.state == "up":
             for r in self.by_tag.values():

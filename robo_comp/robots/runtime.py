@@ -217,7 +217,7 @@ class TaskRuntime:
                 self.done(r, True, "done", stop.value)
                 return
             except TaskFailed as e:
-                self.done(r, False, str(e), reason=e.reason, line=e.line)
+                self.done(r, False, str(e), reason=e.reason, line=e.line, traceback=e.traceback)
                 return
             except Exception as e:  # a task bug must not take the host down
                 self.done(r, False, f"task {t.name} crashed: {e!r}", reason="crashed")
@@ -267,16 +267,18 @@ class TaskRuntime:
                 self.planned(r, path)
 
     def done(self, r: SimRobot, ok: bool, status: str, result: Any = None, *, reason: str | None = None,
-             line: int | None = None) -> None:
+             line: int | None = None, traceback: list[str] | None = None) -> None:
         """End ``r``'s task: the robot halts, team code still running is cancelled, the match is told.
         A failed task's result says why in a word (``reason``: ``refused``, ``failed``, ``bumped``,
         ``interrupted``, ``crashed``, or what the sandbox said of team code: ``error``, ``limit``,
-        ``cancelled``, ``restart``) and, for team code, the ``line`` that raised."""
+        ``cancelled``, ``restart``) and, for team code, the ``line`` that raised and the ``traceback``
+        through the team's files."""
         t = r.task
         if t is None:
             return
         if reason is not None and (result is None or isinstance(result, dict)):
-            result = dict(result or {}, reason=reason, **({"line": line} if line is not None else {}))
+            result = dict(result or {}, reason=reason, **({"line": line} if line is not None else {}),
+                          **({"traceback": traceback} if traceback else {}))
         if t.pictures and (result is None or isinstance(result, dict)):
             result = dict(result or {}, pictures=list(t.pictures))
         r.task = None

@@ -79,10 +79,13 @@ class TaskFailed(Exception):
     what the sandbox said: ``error``, ``limit``, ``cancelled``, ``restart``); ``line`` is the line
     of team code that raised, where known."""
 
-    def __init__(self, message: str, reason: str = "failed", line: int | None = None) -> None:
+    def __init__(self, message: str, reason: str = "failed", line: int | None = None,
+                 traceback: list[str] | None = None) -> None:
         super().__init__(message)
         self.reason = reason
         self.line = line
+        #: Team code's traceback through its own files (``file:line in function: code``), where known.
+        self.traceback = traceback or []
 
 
 class RobotView(Protocol):

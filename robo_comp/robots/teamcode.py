@@ -31,10 +31,12 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 from robo_comp.errors import RoboCompError, UploadError
+from robo_comp.protocol import drawing
+from robo_comp.sandbox.api import MOVEMENTS
 from robo_comp.sandbox.contract import source_hash
 from robo_comp.sandbox.parent import (
-    PENDING, Limits, LoadFailed, Loaded, LogLine, RpcCall, Sandbox, SandboxRestarted, SandboxStopped, TaskDone,
-    TaskFailed as SbFailed,
+    PENDING, Drawing, Limits, LoadFailed, Loaded, LogLine, RpcCall, Sandbox, SandboxRestarted, SandboxStopped,
+    TaskDone, TaskFailed as SbFailed,
 )
 from robo_comp.robots.steps import Compute, Move, Plan, Step, TaskFailed, TaskSpec, Turn, Wait
 from robo_comp.world.planner import find_path
@@ -78,6 +80,9 @@ class CodeHost(Protocol):
 
     def code_picture(self, r: Any, on_reply: Reply) -> None:
         """Take a picture with robot ``r`` and send it to the core; ``on_reply(ok, body)`` gets its id."""
+
+    def team_draw(self, tags: list[int], frames: list[list[Any]]) -> None:
+        """Send the robots' new frames of debug drawing to the core (a ``draw`` notification)."""
 
 #: How long a team-code task waits between two looks at its sandbox (one host tick at most).
 WAIT_SECONDS = 0.02
@@ -180,6 +185,9 @@ class CallSite(Protocol):
     def request(self, type_: str, body: dict[str, Any], on_reply: Reply) -> None:
         """A request to the match (``find``, ``radio``) on this robot's behalf."""
 
+    def draw(self, shapes: list[list[Any]]) -> None:
+        """The robot's new frame of debug drawing (checked), for its team's views."""
+
 
 Settle = Callable[[bool, Any], None]
 
@@ -225,15 +233,79 @@ def _radio(s: CallSite, args: list[Any], settle: Settle) -> Any:
     return PENDING
 
 
+def _draw(s: CallSite, args: list[Any], settle: Settle) -> Any:
+    s.draw(drawing.clean_frame(args[0] if args else None))
+    return None
+
+
 #: The robot calls that take no simulated time: name -> answer(site, args, settle). An answer
 #: returns the value, or PENDING and later calls ``settle(ok, value or error body)``.
+#: ``draw`` is the frame of debug drawing the sandbox sends with a movement call
+#: (``robot.draw_dot``/``draw_line``/``draw_text`` collect it in the sandbox, see
+#: :mod:`robo_comp.protocol.drawing`): no answer goes back, and no call budget is drawn.
 ROBOT_CALLS: dict[str, Callable[[CallSite, list[Any], Settle], Any]] = {
     "position": _position, "sense": _sense, "plan": _plan, "map_piece": _map_piece,
     "take_picture": _take_picture, "upload_picture": _take_picture, "look": _look,
-    "report_find": _report_find, "radio": _radio,
+    "report_find": _report_find, "radio": _radio, "draw": _draw,
 }
+#: The robot API team code sees in the sandbox that is answered in the sandbox itself (debug
+#: drawing: collected there, sent as one ``draw`` with the next movement call).
+DRAW_CALLS = ("draw_dot", "draw_line", "draw_text")
+
+
+def no_settle(ok: bool, value: Any) -> None:
+    """The ``settle`` of a call that gets no answer (``draw``)."""
+
+
+def take_drawing(site: CallSite, rec: Drawing) -> None:
+    """A :class:`~robo_comp.sandbox.parent.Drawing` from the sandbox, through the call table."""
+    answer_call(site, "draw", [rec.shapes], no_settle)
+
+
+@dataclass(slots=True)
+class DebugCanvas:
+    """Every robot's newest frame of debug drawing, and which of them to record next tick.
+
+    The same on a robot host (sent to the core) and on the bench (written to the match log): a
+    frame replaces the robot's last one; :meth:`changed` gives, per team, the frames that differ
+    from what was recorded last, at most once per :data:`~robo_comp.protocol.drawing.TICK`."""
+
+    team_of: Callable[[int], str | None]
+    frames: dict[int, list[list[Any]]] = field(default_factory=dict)
+    recorded: dict[int, list[list[Any]]] = field(default_factory=dict)
+    dirty: bool = False
+
+    def draw(self, tag: int, shapes: list[list[Any]]) -> None:
+        """Robot ``tag``'s new frame (already checked)."""
+        if self.frames.get(tag, []) != shapes or tag not in self.frames:
+            self.frames[tag] = shapes
+            self.dirty = True
+
+    def changed(self) -> dict[str, tuple[list[int], list[list[list[Any]]]]]:
+        """Per team, ``(tags, frames)`` of the frames not yet recorded (in tag order); marks them recorded."""
+        out: dict[str, tuple[list[int], list[list[list[Any]]]]] = {}
+        if not self.dirty:
+            return out
+        self.dirty = False
+        for tag in sorted(self.frames):
+            shapes = self.frames[tag]
+            if self.recorded.get(tag, []) == shapes:
+                continue
+            self.recorded[tag] = shapes
+            team = self.team_of(tag)
+            if team is not None:
+                tags, frames = out.setdefault(team, ([], []))
+                tags.append(tag)
+                frames.append(shapes)
+        return out
+
+    def record(self, events: list[dict[str, Any]], t: float) -> None:
+        """Append one ``debug.draw`` event per team with new frames to a bench's event list
+        (the match's limits do not count them: drawing costs nothing)."""
+        for team, (tags, frames) in self.changed().items():
+            events.append({"t": t, "topic": "debug.draw", "team": team, "tags": tags, "frames": frames})
 #: The robot calls that move the robot: they become movement steps (:func:`movement_steps`).
-MOVEMENT_CALLS = ("move", "turn", "go_to")
+MOVEMENT_CALLS = MOVEMENTS
 
 
 def answer_call(site: CallSite, name: str, args: list[Any], settle: Settle) -> Any:
@@ -280,6 +352,7 @@ class HostSite:
 
     host: CodeHost
     r: CodeRobot
+    canvas: DebugCanvas | None = None
 
     @property
     def walls(self) -> Any:  # noqa: D102
@@ -304,6 +377,10 @@ class HostSite:
 
     def request(self, type_: str, body: dict[str, Any], on_reply: Reply) -> None:  # noqa: D102
         self.host.code_request(type_, dict(body, tag=self.r.tag), on_reply)
+
+    def draw(self, shapes: list[list[Any]]) -> None:  # noqa: D102
+        if self.canvas is not None:
+            self.canvas.draw(self.r.tag, shapes)
 
 
 @dataclass(slots=True)
@@ -347,6 +424,12 @@ class TeamCode:
     enabled: dict[int, set[str]] = field(default_factory=dict)
     loads: dict[int, LoadJob] = field(default_factory=dict)
     runs: dict[int, CodeRun] = field(default_factory=dict)
+    #: The robots' debug drawing, sent to the core at most once per drawing.TICK (real seconds here).
+    canvas: DebugCanvas = field(init=False)
+    next_draw: float = 0.0
+
+    def __post_init__(self) -> None:
+        self.canvas = DebugCanvas(lambda tag: self.host.team)
 
     # ------------------------------------------------------------------ the sandbox
     def _sandbox(self) -> Sandbox:
@@ -371,8 +454,11 @@ class TeamCode:
         return self.sb is not None and self.sb.alive and self.sb.wants_write()
 
     def deadline(self) -> float | None:
-        """When :meth:`pump` must run at the latest (a sandbox timer)."""
-        return self.sb.deadline() if self.sb is not None else None
+        """When :meth:`pump` must run at the latest (a sandbox timer, or drawing to send)."""
+        due = self.sb.deadline() if self.sb is not None else None
+        if self.canvas.dirty and not self.step_locked:
+            due = self.next_draw if due is None else min(due, self.next_draw)
+        return due
 
     def close(self) -> None:
         """End the sandbox process."""
@@ -529,7 +615,7 @@ class TeamCode:
                     self._answer(c, True, list(r.driver.pose))
             if isinstance(run.outcome, TaskDone):
                 return run.outcome.result
-            raise TaskFailed(run.outcome.message, run.outcome.reason, run.outcome.line)
+            raise TaskFailed(run.outcome.message, run.outcome.reason, run.outcome.line, run.outcome.traceback)
         finally:
             self.runs.pop(run_id, None)
             if run.outcome is None and self.sb is not None:
@@ -593,6 +679,17 @@ class TeamCode:
             return
         for rec in self.sb.poll(0.0):
             self._take(rec)
+        now = time.monotonic()
+        if not self.step_locked and self.canvas.dirty and now >= self.next_draw:  # the engine flushes at its ticks
+            self.next_draw = now + drawing.TICK
+            self.flush_drawing()
+
+    def flush_drawing(self) -> None:
+        """Send the robots' frames of debug drawing that changed to the host (``team_draw``): a
+        host does it at most once per :data:`~robo_comp.protocol.drawing.TICK` of real time, the
+        engine at each of its position samples (simulated time)."""
+        for _team, (tags, frames) in self.canvas.changed().items():
+            self.host.team_draw(tags, frames)
 
     def _take(self, rec: Any) -> None:
         """Act on one record of the sandbox."""
@@ -612,6 +709,10 @@ class TeamCode:
                 self._answer_load(job, None, rec.error)
         elif isinstance(rec, LogLine):
             self.host.team_log(rec.tag, rec.stream, rec.text)
+        elif isinstance(rec, Drawing):
+            r = self.host.by_tag.get(rec.tag)
+            if r is not None:
+                take_drawing(HostSite(self.host, r, self.canvas), rec)
         elif isinstance(rec, SandboxStopped):
             log.warning("team sandbox stopped (%s): %s%s", rec.reason, rec.message,
                         "; restarted with the good modules" if rec.respawned else
@@ -657,6 +758,7 @@ class TeamCode:
             pass  # the run ended meanwhile
 
 
-__all__ = ["TeamCode", "CodeRun", "LoadJob", "Refused", "CallSite", "HostSite", "ROBOT_CALLS", "MOVEMENT_CALLS",
+__all__ = ["TeamCode", "CodeRun", "DebugCanvas", "DRAW_CALLS", "LoadJob", "Refused", "CallSite", "HostSite",
+           "ROBOT_CALLS", "MOVEMENT_CALLS", "no_settle", "take_drawing",
            "answer_call", "movement_steps", "in_bounds", "free_cell", "move_direction", "plan_path",
            "map_piece", "MAX_PIECE_RADIUS", "MAX_EVIDENCE"]

@@ -230,16 +230,24 @@ def exit_code(rc: int | None, wrapped: bool) -> int | None:
     return rc
 
 
-def leaf_pid(pid: int) -> int:
-    """The process at the end of ``pid``'s chain of only children (bwrap → its init → the
-    child), read from ``/proc``; ``pid`` itself where there is no such chain."""
+def chain(pid: int) -> list[int]:
+    """``pid`` and its chain of only children (bwrap → its init → the child), read from
+    ``/proc``; ``[pid]`` where there is no such chain."""
+    out = [pid]
     for _ in range(4):
         try:
             with open(f"/proc/{pid}/task/{pid}/children") as f:
                 kids = f.read().split()
         except OSError:
-            return pid
+            break
         if len(kids) != 1:
-            return pid
+            break
         pid = int(kids[0])
-    return pid
+        out.append(pid)
+    return out
+
+
+def leaf_pid(pid: int) -> int:
+    """The process at the end of ``pid``'s chain of only children (bwrap → its init → the
+    child); ``pid`` itself where there is no such chain."""
+    return chain(pid)[-1]

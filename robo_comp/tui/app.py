@@ -54,10 +54,13 @@ def log_place() -> str:
 class Link(Protocol):
     """What a console needs from its link to the core (:class:`CoreLink` or a stand-in)."""
 
-    info: dict[str, Any]
     state: LinkState
     on_event: EventSink  # the console sets both to its own sinks
     on_state: StateSink
+
+    @property
+    def info(self) -> dict[str, Any]:
+        """The core's hello reply."""
 
     def start(self) -> None: ...
     async def close(self) -> None: ...

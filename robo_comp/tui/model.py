@@ -16,6 +16,7 @@ import numpy as np
 
 from robo_comp.protocol import unpack_walls
 from robo_comp.protocol.clock import HeardClock
+from robo_comp.protocol.topics import readable
 
 #: Events kept for the log pane and the monitor's "recent events".
 MAX_EVENTS = 2000
@@ -141,7 +142,10 @@ class ConsoleModel:
 
     # ------------------------------------------------------------------ events
     def apply(self, topic: str, team: str | None, data: dict[str, Any]) -> LogEntry | None:
-        """Fold one pushed event into the model; return the log entry (None for quiet topics)."""
+        """Fold one pushed event into the model; return the log entry (None for quiet topics, and
+        for an event that lacks what protocol/topics.py's table says it carries: not folded)."""
+        if not readable(topic, data):
+            return None
         tag = data.get("tag")
         if topic in ("robot.registered", "robot.returned"):
             if isinstance(tag, int):  # what the core sends; an event without one names no robot

@@ -15,6 +15,7 @@ import numpy as np
 
 from robo_comp.protocol import unpack_walls
 from robo_comp.protocol.clock import HeardClock
+from robo_comp.protocol.topics import readable
 
 #: Trail points kept per robot (the last N positions at least ``TRAIL_STEP`` cells apart).
 TRAIL_LEN = 48
@@ -136,9 +137,14 @@ class MatchView:
         self.version = 0
         self.panel_version = 0  # changes with everything but positions (the panel redraws on it)
         self.events = 0
+        #: Events not folded: they lacked what the topic table says they carry.
+        self.skipped = 0
         self.replay = False  # set by a replay source: the clock line then shows the recording's time
         #: The core's storage fault while it lasts (its event log cannot be written), else None.
         self.storage: str | None = None
+        #: Team code's debug drawing: each robot's newest frame (robo_comp/protocol/drawing.py),
+        #: only in views that may see it (the team's own; a replay as the match chose).
+        self.debug: dict[int, list[list[Any]]] = {}
 
     # ------------------------------------------------------------------ feeding
     def set_arena(self, payload: dict[str, Any]) -> None:
@@ -185,8 +191,12 @@ class MatchView:
         self.panel_version += 1
 
     def apply(self, topic: str, d: dict[str, Any]) -> None:
-        """Apply one event (public or full view); unknown topics are ignored."""
+        """Apply one event (public or full view); unknown topics are ignored, and so is an event
+        that lacks what protocol/topics.py's table says it carries (counted in ``skipped``)."""
         self.events += 1
+        if not readable(topic, d):
+            self.skipped += 1
+            return
         handler = _HANDLERS.get(topic)
         if handler is not None:
             handler(self, d)
@@ -319,6 +329,17 @@ def _on_storage(m: MatchView, d: dict[str, Any]) -> None:
         m.note(m.storage, "error")
 
 
+def _on_debug(m: MatchView, d: dict[str, Any]) -> None:
+    """Robots' new frames of debug drawing (an empty frame clears the robot's drawing)."""
+    for tag, frame in zip(d.get("tags") or [], d.get("frames") or []):
+        if not isinstance(tag, int):
+            continue
+        if frame:
+            m.debug[tag] = list(frame)
+        else:
+            m.debug.pop(tag, None)
+
+
 def _on_penalty(m: MatchView, d: dict[str, Any]) -> None:
     m.note(f"penalty {d.get('team')}: {d.get('points')} ({d.get('reason', '')})", "error")
 
@@ -340,4 +361,5 @@ _HANDLERS: dict[str, Any] = {
     "broadcast": _on_broadcast,
     "penalty": _on_penalty,
     "core.storage": _on_storage,
+    "debug.draw": _on_debug,
 }

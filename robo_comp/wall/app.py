@@ -236,7 +236,7 @@ class WallApp:
                 self.running = False
             elif ev.key in _KEYS:
                 cmds = self.interaction.key(_KEYS[ev.key], now)
-            elif getattr(ev, "unicode", "") in ("+", "-"):
+            elif getattr(ev, "unicode", "") in ("+", "-", "d", "D"):
                 cmds = self.interaction.key(ev.unicode, now)
         for cmd in cmds:
             self.execute(cmd)

@@ -251,6 +251,8 @@ class Renderer:
             if self.trails:
                 self._draw_trails(surf, geom)
             self._draw_robots(surf, geom)
+            if self.view.debug and self.model.debug:
+                self._draw_debug(surf, geom)
             self._draw_overlay(surf, geom, overlay)
             surf.set_clip(None)
         self._draw_panel(surf, now, overlay)
@@ -382,6 +384,42 @@ class Renderer:
                 self._mark(surf, r, cx, cy, rad)
             if label:
                 surf.blit(self.text(str(r.tag), size, OUTLINE), (cx + rad // 2 + 2, cy - rad - size + 2))
+
+    def _draw_debug(self, surf: pygame.Surface, geom: MapGeometry) -> None:
+        """Team code's debug drawing (robot.draw_dot/line/text): each shown robot's newest frame,
+        unless the view switched its team or the robot off (keys d and D)."""
+        ox, oy = self.tile.origin
+        s, gx, gy = geom.scale, geom.off_x + 0.5 * geom.scale - ox, geom.off_y + 0.5 * geom.scale - oy
+        rad = max(2, rnd(s * 0.18))
+        lw = max(1, rnd(s * 0.08))
+        size = max(12, min(18, rnd(s * 0.6)))
+        dirty = self._dirty.append
+        off_teams, off_robots = set(self.view.debug_off_teams), set(self.view.debug_off_robots)
+        for tag, frame in self.model.debug.items():
+            r = self.model.robots.get(tag)
+            if tag in off_robots or (r is not None and r.team in off_teams):
+                continue
+            for shape in frame:
+                try:
+                    colour = hex_rgb(str(shape[-1]))
+                    x, y = rnd(gx + float(shape[1]) * s), rnd(gy + float(shape[2]) * s)
+                    if shape[0] == "d":
+                        pygame.draw.circle(surf, colour, (x, y), rad)
+                        dirty((x - rad - 1, y - rad - 1, 2 * rad + 3, 2 * rad + 3))
+                    elif shape[0] == "l":
+                        x1, y1 = rnd(gx + float(shape[3]) * s), rnd(gy + float(shape[4]) * s)
+                        draw_lines(surf, colour, [(x, y), (x1, y1)], lw)
+                        dirty((min(x, x1) - lw - 1, min(y, y1) - lw - 1, abs(x1 - x) + 2 * lw + 3,
+                               abs(y1 - y) + 2 * lw + 3))
+                    elif shape[0] == "t":
+                        img = self.text(str(shape[3])[:32], size, colour)
+                        pos = (x, y - img.get_height() // 2)
+                        back = pygame.Rect(pos[0] - 2, pos[1], img.get_width() + 4, img.get_height())
+                        surf.fill(BACKGROUND, back)
+                        surf.blit(img, pos)
+                        dirty((back.x, back.y, back.w, back.h))
+                except (TypeError, ValueError, IndexError):
+                    continue  # a shape the model should not have had: never a reason to stop drawing
 
     def _mark(self, surf: pygame.Surface, r: Robot, cx: int, cy: int, rad: int) -> None:
         """The lost marker (a yellow cross) or the disqualified marker (a black cross)."""

@@ -83,6 +83,9 @@ class Recording:
         self.t0 = self.records[0].t if self.records else 0.0
         self.duration = self.records[-1].t - self.t0 if self.records else 0.0
         self.tokens = _tokens_beside(self.path)
+        #: Who the match let see its debug drawing in replays (its ``core.started`` says; see protocol.topics).
+        self.debug_replay = next((str(r.data.get("debug_replay") or "team") for r in self.records
+                                  if r.topic == "core.started"), "team")
         self.start = self._start()
         self._views: dict[str, RecordingView] = {}
         self._lock = asyncio.Lock()

@@ -116,6 +116,7 @@ def state_json(model: MatchView, now: float, *, map_url: str | None = None,
     return jsonable({"arena": arena, "robots": robots, "things": things, "score": model.score,
                      "legend": legend(model) if a is not None else None,
                      "match": {"phase": m.phase, "elapsed": elapsed, "remaining": remaining},
+                     "debug": [[tag, frame] for tag, frame in sorted(model.debug.items())],
                      "messages": [{"text": x.text, "level": x.level} for x in model.visible_messages(now)]})
 
 
