@@ -180,17 +180,28 @@ def check_event(topic: str, data: Any) -> str | None:
     return None
 
 
+#: The fields that say what an event is about (its robot, task, upload, team, phase): a viewer
+#: folds an event only with them (the others it takes as they come: an older core's event, or a
+#: public view, may lack some, and a newer one may carry more).
+KEY_FIELDS = frozenset({"tag", "tags", "id", "task_id", "upload_id", "team", "teams", "phase", "topic"})
+
+
 def readable(topic: str, data: Any) -> bool:
-    """Whether a viewer may fold this event: a map holding what the table says the event always
-    carries, in its full view or in its public one (what a public feed carries of it); a topic
-    not in the table is the viewer's own business (it ignores what it does not know)."""
+    """Whether a viewer may fold this event: a map that carries what the table says the event is
+    about (its :data:`KEY_FIELDS` among those it always carries; for a public topic, those the
+    public view keeps), a robot's ``tag`` an integer; a topic not in the table is the viewer's
+    own business (it ignores what it does not know)."""
     t = TABLE.get(topic)
     if t is None:
         return True
     if not isinstance(data, dict):
         return False
-    keys = data.keys()
-    return t.required <= keys or (not t.private and t.required & set(t.public) <= keys)
+    need = t.required & KEY_FIELDS
+    if not t.private and not need <= data.keys():
+        need = need & set(t.public)
+    if not need <= data.keys():
+        return False
+    return "tag" not in need or type(data["tag"]) is int
 
 
 class EventView:
