@@ -130,6 +130,13 @@ class ArenaDriver(PoseReadings):
         self.arena.command(self.tag, "halt")
         self.step = None
 
+    def sees_crossing(self, x: int, y: int) -> bool:
+        """Whether another robot (of any team) is in the neighbouring cell ``(x, y)`` (where the robot
+        believes it is going) or driving into it: the cell it would really drive into."""
+        bx, by = self.cell()
+        p = self.arena.pose(self.tag)
+        return self.arena.driving_into(self.tag, math.floor(p.x + 0.5) + x - bx, math.floor(p.y + 0.5) + y - by)
+
     @property
     def grid_exact(self) -> bool:
         """Whether a move ends exactly in its cell (a grid4 robot settles on the grid); a freely

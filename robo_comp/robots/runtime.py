@@ -12,7 +12,8 @@ in or drives to is waited for (a :class:`~robo_comp.robots.steps.Wait` of :data:
 after :data:`HOLD_REPLAN` the task gets a :class:`~robo_comp.robots.steps.Replan` and plans around
 the teammates; of two robots waiting for each other one makes way (:mod:`robo_comp.robots.traffic`:
 the one with the nearer refuge off the other's path drives there and waits until it has passed). A
-cell the robot's sensors see blocked that its team's map shows free is an obstacle: reported
+robot of another host or team its sensors see driving into the cell goes first, as a teammate
+would. A cell the robot's sensors see blocked that its team's map shows free is an obstacle: reported
 (:meth:`RuntimeEnv.obstacle`: the team's map, so every teammate's planner routes around it) and
 the task plans again. A move that did not end in its cell (a positioning fix moved the robot)
 answers :class:`~robo_comp.robots.steps.Replan` too: the task plans again from where the robot is.
@@ -382,21 +383,22 @@ class TaskRuntime:
             t.answer = Replan("obstacle", cell)
             return False
         other = traffic.holder(r, cell) or traffic.crossing(r, cell)
-        if other is None:
+        crossed = getattr(r.driver, "sees_crossing", None)
+        if other is None and not (crossed is not None and crossed(*cell)):
             t.waited = 0.0
             self._drive(r, t, cell, step)
             return True
         t.held = step  # waiting for the cell (as the teammate sees it, deciding who makes way)
-        ot = other.task
-        if ot is not None and ot.held is not None and (ot.held.x, ot.held.y) in r.claim():
+        ot = other.task if other is not None else None
+        if other is not None and ot is not None and ot.held is not None and (ot.held.x, ot.held.y) in r.claim():
             cells = traffic.make_way(r, other)
             if cells is not None:  # two robots waiting for each other: this one makes way
                 t.held, t.waited = None, 0.0
                 t.way = GiveWay(cells, [r.cell()], other.robot_id)
                 return self._give_way(r, t, t.way)
-        if t.waited >= HOLD_REPLAN:
+        if t.waited >= HOLD_REPLAN:  # a teammate (or another team's robot driving in) keeps the cell
             t.held, t.waited = None, 0.0
-            t.answer = Replan("teammate", cell)
+            t.answer = Replan("teammate" if other is not None else "robot", cell)
             return False
         t.waited += HOLD_STEP
         r.driver.begin(Wait(HOLD_STEP))

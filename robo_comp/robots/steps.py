@@ -82,7 +82,8 @@ class Record:
 class Replan:
     """What comes back for a :class:`Move` the robot did not make, or that did not end where it
     should: plan again from where the robot is. ``reason`` is ``"teammate"`` (a teammate held the
-    cell longer than the runtime waits), ``"obstacle"`` (the robot's sensors saw the cell blocked,
+    cell longer than the runtime waits), ``"robot"`` (another host's or team's robot kept driving
+    into it), ``"obstacle"`` (the robot's sensors saw the cell blocked,
     and it was reported for the team's map), ``"wall"`` (the cell is blocked on the map, as the
     team knows it now) or ``"off path"`` (the robot is not next to the cell, or a fix moved it
     elsewhere during the move); ``cell`` is the cell of the move."""

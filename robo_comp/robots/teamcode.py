@@ -377,7 +377,7 @@ def movement_steps(site: CallSite, name: str, args: list[Any]) -> Generator[Step
 #: follows every move the runtime answered with a :class:`~robo_comp.robots.steps.Replan`).
 GO_TO_PLANS = 30
 #: What team code is told when a ``move`` could not be made.
-_REPLANS = {"teammate": "a teammate holds", "obstacle": "an obstacle (reported for the team's map) blocks",
+_REPLANS = {"teammate": "a teammate holds", "robot": "another robot is driving into", "obstacle": "an obstacle (reported for the team's map) blocks",
             "wall": "the team's map shows a wall at", "off path": "the robot is not next to"}
 
 
