@@ -258,3 +258,51 @@ def test_a_browser_that_does_not_read_gets_the_newest_poses_not_a_backlog(fan) -
     flood = [int(msg["e"][0][1]["message"].split()[1]) for msg in r["after"] if msg["type"] == "ev"
              and msg["e"][0][0] == "broadcast"]
     assert flood == list(range(len(flood))) and len(flood) < HELD_FRAMES * 3  # what was in flight, then the state
+
+
+def test_a_session_back_on_the_same_core_sends_no_fresh_state(fan) -> None:
+    """The public view's session times out (the core stopped longer than the link's silence) and
+    comes back to the same core process: its browsers keep their frames and get no fresh state
+    (the view kept its feed; a state for each of a thousand browsers is hundreds of MiB), and the
+    match goes on in their frames. A restarted core still sends one
+    (``test_web.py::test_gateway_follows_a_core_restart``)."""
+    import signal
+
+    m, g = fan
+    for team in ("red", "blue"):
+        drive_far(m.client(team))
+
+    async def scenario() -> tuple[int, int, list[dict[str, Any]]]:
+        ws = await join(g.url)
+        before = await g.acall(lambda: g.gw.public.link.reconnects)
+        m.proc.send_signal(signal.SIGSTOP)
+        try:
+            await asyncio.sleep(3.5)  # past the link's silence (2 s with the test core's 0.2 s heartbeat)
+        finally:
+            m.proc.send_signal(signal.SIGCONT)
+        got: list[dict[str, Any]] = []  # everything since the core went on
+        t_end = time.monotonic() + 30
+        back = 0
+        while time.monotonic() < t_end:
+            try:
+                got.append(json.loads(await asyncio.wait_for(ws.recv(), 0.5)))
+            except asyncio.TimeoutError:
+                pass
+            if not back and await g.acall(lambda: g.gw.public.link.reconnects) > before:
+                back = len(got)
+            if back and sum(1 for msg in got[back:] if msg["type"] == "ev") >= 5:
+                await asyncio.sleep(1.0)  # a fresh state, if one came, would be here by now
+                while True:
+                    try:
+                        got.append(json.loads(await asyncio.wait_for(ws.recv(), 0.2)))
+                    except asyncio.TimeoutError:
+                        break
+                break
+        after = await g.acall(lambda: g.gw.public.link.reconnects)
+        await ws.close()
+        return before, after, got
+
+    before, after, since = asyncio.run(scenario())
+    assert after > before  # the session did time out and come back
+    assert sum(1 for msg in since if msg["type"] == "ev") >= 5  # the match goes on in the same frames
+    assert [msg["type"] for msg in since if msg["type"] != "ev"] == []

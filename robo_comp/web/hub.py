@@ -27,7 +27,6 @@ import contextlib
 import copy
 import json
 import logging
-import os
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -441,6 +440,7 @@ class PublicHub(LinkedHub):
         self._reader: asyncio.Task[None] | None = None
         self._pinger: asyncio.Task[None] | None = None
         self._pub: str = ""
+        self._core_id: Any = None  # the core process whose snapshot the view was loaded from
 
     def start(self) -> None:
         """Connect in the background, and keep the session alive without pushed events."""
@@ -458,12 +458,26 @@ class PublicHub(LinkedHub):
                     await self.link.request("watch", on=False, timeout=2.0)
 
     async def _resync(self) -> None:
+        """After each (re)connection: the feed, a snapshot and a fresh state for every browser; but
+        when the session comes back to the same core process, whose feed this view kept reading
+        (the session only timed out: a loaded machine, a core stopped for a while), the view is
+        whole and the browsers keep their frames (with a thousand browsers, a fresh state each is
+        a few hundred MiB to send)."""
         try:
             await self.link.request("watch", on=False)  # the public view needs no pushed events
             url = pub_url(self.link.url, int(self.link.info["pub_port"]))
+            core_id = self.link.info.get("core_id")
+            if self.loaded and core_id is not None and core_id == self._core_id and url == self._pub \
+                    and self.sub is not None:
+                buffered, self._buffer = self._buffer, None
+                if buffered:
+                    self.publish(buffered)
+                self.ready.set()
+                return
             if url != self._pub or self.sub is None:
                 self._open_sub(url)
                 await asyncio.sleep(0.2)  # let the subscription reach the PUB socket (slow joiner)
+            self._core_id = core_id
             self._buffer = []
             snap, costs = await self._snapshot()
             self.load(public_snapshot(snap), costs)
@@ -490,7 +504,7 @@ class PublicHub(LinkedHub):
 
     async def _read(self, sub: zmq.asyncio.Socket) -> None:
         """Read the feed in batches (see :data:`BATCH_GAP`) and publish each as one frame."""
-        gap = int(os.environ.get("WEB31_GAP_MS", "1"))
+        gap = max(1, round(BATCH_GAP * 1000))  # ms
         while True:
             try:
                 frames = await sub.recv_multipart()
@@ -499,7 +513,7 @@ class PublicHub(LinkedHub):
                 while len(batch) < BATCH:
                     if not await sub.poll(0):
                         left = BATCH_SPAN - (time.monotonic() - first)
-                        if gap <= 0 or left <= 0 or not await sub.poll(max(1, min(gap, int(left * 1000)))):
+                        if left <= 0 or not await sub.poll(max(1, min(gap, int(left * 1000)))):
                             break
                     batch.append(_event(await sub.recv_multipart()))
             except zmq.ZMQError:
