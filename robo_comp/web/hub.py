@@ -56,7 +56,8 @@ HELD_BYTES = 4 << 20
 BATCH = 2000
 #: Seconds: an event that follows the last one of a batch this soon joins it (the core publishes
 #: a pose period's batches, one per team, within a millisecond or so: one frame, not two or four),
-#: for at most one animation frame (:data:`BATCH_SPAN`) after the batch's first event.
+#: for at most one animation frame (:data:`BATCH_SPAN`) after the batch's first event; a batch
+#: with a pose batch of every team of the last period does not wait.
 BATCH_GAP = 0.001
 BATCH_SPAN = 1 / 60
 #: Seconds between the public view's keep-alive requests.
@@ -503,21 +504,28 @@ class PublicHub(LinkedHub):
         self._reader = asyncio.get_running_loop().create_task(self._read(sub))
 
     async def _read(self, sub: zmq.asyncio.Socket) -> None:
-        """Read the feed in batches (see :data:`BATCH_GAP`) and publish each as one frame."""
+        """Read the feed in batches (see :data:`BATCH_GAP`) and publish each as one frame. A batch
+        that already holds a pose batch of every team of the last pose period goes at once."""
         gap = max(1, round(BATCH_GAP * 1000))  # ms
+        teams: set[Any] = set()  # the teams whose poses the last batch carried
         while True:
             try:
                 frames = await sub.recv_multipart()
                 first = time.monotonic()
                 batch = [_event(frames)]
+                posed = _posed(batch[0], set())
                 while len(batch) < BATCH:
                     if not await sub.poll(0):
                         left = BATCH_SPAN - (time.monotonic() - first)
-                        if left <= 0 or not await sub.poll(max(1, min(gap, int(left * 1000)))):
+                        if (teams and posed >= teams) or left <= 0 \
+                                or not await sub.poll(max(1, min(gap, int(left * 1000)))):
                             break
                     batch.append(_event(await sub.recv_multipart()))
+                    posed = _posed(batch[-1], posed)
             except zmq.ZMQError:
                 return
+            if posed:
+                teams = posed
             events = [e for e in batch if e is not None]
             if self._buffer is not None:
                 self._buffer.extend(events)
@@ -532,6 +540,13 @@ class PublicHub(LinkedHub):
         if self.sub is not None:
             self.sub.close(0)
         await super().close()
+
+
+def _posed(event: tuple[str, dict[str, Any]] | None, teams: set[Any]) -> set[Any]:
+    """``teams``, and the team of ``event`` when it is a pose batch."""
+    if event is not None and event[0] == "robot.positions":
+        teams.add(event[1].get("team"))
+    return teams
 
 
 def _event(frames: list[bytes]) -> tuple[str, dict[str, Any]] | None:

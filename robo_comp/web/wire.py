@@ -23,7 +23,7 @@ import asyncio
 import contextlib
 import socket
 import struct
-from collections.abc import Awaitable, Callable
+from collections.abc import Awaitable, Callable, Mapping
 from typing import Any, Protocol
 
 from uvicorn.protocols.websockets.websockets_sansio_impl import WebSocketsSansIOProtocol
@@ -165,7 +165,7 @@ class WireProtocol(WebSocketsSansIOProtocol):
                 scope["extensions"][EXTENSION] = TransportWire(self)
 
 
-def wire_of(scope: dict[str, Any]) -> TransportWire | None:
+def wire_of(scope: Mapping[str, Any]) -> TransportWire | None:
     """The connection's :class:`TransportWire`, when its server offers one."""
     w = (scope.get("extensions") or {}).get(EXTENSION)
     return w if isinstance(w, TransportWire) else None
