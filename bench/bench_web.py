@@ -431,29 +431,39 @@ def clients_role(url: str, n: int, kind: str, conn: Any) -> None:
     conn.close()
 
 
-def peer_app(pub: str) -> Any:
-    """The peer: a bare WebSocket broadcaster on the gateway's server stack (Starlette on uvicorn,
-    the gateway's settings, :func:`robo_comp.web.wire.config`) that forwards every frame of the core's PUB feed, as it came, to every client,
-    one ``send_bytes`` after another. No core session, no model, no JSON."""
-    import contextlib
+#: The peers: how the bare broadcaster sends a PUB frame to its clients.
+PEERS = {
+    "peer": "frames",  # framed once, the same bytes written to every client's socket (the stack's floor)
+    "peer-asgi": "asgi",  # one ``await send_bytes`` after another through ASGI (the plain way)
+}
 
+
+def peer_app(pub: str, send: str) -> Any:
+    """The peer: a bare WebSocket broadcaster on the gateway's server stack (Starlette on uvicorn,
+    the gateway's settings, :func:`robo_comp.web.wire.config`) that forwards every frame of the
+    core's PUB feed, as it came, to every client: no core session, no model, no JSON, no batching,
+    nothing held or dropped. ``send``: ``frames``, each PUB frame framed once as a binary
+    WebSocket message and those bytes written to every client's socket (the wire the gateway
+    uses), or ``asgi``, one ``await websocket.send_bytes`` after another."""
     import zmq.asyncio
     from starlette.applications import Starlette
     from starlette.routing import WebSocketRoute
     from starlette.websockets import WebSocket, WebSocketDisconnect
 
-    clients: set[WebSocket] = set()
+    from robo_comp.web.wire import frame_text, wire_of
+
+    clients: dict[WebSocket, Any] = {}
 
     async def ws(websocket: WebSocket) -> None:
         await websocket.accept()
-        clients.add(websocket)
+        clients[websocket] = wire_of(websocket.scope)
         try:
             while True:
                 await websocket.receive_text()
         except WebSocketDisconnect:
             pass
         finally:
-            clients.discard(websocket)
+            clients.pop(websocket, None)
 
     async def relay() -> None:
         sub = zmq.asyncio.Context.instance().socket(zmq.SUB)
@@ -461,11 +471,16 @@ def peer_app(pub: str) -> Any:
         sub.connect(pub)
         while True:
             _, payload = await sub.recv_multipart()
+            if send == "frames":
+                data = b"\x82" + frame_text(payload)[1:]  # the same header with the binary opcode
+                for wire in list(clients.values()):
+                    wire.write(data, "")
+                continue
             for c in list(clients):
                 try:
                     await c.send_bytes(payload)
                 except Exception:  # a client that left
-                    clients.discard(c)
+                    clients.pop(c, None)
 
     @contextlib.asynccontextmanager
     async def lifespan(app: Any) -> Any:
@@ -476,8 +491,9 @@ def peer_app(pub: str) -> Any:
     return Starlette(routes=[WebSocketRoute("/ws", ws)], lifespan=lifespan)
 
 
-def peer_main(pub: str) -> None:
-    """``bench_web.py --peer PUB_URL``: serve the peer on a free port and print its URL."""
+def peer_main(pub: str, send: str) -> None:
+    """``bench_web.py --peer PUB_URL --peer-send frames|asgi``: serve a peer on a free port and
+    print its URL."""
     import uvicorn
 
     from robo_comp.web.wire import config
@@ -487,12 +503,12 @@ def peer_main(pub: str) -> None:
     sock.bind(("127.0.0.1", 0))
     sock.listen(2048)  # as the gateway
     print(f"peer: serving on http://127.0.0.1:{sock.getsockname()[1]}/", flush=True)
-    asyncio.run(uvicorn.Server(config(peer_app(pub))).serve(sockets=[sock]))
+    asyncio.run(uvicorn.Server(config(peer_app(pub, send))).serve(sockets=[sock]))
 
 
-def start_peer(pub: str) -> tuple[subprocess.Popen[str], str]:
-    """The peer in a process of its own; the process and its URL."""
-    proc = subprocess.Popen([sys.executable, __file__, "--peer", pub], stdout=subprocess.PIPE,
+def start_peer(pub: str, send: str) -> tuple[subprocess.Popen[str], str]:
+    """A peer in a process of its own; the process and its URL."""
+    proc = subprocess.Popen([sys.executable, __file__, "--peer", pub, "--peer-send", send], stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True)
     line = proc.stdout.readline() if proc.stdout else ""
     m = re.search(r"http://\S+", line)
@@ -677,9 +693,10 @@ def run_fanout(ref: Client, core: Any, web: Any, url: str, state: Path,
                args: argparse.Namespace) -> tuple[list[Any], bool]:
     """The gateway, the peer (and the gateway of ``--baseline``), one after the other, at every
     ``--clients`` count, against the same match."""
-    peer, peer_url = start_peer(pub_url(ref.url, int(ref.info["pub_port"])))
-    servers = [("gateway", url, web), ("peer", peer_url, peer)]
-    old = None
+    servers = [("gateway", url, web)]
+    for name in args.peers:
+        proc, u = start_peer(pub_url(ref.url, int(ref.info["pub_port"])), PEERS[name])
+        servers.append((name, u, proc))
     if args.baseline:
         tree = export_tree(args.baseline, state.parent / "baseline")
         old, old_url = start_web("--core", str(state), pythonpath=tree)
@@ -690,23 +707,19 @@ def run_fanout(ref: Client, core: Any, web: Any, url: str, state: Path,
         for n in args.clients:
             row = {}
             for name, u, _ in servers:
-                r = measure_fanout(ref, pids, u, "peer" if name == "peer" else "gateway", n, args.seconds)
+                r = measure_fanout(ref, pids, u, "peer" if name in PEERS else "gateway", n, args.seconds)
                 r["server"] = name
                 print(f"fan-out, {name}, {n} clients:", json.dumps(r), flush=True)
                 out.append(r)
-                row[name.split()[0]] = r
-            gw, pe = row["gateway"], row["peer"]
+                row[name] = r
+            gw = row["gateway"]
             target = fanout_target(n)
-            before = row.get("before")
-            print(f"== {n} clients: added latency p50/p99 gateway {gw['added_ms_p50']:.2f}/{gw['added_ms_p99']:.2f} ms, "
-                  f"peer {pe['added_ms_p50']:.2f}/{pe['added_ms_p99']:.2f} ms"
-                  + (f", before {before['added_ms_p50']:.2f}/{before['added_ms_p99']:.2f} ms" if before else "")
+            print(f"== {n} clients, added latency p50/p99 (ms): "
+                  + ", ".join(f"{k} {r['added_ms_p50']:.2f}/{r['added_ms_p99']:.2f}" for k, r in row.items())
                   + f" (target gateway p99 < {target:g} ms); {gw['uptime']}", flush=True)
             ok &= gw["added_ms_p99"] < target
     finally:
-        for _, _, p in servers[1:]:
-            p.terminate()
-            p.wait(10)
+        stop_all([p for _, _, p in servers[1:]], timeout=10)  # type: ignore[list-item]
     return out, ok
 
 
@@ -721,11 +734,14 @@ def main() -> int:
     ap.add_argument("--skip-fanout", action="store_true", help="only the drawing figures of the live part")
     ap.add_argument("--baseline", metavar="REV", default="",
                     help="also measure the fan-out of the gateway of this git revision (e.g. 8820265, before issue 31)")
-    ap.add_argument("--peer", metavar="PUB_URL", help=argparse.SUPPRESS)  # the peer's own process
+    ap.add_argument("--peers", nargs="*", choices=sorted(PEERS), default=sorted(PEERS),
+                    help="the bare broadcasters measured beside the gateway (default: both)")
+    ap.add_argument("--peer", metavar="PUB_URL", help=argparse.SUPPRESS)  # a peer's own process
+    ap.add_argument("--peer-send", choices=sorted(set(PEERS.values())), default="frames", help=argparse.SUPPRESS)
     ap.add_argument("--json", type=Path)
     args = ap.parse_args()
     if args.peer:
-        peer_main(args.peer)
+        peer_main(args.peer, args.peer_send)
         return 0
     res: dict[str, Any] = {}
     ok = True

@@ -285,6 +285,10 @@ class Hub:
         self._state = None
         self.events_in += len(events)
         if all(t == "robot.positions" for t, _ in events):
+            if not self.subs:  # nobody watches: the model only
+                for topic, data in events:
+                    self.model.apply(topic, data)
+                return
             poses: set[int] = set()
             for _, d in events:
                 tags = d.get("tags")
