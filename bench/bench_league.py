@@ -1,6 +1,7 @@
 """The league's figures (issue 15): throughput and scaling, rating quality, league overhead.
 
     .venv/bin/python bench/bench_league.py [--matches 16] [--skip-ray] [--skip-throughput] [--quality-rounds 30] [--quality-format swiss]
+    .venv/bin/python bench/bench_league.py --skip-throughput     # the documented season's rating quality only
 
 1. **Throughput.** ``--matches`` league matches of 5 simulated minutes, 8 robots (two teams of
    four, frontier against explorer and the other reference teams) on ``office``, played by a
@@ -17,8 +18,9 @@
    demo_room): random scrimmage pairs, or with ``--quality-format swiss`` neighbours in the
    standing; after each round Kendall's τ between the leaderboard and the true order. Printed:
    the matches after which τ first reaches 0.9 and after which it stays there, whether it held
-   over the last quarter, and τ of the order-free re-rating (Bradley–Terry) at the end.
-   ``--quality-seconds`` and ``--quality-late`` set the match length and the handicap step.
+   over the last quarter (yes/no), and τ of the order-free re-rating (Bradley–Terry) at the end.
+   ``--quality-seconds`` and ``--quality-late`` set the match length and the handicap step; the
+   defaults (120 s, 7 s, 30 rounds) are the season docs/league.md documents.
 4. **Fair play** (issue 26, ``--fair``): a hostile entrant that steers by every entropy source
    (tests/league_entrants/entropy.py) played 10 times in one process, 10 times on one worker,
    on two workers and on a local two-node Ray cluster: the digests of the 10 x 4 event logs;
@@ -249,8 +251,8 @@ def main() -> int:
     ap.add_argument("--quality-rounds", type=int, default=30, help="rounds of the rating-quality run")
     ap.add_argument("--quality-format", choices=("scrimmage", "swiss"), default="scrimmage",
                     help="random pairs every round, or neighbours in the standing after a first random round")
-    ap.add_argument("--quality-seconds", type=float, default=60, help="match length of the rating-quality run")
-    ap.add_argument("--quality-late", type=float, default=4, help="handicap step (seconds of late start)")
+    ap.add_argument("--quality-seconds", type=float, default=120, help="match length of the rating-quality run")
+    ap.add_argument("--quality-late", type=float, default=7, help="handicap step (seconds of late start)")
     ap.add_argument("--fair", action="store_true", help="the fair-play figures of issue 26 (then stop)")
     args = ap.parse_args()
     root = pathlib.Path(tempfile.mkdtemp(prefix="bench-league-"))
@@ -270,8 +272,9 @@ def main() -> int:
         stays = next((n for i, (n, _) in enumerate(curve) if all(t >= 0.9 for _, t in curve[i:])), None)
         last_quarter = curve[len(curve) - max(1, len(curve) // 4):]
         print("tau after  " + "  ".join(f"{n}:{tau:.2f}" for n, tau in curve))
+        held = all(t >= 0.9 for _, t in last_quarter)
         print(f"tau >= 0.9 first after {first} matches, for good after {stays} matches; held over the last "
-              f"quarter: {all(t >= 0.9 for _, t in last_quarter)}")
+              f"quarter (after {last_quarter[0][0]} to {last_quarter[-1][0]} matches): {'yes' if held else 'no'}")
         print(f"season end: openskill (in match order) tau {curve[-1][1]:.2f}, order-free Bradley-Terry tau {bt_tau:.2f}")
     finally:
         shutil.rmtree(root, ignore_errors=True)

@@ -12,7 +12,12 @@
    restarted over and over), one allocates without bound. The RPC rate of the two well-behaved
    teams is compared with an undisturbed run.
 4. ``--os-layer`` (instead of 1–3): the cold upload and the robot-API round trip with the OS
-   layer (bubblewrap, sandbox/oswall.py) on and off, one after the other in the same run.
+   layer on (bubblewrap and the seccomp filter, sandbox/oswall.py and sysfilter.py), with
+   bubblewrap but the filter left out, and off, interleaved in the same run.
+5. ``--seal`` (instead of 1–3): what the seal against memory addresses (sandbox/determinism.py)
+   costs team code: CPU time per operation (best of 3) of attribute writes on a team object,
+   set insertions of team objects and of a function, f-strings of a function and dicts keyed
+   by a class, run under the policy in a fresh process sealed and in one not sealed.
 """
 from __future__ import annotations
 
@@ -205,18 +210,89 @@ def bench_isolation(seconds: float) -> None:
 
 
 def bench_os_layer(calls: int, n: int) -> None:
-    """Upload and robot-API call cost with the OS layer on, then off, in this one run."""
+    """Upload and robot-API call cost with the OS layer on (bwrap and the seccomp filter), with
+    bwrap but the filter left out, and off, interleaved in this one run."""
     import os
 
     from robo_comp.sandbox import oswall
 
+    def unfiltered(pkg_root: str) -> oswall.Wall | None:
+        return oswall.Wall(pkg_root, None) if oswall.enabled() else None
+
+    with_filter = oswall.wall
     bare = bare_round_trip(calls)
     print(f"bare msgpack round trip between two processes over a socketpair, {calls} calls: median {bare * 1e6:.0f} us")
-    for on in (True, False, True, False):  # interleaved: a drift of the machine hits both alike
-        os.environ[oswall.ENV] = "on" if on else "off"
-        label = f"OS layer {'on (bwrap)' if on else 'off'}"
-        bench_upload(n, f", {label}")
-        bench_rpc(calls, Limits(), f"default limits, {label}", bare)
+    settings = (("on", with_filter, "on (bwrap + seccomp)"), ("on", unfiltered, "bwrap, no seccomp"),
+                ("off", with_filter, "off"))
+    for _ in range(2):  # interleaved: a drift of the machine hits every setting alike
+        for env, wall, name in settings:
+            os.environ[oswall.ENV] = env
+            oswall.wall = wall  # the filter left out for one setting only
+            label = f"OS layer {name}"
+            print(f"-- {label}; load: {os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f} {os.getloadavg()[2]:.2f}")
+            bench_upload(n, f", {label}")
+            bench_rpc(calls, Limits(), f"default limits, {label}", bare)
+    oswall.wall = with_filter
+
+
+SEAL_CODE = r'''
+import sys, time
+if sys.argv[1] == "sealed":
+    from robo_comp.sandbox.determinism import seal
+    seal()
+from robo_comp.sandbox.policy import Policy, compile_team
+SRC = """
+class Thing:
+    def __init__(self):
+        self.n = 0
+def helper():
+    return 0
+def writes(n):
+    t = Thing()
+    for i in range(n):
+        t.n = i
+def team_set(n):
+    s = set()
+    objs = [Thing() for i in range(100)]
+    for i in range(n):
+        s.add(objs[i % 100])
+def function_set(n):
+    s = set()
+    for i in range(n):
+        s.add(helper)
+def fstring(n):
+    for i in range(n):
+        x = f"{helper}"
+def class_key(n):
+    for i in range(n):
+        d = {int: 1}
+"""
+g = Policy(0, lambda t: None).make_globals("team.b")
+exec(compile_team(SRC, "b.py"), g)
+n = int(sys.argv[2])
+for name in ("writes", "team_set", "function_set", "fstring", "class_key"):
+    best = float("inf")
+    for _ in range(3):
+        t = time.process_time()
+        g[name](n)
+        best = min(best, time.process_time() - t)
+    print(name, best / n * 1e9)
+'''
+
+
+def bench_seal(n: int) -> None:
+    """CPU ns per operation of team code in a sealed and in an unsealed process."""
+    import subprocess
+
+    got: dict[str, dict[str, float]] = {}
+    for mode in ("not-sealed", "sealed"):
+        out = subprocess.run([sys.executable, "-s", "-P", "-B", "-c", SEAL_CODE, mode, str(n)],
+                             capture_output=True, text=True, check=True, cwd=ROOT)
+        got[mode] = {k: float(v) for k, v in (line.split() for line in out.stdout.splitlines())}
+    print(f"seal cost, CPU ns per operation (best of 3 x {n}):")
+    for name in got["sealed"]:
+        a, b = got["not-sealed"][name], got["sealed"][name]
+        print(f"  {name:13} not sealed {a:6.0f}  sealed {b:6.0f}  ({b - a:+.0f} ns)")
 
 
 def main() -> None:
@@ -224,7 +300,11 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="fewer repetitions")
     ap.add_argument("--os-layer", action="store_true",
                     help="only the upload and the robot-API call, with the OS layer on and off")
+    ap.add_argument("--seal", action="store_true", help="only what the seal against memory addresses costs")
     opts = ap.parse_args()
+    if opts.seal:
+        bench_seal(50_000 if opts.quick else 200_000)
+        return
     if opts.os_layer:
         bench_os_layer(2000 if opts.quick else 20000, 5 if opts.quick else 20)
         return

@@ -28,7 +28,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import numpy as np  # noqa: E402
 import pygame  # noqa: E402
 
-from robo_comp.wall.model import WallModel  # noqa: E402
+from robo_comp.view.model import MatchView  # noqa: E402
 from robo_comp.wall.render import Renderer  # noqa: E402
 from robo_comp.wall.view import TileSpec, ViewState  # noqa: E402
 
@@ -59,7 +59,7 @@ def run(tile: TileSpec, robots: int, frames: int, trails: bool, incremental: boo
     pygame.font.init()
     screen = pygame.display.set_mode(tile.size)
     a = arena()
-    model = WallModel()
+    model = MatchView()
     model.load_snapshot({"arena": a, "robots": [], "match": {"phase": "running", "elapsed": 0.0, "remaining": 600.0},
                          "score": [{"team": n, "score": 0, "victims": 0, "penalties": 0, "rank": i + 1}
                                    for i, (n, _) in enumerate(TEAMS)]})

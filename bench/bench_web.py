@@ -15,13 +15,16 @@ What runs (real processes, TCP on loopback):
    position batches so a moving match draws every frame), draw time p50/p99, the longest gap between two frames, robots on the page
    and the events it applied per second (the core sends 10 position batches per team per second).
    Measured twice in one run: with trails off and no story (the baseline), then with trails on
-   and the referee feeding the ticker (a broadcast twice a second, a penalty every two seconds).
+   and the referee feeding the ticker (a broadcast twice a second, a penalty every two seconds),
+   then the same with the debug drawing of ``--debug-robots`` robots at the documented per-tick
+   bound (16 shapes a robot, a new frame every 0.5 s, made in the page: :data:`DEBUG_FEED`).
 2. **Fan-out** — the same match. This process reads the core's PUB feed directly on a SUB
    socket (the bare ZeroMQ hop) while two child processes hold ``--clients`` WebSocket clients
    (:class:`RawClient`: the upgrade, frame lengths and pongs, no more) on, in turn: the
    gateway's public view; **the peer**, a bare WebSocket broadcaster of our own on the same
    server stack (Starlette on uvicorn, the gateway's settings) that forwards every PUB frame
-   as it came to every client, without a core session, a model or JSON (:func:`peer_app`); and,
+   as it came to every client, framed once, without a core session, a model or JSON
+   (:func:`peer_app`); **peer-asgi**, the same with one ``await send_bytes`` per client; and,
    with ``--baseline REV``, the gateway of that git revision. For the first position event of
    every WebSocket message, the added latency is the time the kernel stamped on the client's
    socket when the message's last bytes arrived (``SO_TIMESTAMPNS``) minus the SUB's receive
@@ -134,8 +137,9 @@ def free_cells(c: Client) -> list[tuple[int, int]]:
 
 
 def start_live(state: Path, robots: int) -> tuple[Any, list[Any], Client]:
+    # --robots: the scenario gives each team 50; since issue 25 the core refuses robots beyond that
     core = start_core(state, "--teams", ",".join(TEAMS), "--practice", "--scenario", str(bundled_scenario_path(SCENARIO)),
-                      "--robots", str(-(-robots // len(TEAMS))))  # more than the scenario gives each team
+                      "--robots", str(-(-robots // len(TEAMS))))
     hosts = [start_robots(state, t, robots // len(TEAMS)) for t in TEAMS]
     ref = Client(str(state), (state / "referee.token").read_text().strip(), timeout=10)
     t_end = time.monotonic() + 300
@@ -173,9 +177,31 @@ def story_feed(state: Path, stop: threading.Event) -> None:
         ref.close()
 
 
-def measure_draw(url: str, seconds: float, state: Path | None = None, story: bool = True) -> dict[str, Any]:
+#: Debug drawing of ``n`` robots at the documented bound, made in the page: every TICK (0.5 s) each
+#: of the first ``n`` robots gets a new frame of MAX_SHAPES shapes around where it is (6 lines,
+#: 6 dots, 4 texts), as a team view applies ``debug.draw`` events (the public view never gets them).
+DEBUG_FEED = """(n) => {
+  const feed = () => {
+    const m = robo.model, tags = [...m.robots.keys()].slice(0, n), cols = ["#ff3b30", "#64d2ff", "#ffd60a"];
+    for (const tag of tags) {
+      const r = m.robots.get(tag), f = [], k = Math.floor(performance.now() / 500) % 10;
+      for (let i = 0; i < 6; i++) f.push(["l", r.x, r.y, r.x + 3 * Math.cos(i + k), r.y + 3 * Math.sin(i + k), cols[i % 3]]);
+      for (let i = 0; i < 6; i++) f.push(["d", r.x + i - 3, r.y + 2, cols[i % 3]]);
+      for (let i = 0; i < 4; i++) f.push(["t", r.x + 1, r.y - 1 - i, `goal ${k}:${i}`, "#ffffff"]);
+      m.debug.set(tag, f);
+    }
+    m.version++;
+  };
+  feed();
+  window.__debugFeed = setInterval(feed, 500);
+}"""
+
+
+def measure_draw(url: str, seconds: float, state: Path | None = None, story: bool = True,
+                 debug: int = 0) -> dict[str, Any]:
     """Frames drawn per second; ``story``: with trails on and the ticker fed (``state``: the core's
-    folder, for the referee's token), else trails off and no story (the baseline)."""
+    folder, for the referee's token), else trails off and no story (the baseline); ``debug``: the
+    debug drawing of that many robots at the per-tick bound (:data:`DEBUG_FEED`)."""
     pw, b = browser()
     stop = threading.Event()
     feeder = None
@@ -187,6 +213,8 @@ def measure_draw(url: str, seconds: float, state: Path | None = None, story: boo
         if story and state is not None:
             feeder = threading.Thread(target=story_feed, args=(state, stop), daemon=True)
             feeder.start()
+        if debug:
+            page.evaluate(DEBUG_FEED, debug)
         time.sleep(2.0)  # let the first state settle
         s0 = page.evaluate("() => ({f: robo.S.stats.frames, d: robo.S.stats.drawn, e: robo.S.stats.evs, "
                            "t: performance.now()})")
@@ -196,13 +224,16 @@ def measure_draw(url: str, seconds: float, state: Path | None = None, story: boo
                            "t: performance.now(), "
                            "gaps: robo.S.stats.gaps, draws: robo.S.stats.draws, robots: robo.model.robots.size})")
         lines = page.evaluate("() => document.querySelectorAll('#ticker li').length")
+        shapes = page.evaluate("() => robo.renderer.debugShown || 0")
         trails = page.evaluate("() => [...robo.model.robots.values()].filter(r => r.trail.length >= 4).length")
-        page.screenshot(path=str(Path(tempfile.gettempdir()) / f"bench_web_draw{'_story' if story else ''}.png"))
+        page.screenshot(path=str(Path(tempfile.gettempdir()) / f"bench_web_draw{'_story' if story else ''}"
+                                 f"{'_debug' if debug else ''}.png"))
         dt = (s1["t"] - s0["t"]) / 1000
         return {"fps": (s1["d"] - s0["d"]) / dt, "animation_frames_per_s": (s1["f"] - s0["f"]) / dt, "draw_ms_p50": pct(s1["draws"], 50), "draw_ms_p99": pct(s1["draws"], 99),
                 "longest_gap_ms": max(s1["gaps"]) * 1000 if s1["gaps"] else float("nan"),
                 "robots": s1["robots"], "events_per_s": (s1["e"] - s0["e"]) / dt,
-                "story": story, "ticker_lines": lines, "robots_with_trails": trails}
+                "story": story, "ticker_lines": lines, "robots_with_trails": trails,
+                "debug_robots": debug, "debug_shapes_drawn": shapes}
     finally:
         stop.set()
         if feeder is not None:
@@ -731,6 +762,8 @@ def main() -> int:
     ap.add_argument("--seconds", type=float, default=15.0)
     ap.add_argument("--minutes", type=float, default=30.0, help="length of the synthetic log for the seek figure")
     ap.add_argument("--only", choices=["live", "fanout", "seek"])
+    ap.add_argument("--debug-robots", type=int, default=100,
+                    help="robots with debug drawing at the per-tick bound in the third drawing run (0: no such run)")
     ap.add_argument("--skip-fanout", action="store_true", help="only the drawing figures of the live part")
     ap.add_argument("--baseline", metavar="REV", default="",
                     help="also measure the fan-out of the gateway of this git revision (e.g. 8820265, before issue 31)")
@@ -760,6 +793,11 @@ def main() -> int:
                 res["draw"] = measure_draw(url, args.seconds, tmp / "state", story=True)
                 print("draw, trails on, ticker fed:", json.dumps(res["draw"], indent=1), flush=True)
                 ok &= res["draw"]["fps"] >= 30
+                if args.debug_robots:
+                    res["draw_debug"] = measure_draw(url, args.seconds, tmp / "state", story=True, debug=args.debug_robots)
+                    print(f"draw, trails on, ticker fed, debug drawing of {args.debug_robots} robots:",
+                          json.dumps(res["draw_debug"], indent=1), flush=True)
+                    ok &= res["draw_debug"]["fps"] >= 30
             if not args.skip_fanout:
                 print("core CPU without the gateway:", round(res["core_cpu_without_gateway"], 3), flush=True)
                 res["fanout"], fan_ok = run_fanout(ref, core, web, url, tmp / "state", args)

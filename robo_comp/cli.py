@@ -59,7 +59,7 @@ def _core(args: argparse.Namespace) -> int:
         raise FieldError(f"a core (pid {pid}) is already serving {state}; stop it first, or give another --state "
                          "folder for a second match")
     if args.scenario and not Path(args.scenario).is_file():  # a bundled scenario's name, as the league takes
-        from robo_comp.testing.match import resolve_scenario
+        from robo_comp.world.scenario import resolve_scenario
 
         args.scenario = str(resolve_scenario(args.scenario))
     made = not state.exists()
@@ -128,7 +128,7 @@ def _start_core(args: argparse.Namespace, state: Path) -> tuple[Any, bool]:
              "scenario_sha256": matchfile.scenario_hash(args.scenario),
              "practice": args.practice, "approve_uploads": args.approve_uploads, "rules": args.rules,
              "curve": args.curve, "pose_hz": args.pose_hz, "heartbeat": args.heartbeat, "port": args.port,
-             "robots": args.robots, "max_speed": args.max_speed}
+             "robots": args.robots, "max_speed": args.max_speed, "debug_replay": args.debug_replay}
     settings, recovering = matchfile.resolve(state, given, args.override)
     scenario_file = settings.get("scenario")
     if recovering and scenario_file and not args.scenario:
@@ -148,6 +148,7 @@ def _start_core(args: argparse.Namespace, state: Path) -> tuple[Any, bool]:
                 curve=bool(settings.get("curve")), pose_hz=settings.get("pose_hz", 10.0),
                 robots_per_team=settings.get("robots"), max_speed=settings.get("max_speed"),
                 max_connections=args.max_connections, max_per_address=args.max_per_address)
+    core.debug_replay = settings.get("debug_replay") or "team"  # recorded in the log's core.started
     try:
         core.bind(lambda: matchfile.write(state, {
             "teams": core.tokens.teams, "scenario": scenario_file,
@@ -155,8 +156,8 @@ def _start_core(args: argparse.Namespace, state: Path) -> tuple[Any, bool]:
             "approve_uploads": bool(settings.get("approve_uploads")),
             "rules": settings.get("rules"), "curve": bool(settings.get("curve")),
             "pose_hz": settings.get("pose_hz", 10.0), "heartbeat": core.heartbeat,
-            "port": core.port, "robots": core.robots_per_team,
-            "max_speed": settings.get("max_speed")}))
+            "port": core.port, "robots": core.match.robots_per_team,
+            "max_speed": settings.get("max_speed"), "debug_replay": core.debug_replay}))
     except OSError:
         core.close()
         raise
@@ -172,9 +173,12 @@ def _robots(args: argparse.Namespace) -> int:
     if args.scenario:  # an organiser-run host knows the truth, so its camera shows victims
         from robo_comp.world.scenario import load_scenario
 
-        from robo_comp.testing.match import resolve_scenario
+        from robo_comp.world.scenario import resolve_scenario
 
         truth = load_scenario(resolve_scenario(args.scenario))  # a file or a bundled scenario's name
+    from robo_comp.sandbox import oswall
+
+    oswall.at_start("robots", args.os_sandbox)  # a host that cannot wall team code stops here, saying so
     token = read_token(args.token, args.token_file)
     options: dict[str, object] = {}
     if args.driver == "er1":
@@ -186,7 +190,8 @@ def _robots(args: argparse.Namespace) -> int:
     elif args.driver == "ros2":
         options.update(_ros2_options(args))
     host = RobotHost(resolve_core(args.core), token, args.count,
-                     prefix=args.prefix, speed=args.speed, report_hz=args.report_hz, seed=args.seed,
+                     prefix=args.prefix, speed=args.speed, report_hz=args.report_hz, sensor_hz=args.sensor_hz,
+                     seed=args.seed,
                      truth=truth, driver=args.driver, driver_options=options,
                      curve=client_keys(args.core, token, args.curve_cert, args.core_key),
                      positioning=_positioning(args.positioning), truth_pub=args.truth_pub,
@@ -301,6 +306,10 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--advertise", metavar="NAME",
                    help="let robots and consoles on the LAN find this core by name (--core mdns:NAME), over "
                         "mDNS on the interface of --host (off by default; docs/organiser.md)")
+    c.add_argument("--debug-replay", choices=("team", "everyone"),
+                   help="who sees a team's debug drawing (robot.draw_dot/line/text) in replays: only that team "
+                        "and the referee (default), or everyone after the match; live it is always the team's "
+                        "own (recorded in the log)")
     c.add_argument("--override", action="store_true",
                    help="on a restart, apply options that contradict the recovered match (and record them)")
     c.add_argument("--max-connections", type=_positive_int, metavar="N",
@@ -316,13 +325,17 @@ def build_parser() -> argparse.ArgumentParser:
     r = sub.add_parser("robots", help="host simulated robots of one team",
                        description="Host N simulated robots; they register, take tasks, report "
                                    "positions and reconnect on their own.")
-    from robo_comp.ctl import add_connection_args
+    from robo_comp.client import add_connection_args
 
     add_connection_args(r)
     r.add_argument("--count", type=int, default=3, help="number of robots")
     r.add_argument("--prefix", help="robot id prefix (ids PREFIX-1..N; default: the team name)")
     r.add_argument("--speed", type=float, help="cells per second (default: the scenario's robot speed)")
     r.add_argument("--report-hz", type=float, default=10.0, help="position reports per second")
+    r.add_argument("--sensor-hz", type=_positive, default=2.0, metavar="HZ",
+                   help="range sensor readings per second (default 2: a sensing period of 0.5 s); a moving "
+                        "robot's readings go out once a sensing period, a standing robot's when they change, "
+                        "at most once a sensing period")
     r.add_argument("--seed", type=int, default=0)
     r.add_argument("--scenario", help="the match's scenario file (organisers only): the camera then shows victims")
     r.add_argument("--duration", type=float, default=0.0, help="exit after S seconds (0 = run until stopped)")
@@ -348,6 +361,9 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--truth-pub", metavar="URL",
                    help="simulation only: publish the robots' true poses here for synthetic cameras "
                         "(robo-comp camera run --synthetic URL)")
+    from robo_comp.sandbox import oswall
+
+    oswall.add_option(r)
     r.set_defaults(func=_robots)
 
     ctl.add_parser(sub)
@@ -382,9 +398,9 @@ def build_parser() -> argparse.ArgumentParser:
     from robo_comp.world.overhead import cli as camera_cli
 
     camera_cli.add_parser(sub)
-    from robo_comp.protocol import curve
+    from robo_comp import keys_cli
 
-    curve.add_parser(sub)
+    keys_cli.add_parser(sub)
     from robo_comp.teams import newteam
 
     newteam.add_parser(sub)

@@ -12,6 +12,7 @@ Replies come back as plain dicts; error replies raise the matching
 """
 from __future__ import annotations
 
+import argparse
 import json
 import time
 from collections import deque
@@ -31,6 +32,7 @@ from robo_comp.protocol.curve import (
 )
 from robo_comp.errors import ConnectionLostError, FieldError, TimeoutError_
 from robo_comp.protocol.replies import reply_body
+from robo_comp.protocol.session import ClientSession
 
 
 def resolve_core(core: str) -> str:
@@ -119,17 +121,22 @@ class Client:
         self.timeout = timeout
         self.ctx = ctx or zmq.Context.instance()
         self.sock: zmq.Socket | None = None
-        self.next_id = 1
+        #: The session with the core (protocol/session.py): hello, the secret, heartbeats.
+        self.s = ClientSession(token, client)
         self.events: deque[dict[str, Any]] = deque(maxlen=10_000)
         self._asked: dict[int, dict[str, Any] | None] = {}  # request id sent with ask() -> its reply
-        self.info: dict[str, Any] = {}
-        #: The session secret the core gave at hello; every later message carries it.
-        self.session: str | None = None
-        self._last_sent = 0.0
         self._watching = False
-        #: Kept across reconnects: the core ends this client's old session when it says hello again.
-        self.instance = P.new_instance_id()
         self.connect()
+
+    @property
+    def info(self) -> dict[str, Any]:
+        """The core's hello reply (role, team, heartbeat, the match, ...)."""
+        return self.s.info
+
+    @property
+    def session(self) -> str | None:
+        """The session secret the core gave at hello; every later message carries it."""
+        return self.s.secret
 
     # ------------------------------------------------------------------ connection
     def connect(self) -> dict[str, Any]:
@@ -137,12 +144,10 @@ class Client:
         if self.sock is not None:
             self.sock.close(0)
         self._asked = {}  # what was asked on the old socket is not answered on the new one
-        self.session = None  # a new connection opens a new session
         self.sock = open_dealer(self.ctx, self.url, self.curve, self.token, connect=False)
         try:
             self._handshake()
-            self.info = self.request("hello", token=self.token, client=self.client_name, instance=self.instance)
-            self.session = self.info.get("session")
+            self.s.opened(self._call("hello", *self.s.hello(time.monotonic())))
         except TimeoutError_ as e:  # a refused CurveZMQ handshake looks the same: say so
             hint = ("If it runs with --curve, give --curve-cert and --core-key." if self.curve is None else
                     "With CurveZMQ, check that --curve-cert is the secret certificate the organiser gave "
@@ -178,7 +183,7 @@ class Client:
         """Say bye (best effort) and close the socket."""
         if self.sock is not None:
             try:
-                self.sock.send(P.request("bye", self._id(), {}, self.session), zmq.NOBLOCK)
+                self.sock.send(self.s.bye(), zmq.NOBLOCK)
             except zmq.ZMQError:
                 pass
             self.sock.close(0)
@@ -200,18 +205,15 @@ class Client:
         """The team this client speaks for (None for the referee)."""
         return self.info.get("team")
 
-    def _id(self) -> int:
-        i = self.next_id
-        self.next_id += 1
-        return i
-
     # ------------------------------------------------------------------ requests
     def request(self, type_: str, **body: Any) -> dict[str, Any]:
         """Send one request and wait for its reply; raise the matching error on an error reply."""
+        return self._call(type_, *self.s.frame(type_, body, time.monotonic()))
+
+    def _call(self, type_: str, rid: int, frame: bytes) -> dict[str, Any]:
+        """Send request ``rid`` (``frame``) and wait for its reply."""
         assert self.sock is not None, "client is closed"
-        rid = self._id()
-        self.sock.send(P.request(type_, rid, body, self.session))
-        self._last_sent = time.monotonic()
+        self.sock.send(frame)
         deadline = time.monotonic() + self.timeout
         while True:
             left = deadline - time.monotonic()
@@ -233,9 +235,8 @@ class Client:
         """Send a request without waiting (for loops that must not block, like the wall's
         frames); return its id for :meth:`answer`."""
         assert self.sock is not None, "client is closed"
-        rid = self._id()
-        self.sock.send(P.request(type_, rid, body, self.session))
-        self._last_sent = time.monotonic()
+        rid, frame = self.s.frame(type_, body, time.monotonic())
+        self.sock.send(frame)
         self._asked[rid] = None
         return rid
 
@@ -327,14 +328,12 @@ class Client:
         deadline = time.monotonic() + timeout
         while not self.events:
             now = time.monotonic()
-            hb = self.info.get("heartbeat", 1.0)
-            if now - self._last_sent > hb:
-                self.sock.send(P.request("heartbeat", 0, {}, self.session))
-                self._last_sent = now
+            if self.s.beat_due(now):
+                self.sock.send(self.s.frame("heartbeat", {}, now, rid=0)[1])
             left = deadline - now
             if left <= 0:
                 return None
-            if self.sock.poll(min(left, hb) * 1000):
+            if self.sock.poll(int(min(left, self.s.heartbeat) * 1000)):
                 self._keep(P.unpack(self.sock.recv()))
         return self.events.popleft()
 
@@ -353,6 +352,22 @@ def recv_event(sub: zmq.Socket) -> tuple[str, dict[str, Any]]:
     """Read one ``(topic, payload)`` from a SUB socket made by :meth:`Client.subscribe`."""
     topic, payload = sub.recv_multipart()
     return topic.decode(), P.unpack(payload)
+
+
+def add_connection_args(p: argparse.ArgumentParser, required: bool = True) -> None:
+    """``--core``, ``--token``/``--token-file`` and the CurveZMQ ``--curve-cert``/``--core-key``,
+    shared by every client command (``required=False`` where another source may replace the core,
+    as the wall's ``--replay``)."""
+    from robo_comp.protocol.curve import add_curve_args
+
+    p.add_argument("--core", required=required,
+                   help="ROUTER URL (tcp://HOST:PORT), the core's state folder, or mdns:NAME (a core started "
+                        "with --advertise NAME on this LAN)")
+    tok = p.add_mutually_exclusive_group(required=required)
+    tok.add_argument("--token", help="team or referee token")
+    tok.add_argument("--token-file", help="file holding the token")
+    add_curve_args(p)
+
 
 
 __all__ = ["Client", "ConnectionLostError", "open_dealer", "read_token", "recv_event", "resolve_core"]

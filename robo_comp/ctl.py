@@ -8,7 +8,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from robo_comp.client import Client, read_token, recv_event, resolve_core
+from robo_comp.client import Client, add_connection_args, read_token, recv_event, resolve_core
 from robo_comp.errors import RoboCompError
 
 
@@ -86,21 +86,6 @@ def _tag_list(text: str) -> list[int]:
     if not tags:
         raise argparse.ArgumentTypeError("give at least one robot tag")
     return tags
-
-
-def add_connection_args(p: argparse.ArgumentParser, required: bool = True) -> None:
-    """``--core``, ``--token``/``--token-file`` and the CurveZMQ ``--curve-cert``/``--core-key``,
-    shared by every client command (``required=False`` where another source may replace the core,
-    as the wall's ``--replay``)."""
-    from robo_comp.protocol.curve import add_curve_args
-
-    p.add_argument("--core", required=required,
-                   help="ROUTER URL (tcp://HOST:PORT), the core's state folder, or mdns:NAME (a core started "
-                        "with --advertise NAME on this LAN)")
-    tok = p.add_mutually_exclusive_group(required=required)
-    tok.add_argument("--token", help="team or referee token")
-    tok.add_argument("--token-file", help="file holding the token")
-    add_curve_args(p)
 
 
 def _print_robots(rows: list[dict[str, Any]]) -> None:

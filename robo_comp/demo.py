@@ -13,6 +13,7 @@ that replays the match in a browser (``robo-comp web --replay STATE/events.log``
 from __future__ import annotations
 
 import json
+import os
 import random
 import sys
 import tempfile
@@ -29,8 +30,12 @@ from robo_comp.world.scenario import bundled_scenario_path, load_scenario
 
 #: The demo's scenario (bundled): a 24×16 room with three hidden victims.
 SCENARIO = "demo_room"
-#: Seconds the robots have to register (a loaded machine starts Python processes slowly).
+#: Seconds the demo waits for the next robot to register (a loaded machine starts Python processes
+#: slowly: each robot that registers starts the wait again, so a slow start is waited for, a stuck
+#: one is not).
 REGISTER_WITHIN = 60.0
+#: While robots register, the demo says every this many seconds what it still waits for.
+TELL_EVERY = 5.0
 
 
 @dataclass
@@ -103,6 +108,76 @@ def _start_camera(state: Path, teams: list[str], robots: int, out: Any) -> list[
     return procs
 
 
+def _hosts_without_os_layer_if_needed(out: Any) -> None:
+    """The demo uploads no team code: where the sandbox's OS layer cannot start (a laptop without
+    bubblewrap), its robot hosts run without it, and the demo says so, rather than stop as
+    ``robo-comp robots`` does there."""
+    from robo_comp.errors import UnavailableError
+    from robo_comp.sandbox import oswall
+
+    if not oswall.enabled():
+        return
+    try:
+        oswall.check(oswall.package_root())
+    except UnavailableError as e:
+        os.environ[oswall.ENV] = "off"  # for the hosts this process starts
+        print(f"demo: the sandbox's OS layer cannot start here ({e.details.get('why', e.message)}); the demo's "
+              "robot hosts run without it (the demo uploads no team code)", file=out)
+
+
+def _tail(path: Path, lines: int = 5) -> str:
+    """The last lines of a log file, indented (or a sentence when there is none)."""
+    try:
+        text = path.read_text(errors="replace").strip().splitlines()[-lines:]
+    except OSError:
+        return "    (no log was written)"
+    return "\n".join(f"    {ln}" for ln in text) or "    (the log is empty)"
+
+
+def _load() -> str:
+    """``; load 7.9 on 2 cores`` (the 1-minute load average), or "" where the system does not say."""
+    try:
+        return f"; load {os.getloadavg()[0]:.1f} on {os.cpu_count() or '?'} cores"
+    except OSError:
+        return ""
+
+
+def wait_for_robots(clients: dict[str, Client], robots: int, hosts: dict[str, Any], state: Path, out: Any,
+                    quiet_for: float = REGISTER_WITHIN, tell_every: float = TELL_EVERY) -> None:
+    """Wait until every team has ``robots`` robots registered. Every ``tell_every`` seconds it says
+    how many have and how loaded the machine is; a host that exits fails the demo at once with the
+    end of its log; it gives up only after ``quiet_for`` seconds in which no robot registered, and
+    then says which team is short, the load, and where each log is (``RuntimeError``)."""
+    def counts() -> dict[str, int]:
+        return {t: len(c.robots()) for t, c in clients.items()}
+
+    logs = {t: state / f"robots-{t}.log" for t in clients}
+    seen = counts()
+    last_progress = next_tell = time.monotonic()
+    next_tell += tell_every
+    while any(n < robots for n in seen.values()):
+        for team, host in hosts.items():
+            if team in logs and host.poll() is not None:
+                raise RuntimeError(f"the robot host of team {team} exited with status {host.returncode} before its "
+                                   f"robots registered; the end of its log ({logs[team]}):\n{_tail(logs[team])}")
+        now = time.monotonic()
+        have = ", ".join(f"{t} {n}/{robots}" for t, n in seen.items())
+        if now >= next_tell:
+            print(f"demo: waiting for the robots to register ({have}{_load()}: Python starts slowly on a "
+                  f"loaded machine; the hosts' logs: {state}/robots-*.log)", file=out, flush=True)
+            next_tell = now + tell_every
+        if now - last_progress > quiet_for:
+            short = ", ".join(f"team {t} has {n} of {robots}" for t, n in seen.items() if n < robots)
+            raise RuntimeError(
+                f"no robot registered for {quiet_for:.0f} s ({short}{_load()}); the logs: "
+                + ", ".join(str(p) for p in logs.values()) + f", {state / 'core.log'}; the end of each host's log:\n"
+                + "\n".join(f"  {t}:\n{_tail(p)}" for t, p in logs.items()))
+        time.sleep(0.1)
+        now_seen = counts()
+        if now_seen != seen:
+            seen, last_progress = now_seen, time.monotonic()
+
+
 def run_demo(duration: float = 20.0, robots: int = 3, out: Any = None, web: int | None = None,
              camera: bool = False) -> int:
     """Run the demo match; prints a live summary and a final table; returns 0 on success.
@@ -113,27 +188,25 @@ def run_demo(duration: float = 20.0, robots: int = 3, out: Any = None, web: int 
     scenario = bundled_scenario_path(SCENARIO)
     state = Path(tempfile.mkdtemp(prefix="robo-comp-demo-"))  # kept: the match can be replayed
     procs: list[Any] = []
+    _hosts_without_os_layer_if_needed(out)
     try:
         # the organiser's hosts run `robots` robots a team (the scenario gives each team 2)
-        procs.append(start_core(state, "--scenario", str(scenario), "--robots", str(robots)))
+        print(f"demo: starting a core and two robot hosts; their logs are in {state}", file=out)
+        procs.append(start_core(state, "--scenario", str(scenario), "--robots", str(robots), wait=REGISTER_WITHIN))
         teams = json.loads((state / "core.json").read_text())["teams"][:2]
         if web is not None:
             procs.append(_start_web(state, web, out))
         if camera:
-            procs += _start_camera(state, teams, robots, out)
+            hosts = _start_camera(state, teams, robots, out)
         else:  # organiser's hosts: their cameras show the hidden victims
-            procs += [start_robots(state, t, robots, "--scenario", str(scenario)) for t in teams]
+            hosts = [start_robots(state, t, robots, "--scenario", str(scenario)) for t in teams]
+        procs += hosts
         clients = {t: Client(str(state), (state / "teams" / f"{t}.token").read_text().strip(),
                              client="demo") for t in teams}
         referee = Client(str(state), (state / "referee.token").read_text().strip(), client="demo-referee")
         for c in clients.values():
             c.watch(True)
-        t_end = time.monotonic() + REGISTER_WITHIN
-        while any(len(c.robots()) < robots for c in clients.values()):
-            if time.monotonic() > t_end:
-                raise RuntimeError(f"robots did not register within {REGISTER_WITHIN:.0f} s "
-                                   f"(see {state}/robots-*.log and {state}/core.log)")
-            time.sleep(0.1)
+        wait_for_robots(clients, robots, dict(zip(teams, hosts)), state, out)
         free = _free_cells(unpack_walls(next(iter(clients.values())).arena()))
         print(f"demo: core and {len(teams)} teams of {robots} robots up; "
               f"arena {len(free)} free cells", file=out)

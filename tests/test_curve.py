@@ -122,9 +122,9 @@ def test_curve_match(curve_core: CoreHandle, tmp_path: Path) -> None:
 
 
 def test_console_link_and_wall_over_curve(curve_core: CoreHandle, monkeypatch: pytest.MonkeyPatch) -> None:
-    from robo_comp.tui.connection import CoreLink
+    from robo_comp.link import CoreLink
     from robo_comp.wall.app import LiveSource
-    from robo_comp.wall.model import WallModel
+    from robo_comp.view.model import MatchView
 
     state = curve_core.state
     keys = state / "keys"
@@ -148,7 +148,7 @@ def test_console_link_and_wall_over_curve(curve_core: CoreHandle, monkeypatch: p
     monkeypatch.delenv(ENV_CORE_KEY)
     src = LiveSource(str(state), curve_core.token("referee"))  # the referee's certificate, from the state folder
     try:
-        model = WallModel()
+        model = MatchView()
         src.start(model)
         assert src.client.curve is not None and src.client.role == "referee"
         wait_for(lambda: src.client.robots() == [], 2.0, "a reply to the wall")

@@ -102,3 +102,100 @@ def test_tutorial_sections_2_to_4_as_written(tmp_path: Path) -> None:
         for pr in reversed(procs):
             pr.terminate()
             pr.wait(10)
+
+
+def _pty_console(cmd: str, cwd: Path, env: dict[str, str], want: list[str], timeout: float = 90.0) -> tuple[str, int]:
+    """Run a full-screen console in a pseudo-terminal of 100×30 as a person's terminal would; once
+    every string of ``want`` is on the screen (escape sequences stripped), press ctrl+q. Returns
+    what it drew and its exit status."""
+    import fcntl
+    import pty
+    import select
+    import struct
+    import termios
+    import time
+
+    master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 30, 100, 0, 0))
+    proc = subprocess.Popen("exec " + cmd, shell=True, cwd=cwd, env=dict(env, TERM="xterm-256color"),
+                            stdin=slave, stdout=slave, stderr=slave, start_new_session=True)
+    os.close(slave)
+    raw = b""
+    ansi = re.compile(r"\x1b(\[[0-?]*[ -/]*[@-~]|\][^\x07\x1b]*(\x07|\x1b\\)|[PX^_][^\x1b]*\x1b\\|[@-Z\\-_])")
+    t_end = time.monotonic() + timeout
+    quit_sent = False
+    try:
+        while time.monotonic() < t_end:
+            ready, _, _ = select.select([master], [], [], 0.2)
+            if ready:
+                try:
+                    raw += os.read(master, 65536)
+                except OSError:  # the console exited and closed the terminal
+                    break
+            text = ansi.sub("", raw.decode("utf-8", "replace"))
+            if not quit_sent and all(w in text for w in want):
+                os.write(master, b"\x11")  # ctrl+q
+                quit_sent = True
+            if proc.poll() is not None:
+                break
+        rc = proc.wait(30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        os.close(master)
+    return ansi.sub("", raw.decode("utf-8", "replace")), rc
+
+
+def test_readme_session_by_hand_as_written(tmp_path: Path) -> None:
+    """The README's "A session by hand": a core, the organiser's host, a team's ctl commands and
+    the team console, run as written (from the repository, its /tmp/match moved into the test's
+    folder, the core on a free port: this machine is shared), each printing what a newcomer expects."""
+    text = (ROOT / "README.md").read_text()
+    (block,) = re.findall(r"A session by hand:\n\n```sh\n(.*?)```", text, re.S)
+    lines = [ln for ln in block.splitlines() if ln.strip() and not ln.startswith("#")]
+    # run at once, ctl finds no robot yet (the host takes seconds to start): the README says to wait
+    said_wait = block.split(lines[1], 1)[1].split(lines[2], 1)[0]
+    assert "registered" in said_wait, "the README should say to wait for the host's 'registered' line"
+    match = str(tmp_path / "match")
+    env = dict(os.environ, PATH=f"{Path(sys.executable).parent}:{os.environ.get('PATH', '')}")
+    venv_bin = ".venv/bin/" if (ROOT / ".venv" / "bin" / "robo-comp").exists() else f"{Path(sys.executable).parent}/"
+
+    def as_run(line: str) -> str:
+        cmd = line.split("   # ")[0].split("      # ")[0].strip()
+        return cmd.replace("/tmp/match", match).replace(".venv/bin/", venv_bin)
+
+    assert [ln.split()[1] for ln in lines] == ["core", "robots", "ctl", "ctl", "ctl", "ctl", "ctl", "team"], lines
+    assert lines[0].endswith("&") and lines[1].split("   #")[0].rstrip().endswith("&")
+    procs: list[subprocess.Popen[str]] = []
+    try:
+        core = subprocess.Popen("exec " + as_run(lines[0]).rstrip("& ") + " --port 0", shell=True, cwd=ROOT, env=env,
+                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        procs.append(core)
+        first = core.stdout.readline() if core.stdout else ""
+        assert "core: serving 'Default arena' for teams red, blue" in first, first
+        robots = subprocess.Popen("exec " + as_run(lines[1]).rstrip("& "), shell=True, cwd=ROOT, env=env,
+                                  stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        procs.append(robots)
+        said = robots.stdout.readline() if robots.stdout else ""
+        assert "robots: team red: 3 robot(s) registered with the core" in said and "tags 101, 102, 103" in said, said
+        expect = [  # what each ctl command prints, as a pattern
+            r"tag team +status.*\n +101 red +connected .*\n +102 red +connected .*\n +103 red +connected ",
+            r"^task (\d+) given to robot 101: goTo \[3, 4\] \[now\]$",
+            r"^robot 101: ok square\.py: square 1\.0 loaded$",
+            r"^task (\d+) given to robot 101: square \[2\] \[now\]",
+            r"^robot 101 halted at \(\d+\.\d\d, \d+\.\d\d\) in [\d.]+ ms; cancelled tasks: \[\d+\]$",
+        ]
+        for line, pattern in zip(lines[2:7], expect):
+            p = subprocess.run(as_run(line), shell=True, cwd=ROOT, env=env, capture_output=True, text=True, timeout=60)
+            assert p.returncode == 0 and "Traceback" not in p.stderr, f"{line}\n{p.stdout}{p.stderr}"
+            assert re.search(pattern, p.stdout, re.M), f"{line}\nprinted:\n{p.stdout}"
+        # the console of team red, online, robot 101 selected, its monitor listing the uploaded task
+        want = ["robo_comp · team red", "● online", "Monitor · robot 101", "square(side: "]
+        shown, rc = _pty_console(as_run(lines[7]), ROOT, env, want)
+        assert all(w in shown for w in want), shown[-3000:]
+        assert rc == 0 and "Traceback" not in shown, shown[-3000:]
+    finally:
+        for pr in reversed(procs):
+            pr.terminate()
+            pr.wait(10)

@@ -83,7 +83,7 @@ def test_a_league_match_on_a_generated_map_shows_on_the_wall(tmp_path):
 
     from robo_comp.league import reference
     from robo_comp.league.engine import play_match
-    from robo_comp.wall.model import WallModel
+    from robo_comp.view.model import MatchView
     from robo_comp.wall.replay import ReplaySource
 
     spec = {"id": 1, "scenario": "generated:2:0.5", "seed": 1, "seconds": 30, "robots": 2, "log": str(tmp_path / "g.log"),
@@ -92,13 +92,13 @@ def test_a_league_match_on_a_generated_map_shows_on_the_wall(tmp_path):
     play_match(spec)
     clock = [0.0]
     src = ReplaySource(tmp_path / "g.log", speed=100.0, clock=lambda: clock[0])
-    model = WallModel()
+    model = MatchView()
     src.attach(model)
     clock[0] = 1.0
     src.advance(model)
     assert model.arena is not None and (model.arena.width, model.arena.height) == (64, 48)
     assert (model.arena.walls == load_walls(tmp_path / "g.log")).all()
-    assert sorted(model.robots) == [101, 102, 201, 202]
+    assert sorted(model.robots) == [101, 102, 103, 104]
     pygame.display.init()
     from robo_comp.wall.render import Renderer
     from robo_comp.wall.view import TileSpec, ViewState

@@ -64,10 +64,10 @@ def test_the_league_score_is_the_official_score(tmp_path):
     assert started["teams"] == ["frontier", "explorer"]
     core = ReplayCore(tmp_path / "m.log", tmp_path / "replay-state")
     core.play(float("inf"), publish=False)
-    official = {t: core.competition.board.score_of(t) for t in ("frontier", "explorer")}
+    official = {t: core.match.contest.board.score_of(t) for t in ("frontier", "explorer")}
     assert official == res["scores"] and res["scores"]["frontier"] > 0
-    assert {r.tag for r in core.registry.robots.values()} == {101, 102, 201, 202}
-    confirmed = [f for f in core.competition.finds if f["state"] == "confirmed"]
+    assert {r.tag for r in core.registry.robots.values()} == {101, 102, 103, 104}  # tags as a core gives them
+    confirmed = [f for f in core.match.contest.judge.finds if f["state"] == "confirmed"]
     assert len(confirmed) == sum(len(v) for v in res["victims"].values()) > 0
 
 
@@ -86,7 +86,7 @@ def test_robo_comp_replay_serves_a_league_match(tmp_path):
         wait_for(lambda: (state / "core.json").exists() or proc.poll() is not None, 20, "the replay to start")
         assert proc.poll() is None, (state / "replay.log").read_text()
         ref = Client(str(state), (state / "referee.token").read_text().strip())
-        assert sorted(r["tag"] for r in ref.robots()) == [101, 102, 201, 202]
+        assert sorted(r["tag"] for r in ref.robots()) == [101, 102, 103, 104]
 
         def final():
             rows = {r["team"]: r["score"] for r in ref.request("score")["teams"]}
@@ -415,7 +415,7 @@ def test_sandbox_limits_hold_inside_a_ray_worker(tmp_path, ray_cluster):
     RayRunner(ray_cluster.address).run([s], lambda sp, r: got.update(r), pytest.fail)
     assert got["scores"]["frontier"] > 0 and got["scores"]["spinner"] == 0
     done = [r.data for r in read_log(tmp_path / "hostile.log") if r.topic == "task.done" and r.team == "spinner"]
-    assert len(done) == 2 and all(d["reason"] == "limit" and "time" in d["status"] for d in done), done
+    assert len(done) == 2 and all(d["result"]["reason"] == "limit" and "time" in d["status"] for d in done), done
 
 
 # ------------------------------------------------------------------ the command line

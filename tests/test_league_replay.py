@@ -38,12 +38,12 @@ def changes_until(log: Path, at: float) -> dict[str, float]:
 
 
 def test_the_wall_replay_shows_the_tables_scores(played):
-    from robo_comp.wall.model import WallModel
+    from robo_comp.view.model import MatchView
     from robo_comp.wall.replay import ReplaySource
 
     log, result = played
     src = ReplaySource(log, speed=1.0, clock=lambda: 0.0)
-    m = WallModel()
+    m = MatchView()
     src.attach(m)
     half = src.duration / 2
     src.seek(m, half)
@@ -91,7 +91,7 @@ def test_the_web_replay_in_a_browser_ends_on_the_tables_scores(played, browser):
 def test_the_replay_fold_is_the_scoreboards_table():
     """The fold reads a log's score lines with the core's own Scoreboard (the rows a live core
     publishes), lets the match's final word fix lines a log lacks, and stops at a log's own tables."""
-    from robo_comp.wall.replay import ScoreFold
+    from robo_comp.view.score import ScoreFold
 
     fold = ScoreFold()
     fold.feed("core.started", {"teams": ["a", "b"]})

@@ -168,16 +168,18 @@ def test_bench_is_deterministic_and_scores_with_the_real_rules():
     assert other[3] != first[3]
 
 
-def test_bench_refuses_what_it_does_not_simulate_and_bad_uploads():
+def test_bench_radios_through_the_match_and_refuses_bad_uploads():
     with Bench("demo_room", "blue", robots=2) as b:
         assert b.tags == [101, 102]
         assert b.true_cell(101)[0] >= 20  # blue starts on the right
         with pytest.raises(UploadError):
             b.load("x.py", "MANIFEST = {'name': 'x'}\n")
         b.load("r.py", 'MANIFEST = {"name": "r", "version": "1", "kind": "extension", '
-                       '"tasks": {"call": {"args": []}}}\n\ndef call(robot):\n    return robot.radio(101, "hi")\n')
-        with pytest.raises(TaskError, match="does not simulate 'radio'"):
-            b.run("call", tag=102)
+                       '"tasks": {"call": {"args": [{"name": "to", "type": "int"}]}}}\n\ndef call(robot, to):\n    return robot.radio(to, "hi")\n')
+        assert b.run("call", 101, tag=102) == 1  # the match delivered it to the teammate, as live
+        assert b.by_tag[101].inbox[-1] == {"from": 102, "data": "hi"}
+        with pytest.raises(TaskError, match="radio reaches your own team only"):
+            b.run("call", 999, tag=102)
     with pytest.raises(FieldError, match="no team 'green'"):
         Bench("demo_room", "green")
 

@@ -51,6 +51,35 @@ def test_upload_dialog_shows_each_verdict(tmp_path: Path) -> None:
     asyncio.run(scenario())
 
 
+def test_a_path_typed_into_the_upload_dialog_is_sent(tmp_path: Path) -> None:
+    """Typed key by key into the path field, then ctrl+u: that file is sent (ctrl+u used to be the
+    field's own "delete to the start", so the typed path was wiped and nothing sent); a relative
+    path is taken in the folder the picker shows."""
+    (tmp_path / "extensions").mkdir()
+    (tmp_path / "extensions" / "good.py").write_text(GOOD)
+    link = CannedLink("team", "red", upload=True)
+
+    async def scenario() -> None:
+        app = TeamApp(link=link, upload_dir=tmp_path, **FIXED)  # type: ignore[arg-type]
+        async with app.run_test(size=(80, 24)) as pilot:
+            await until(pilot, lambda: app.core_features.get("upload"), 15, "feature detection")
+            for typed in (str(tmp_path / "extensions" / "good.py"), "extensions/good.py"):
+                await pilot.press("u")
+                dlg = await until(pilot, lambda: isinstance(app.screen, UploadScreen) and app.screen, 15, "the dialog")
+                await pilot.click("#path")
+                await pilot.press(*typed)
+                await until(pilot, lambda: dlg.query_one("#path").value == typed, 15, "the typed path")
+                before = len(link.sent)
+                await pilot.press("ctrl+u")
+                await until(pilot, lambda: "✓ robot 101: square 1.0" in screen_text(app), 15, f"the verdict on {typed}")
+                sent = [b for t, b in link.sent[before:] if t == "upload"]
+                assert [(b["filename"], b["source"]) for b in sent] == [("good.py", GOOD)], sent
+                await pilot.press("escape")
+                await until(pilot, lambda: not isinstance(app.screen, UploadScreen), 15, "the dialog closed")
+
+    asyncio.run(scenario())
+
+
 def test_task_form_sends_typed_arguments() -> None:
     link = CannedLink("team", "red")
 
@@ -84,7 +113,8 @@ def test_referee_approves_a_pending_upload_and_disqualifies_with_confirmation() 
         app = RefereeApp(link=link, **FIXED)  # type: ignore[arg-type]
         async with app.run_test(size=(120, 40)) as pilot:
             await until(pilot, lambda: app.core_features.get("approve"), 15, "feature detection")
-            link.on_event("upload.pending", "red", {"upload_id": 4, "team": "red", "filename": "square.py"})
+            link.on_event("upload.pending", "red", {"upload_id": 4, "team": "red", "tags": [101], "filename": "square.py",
+                                                   "sha256": "ab12", "by": "red"})
             await until(pilot, lambda: any("press a to approve" in n for n in notifications(app)), 15, "the toast")
             await pilot.press("a")
             await until(pilot, lambda: isinstance(app.screen, FormScreen), 15, "the approve form")
@@ -112,9 +142,9 @@ def test_clicking_a_robot_on_the_map_selects_it() -> None:
             await until(pilot, lambda: app.selected == 101, 15, "the first robot selected")
             m = app.screen.query_one("#map")
             await pilot.pause(0.3)
-            cx, cy = m._scale  # noqa: SLF001
+            col, line = m.cell_to_screen(18, 3)
             # robot 102 stands at (18, 3): click its character (inside the border: +1, +1)
-            await pilot.click("#map", offset=(int((18 + 0.5) * cx) + 1, int((3 + 0.5) * cy) + 1))
+            await pilot.click("#map", offset=(col + 1, line + 1))
             await until(pilot, lambda: app.selected == 102, 15, "robot 102 selected")
             assert "Monitor · robot 102" in screen_text(app)
 

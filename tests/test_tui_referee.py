@@ -5,7 +5,7 @@ import asyncio
 
 from conftest import CoreHandle
 
-from robo_comp.tui.connection import LinkState
+from robo_comp.link import LinkState
 from robo_comp.tui.referee_app import RefereeApp
 from robo_comp.tui.screens.confirm import ConfirmScreen
 from robo_comp.tui.screens.forms import FormScreen

@@ -7,7 +7,7 @@ from pathlib import Path
 from conftest import CoreHandle, wait_robots
 
 from robo_comp.launch import start_core
-from robo_comp.tui.connection import LinkState
+from robo_comp.link import LinkState
 from robo_comp.tui.screens.give_task import GiveTaskScreen
 from robo_comp.tui.screens.upload import UploadScreen
 from robo_comp.tui.team_app import TeamApp

@@ -6,7 +6,7 @@ import asyncio
 import pytest
 
 from robo_comp.errors import ConnectionLostError, NotYoursError
-from robo_comp.tui.connection import CoreLink, LinkState
+from robo_comp.link import CoreLink, LinkState
 from robo_comp.tui.model import ConsoleModel, LogEntry, describe_event, fmt_clock, task_label
 from robo_comp.tui.testing import demo_data
 from robo_comp.tui.widgets.task_form import parse_arg

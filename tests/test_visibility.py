@@ -31,8 +31,8 @@ LEAD = 3.0
 
 
 def every_topic() -> list[tuple[str, str | None, dict[str, Any]]]:
-    """One event of every topic, shaped as the core logs it, with every private field a marker."""
-    secret = {k: SECRET for k in P.PRIVATE_KEYS}
+    """One event of every topic, shaped as the core logs it, with every private field of its topic
+    (what the table keeps from the public) a marker."""
     pos = {"tags": [101, 201], "x": [2.0, 20.0], "y": [8.0, 2.0], "heading": [0.0, 90.0], "moving": [True, False]}
     events: dict[str, tuple[str | None, dict[str, Any]]] = {
         "robot.registered": ("red", {"tag": 101, "team": "red", "robot_id": SECRET, "x": 2, "y": 8, "heading": 0,
@@ -74,14 +74,17 @@ def every_topic() -> list[tuple[str, str | None, dict[str, Any]]]:
         "integrity": (None, {"kind": "pose", "tag": 101, "team": "red", "count": 1, "x": 2, "y": 8,
                              "message": SECRET}),
         "robot.handover": ("red", {"tag": 101, "by": "referee", "from": SECRET}),
+        # team code's debug drawing: the team's own (this match's debug_replay is the default, "team")
+        "debug.draw": ("red", {"team": "red", "tags": [101], "frames": [[["t", 2.0, 8.0, SECRET, "#ffffff"]]]}),
     }
     out = []
     for topic in P.TOPICS:
         if topic in ("core.started", "core.recovered"):
             continue  # the recording's start; a replay does not publish them again
         team, data = events[topic]
-        if P.PUBLIC_TOPICS.get(topic, ()) is None:
-            data = {**secret, **data}  # every private key, also those the topic never has
+        row = P.TABLE[topic]
+        if not row.private:  # every field the table keeps from the public, also those this sample lacks
+            data = {**data, **{k: SECRET for k in row.fields - set(row.public)}}
         out.append((topic, team, data))
     assert {t for t, _, _ in out} | {"core.started", "core.recovered"} == set(P.TOPICS)
     return out
@@ -108,26 +111,34 @@ def leaks(frames: list[tuple[str, str]]) -> list[tuple[str, str]]:
     return [(t, text) for t, text in frames if SECRET in text or t in P.PRIVATE_TOPICS]
 
 
-def test_the_table_covers_every_topic_and_every_private_emit() -> None:
-    """Every topic is public or private in the table, and every place in the core that emits an
-    event with ``public=False`` emits a topic the table keeps private (a public topic's private
-    fields, as a ``picture``'s victims, are the table's to strip: the core emits each event once)."""
+def test_the_table_is_the_one_place_that_decides_visibility() -> None:
+    """Every topic is public or private in the table, and nothing else decides: no place that
+    emits an event says whether it is public (the core emits each event once, and the table
+    strips a public topic's private fields, as a ``picture``'s victims)."""
     assert set(P.TOPICS) == P.PUBLIC_TOPICS.keys() | P.PRIVATE_TOPICS
     assert not P.PUBLIC_TOPICS.keys() & P.PRIVATE_TOPICS
     assert P.public_event("not.a.topic", {"x": 1}) is None  # a topic nobody listed is private
     # the referee's broadcast reaches the public feeds with its message, and with nothing else
     assert P.public_event("broadcast", {"message": "hi", "by": "referee", "x": 1}) == {"message": "hi", "by": "referee"}
-    root = Path(P.__file__).parents[1] / "core"
-    seen = 0
-    for f in root.glob("*.py"):
+    root = Path(P.__file__).parents[1]
+    emits = 0
+    for f in root.rglob("*.py"):
         for node in ast.walk(ast.parse(f.read_text())):
             if isinstance(node, ast.Call) and getattr(node.func, "attr", "") == "emit" and node.args \
-                    and isinstance(node.args[0], ast.Constant) and any(
-                        k.arg == "public" and isinstance(k.value, ast.Constant) and k.value.value is False
-                        for k in node.keywords):
-                seen += 1
-                assert node.args[0].value in P.PRIVATE_TOPICS, (f.name, node.lineno)
-    assert seen >= 5
+                    and isinstance(node.args[0], ast.Constant) and isinstance(node.args[0].value, str):
+                emits += 1
+                assert not any(k.arg == "public" for k in node.keywords), (f.name, node.lineno)
+    assert emits >= 30
+
+
+def test_the_table_says_what_is_wrong_with_an_event() -> None:
+    """``check_event`` (which the tests run on every event a core logs) finds each kind of fault."""
+    good = {"tag": 101, "task_id": 1, "name": "goTo", "args": [1, 2]}
+    assert P.check_event("task.started", good) is None
+    assert "not a topic" in P.check_event("task.begun", good)
+    assert "without task_id" in P.check_event("task.started", {k: v for k, v in good.items() if k != "task_id"})
+    assert "not in the table: colour" in P.check_event("task.started", dict(good, colour="red"))
+    assert "not a map" in P.check_event("task.started", [1, 2])
 
 
 def test_a_web_replay_with_every_topic_shows_nothing_private(tmp_path: Path) -> None:
@@ -177,3 +188,69 @@ def test_a_replay_core_publishes_nothing_private(tmp_path: Path) -> None:
     assert proc.returncode == 0, (state / "replay.log").read_text()[-2000:]
     assert not leaks(got), leaks(got)[:5]
     assert {t for t in topics if t in P.PUBLIC_TOPICS} <= {t for t, _ in got}
+
+
+def mcap_messages(path: Path) -> list[tuple[str, str]]:
+    """Every message of an MCAP file, decoded, as (topic, its text: JSON, or an image's bytes)."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    out = []
+    with open(path, "rb") as f:
+        for _, channel, _, m in make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages():
+            data = getattr(m, "data", None)
+            out.append((channel.topic, data if isinstance(data, str) else  # JSON (std_msgs/String)
+                        bytes(data).decode("latin-1") if channel.topic == "/pictures" else str(m)))
+    return out
+
+
+def test_a_public_mcap_export_carries_nothing_private(tmp_path: Path) -> None:
+    """``robo-comp export mcap`` (its default view, public): no marker in any message, no private
+    topic on ``/events``, no picture's image; the public topics are there. Before, the export wrote
+    every record whole and every picture."""
+    pytest.importorskip("mcap_ros2", reason="the mcap extra is not installed (pip install -e '.[mcap]')")
+    from robo_comp.export.mcap import export_mcap
+
+    log = tmp_path / "m" / "events.log"
+    topics = write_every_topic(log)
+    (log.parent / "pictures").mkdir()
+    (log.parent / "pictures" / "1.png").write_bytes(b"\x89PNG\r\n\x1a\n" + SECRET.encode())  # red's picture 1
+    export_mcap(log, tmp_path / "public.mcap")
+    got = mcap_messages(tmp_path / "public.mcap")
+    assert not [m for m in got if SECRET in m[1]], [m for m in got if SECRET in m[1]][:5]
+    events = [json.loads(text) for t, text in got if t == "/events"]
+    assert not {e["topic"] for e in events} & P.PRIVATE_TOPICS
+    assert {e["topic"] for e in events} == {"core.started", *(t for t in topics if t in P.PUBLIC_TOPICS)}
+    assert "/pictures" not in {t for t, _ in got}
+    # the team's and the referee's views of the same log hold the markers and the picture
+    export_mcap(log, tmp_path / "red.mcap", view="team:red")
+    red = mcap_messages(tmp_path / "red.mcap")
+    assert any(SECRET in text for t, text in red if t == "/pictures") and any(SECRET in m[1] for m in red)
+    export_mcap(log, tmp_path / "blue.mcap", view="team:blue")
+    blue = mcap_messages(tmp_path / "blue.mcap")
+    assert {json.loads(text)["team"] for t, text in blue if t == "/events"} <= {"blue", P.EVERYONE, None}
+    assert "/pictures" not in {t for t, _ in blue}  # red's picture
+
+
+def test_the_viewers_fold_only_what_the_table_describes() -> None:
+    """The wall's and web's fold (view.MatchView) and the consoles' model take parsing from the
+    topic table: an event lacking what its topic always carries is skipped, not folded (and does
+    not crash the viewer); a public view of an event (its private fields left out) is folded."""
+    from robo_comp.tui.model import ConsoleModel
+    from robo_comp.view.model import MatchView
+
+    full = {"tag": 101, "team": "red", "robot_id": "red-1", "x": 2.0, "y": 8.0, "heading": 0.0, "tasks": []}
+    public = P.public_event("robot.registered", full)
+    broken = {"team": "red", "x": 2.0}  # no tag: a damaged record, or a hostile log
+    assert P.readable("robot.registered", full) and P.readable("robot.registered", public)
+    assert not P.readable("robot.registered", broken) and not P.readable("robot.registered", [1])
+    view = MatchView()
+    view.apply("robot.registered", broken)
+    view.apply("robot.lost", {"x": 1})
+    assert view.robots == {} and view.skipped == 2
+    view.apply("robot.registered", public)
+    assert list(view.robots) == [101]
+    console = ConsoleModel()
+    assert console.apply("robot.registered", "red", broken) is None and console.robots == {}
+    console.apply("robot.registered", "red", full)
+    assert list(console.robots) == [101]

@@ -17,9 +17,10 @@ import pygame  # noqa: E402
 import pytest  # noqa: E402
 
 from conftest import wait_for, wait_robots  # noqa: E402
+from robo_comp.view import colours as C  # noqa: E402
 from robo_comp.wall import render as R  # noqa: E402
 from robo_comp.wall.app import LiveSource, WallApp  # noqa: E402
-from robo_comp.wall.model import WallModel  # noqa: E402
+from robo_comp.view.model import MatchView  # noqa: E402
 from robo_comp.wall.replay import ReplaySource  # noqa: E402
 from robo_comp.wall.view import Layout, MapGeometry, TileSpec, ViewState  # noqa: E402
 
@@ -44,7 +45,7 @@ def walls_open():
 
 def open_wall(core, team: str, apps: list[WallApp], clock: FakeClock) -> WallApp:
     src = LiveSource(str(core.state), core.token(team))
-    model = WallModel()
+    model = MatchView()
     src.start(model)
     app = WallApp(model, TileSpec(width=1000, height=640), source=src, fps=0, clock=clock,
                   double_click=0.4, path_wait=0.5)
@@ -189,7 +190,7 @@ def test_a_team_wall_cannot_command_another_teams_robot_and_shows_the_refusal(co
     wait_for(lambda: (app.step(wait=False), tag in app.monitor_data)[1], 5, "the monitor's answer")
     assert str(app.monitor_data[tag]).startswith("refused:")
     # several walls at once: the referee's wall beside blue's sees the same robot
-    ref_model = WallModel()
+    ref_model = MatchView()
     ref_src = LiveSource(str(core.state), core.token("referee"))
     walls_open.append(WallApp(ref_model, TileSpec(), source=ref_src))
     ref_src.start(ref_model)
@@ -244,7 +245,7 @@ def test_cli_screenshots_live_and_from_a_replay_in_tiles(core, tmp_path):
                     "--screenshot", str(shot), "--size", "900x560"))
     img = pygame.image.load(str(shot))
     arena = ref.arena()
-    colours = {t["name"]: R.hex_rgb(t["colour"]) for t in arena["teams"]}
+    colours = {t["name"]: C.hex_rgb(t["colour"]) for t in arena["teams"]}
     geom = MapGeometry.of(Layout.of((900, 560)), arena["width"], arena["height"], ViewState())
     for row in rows:  # every robot, in its team's colour, where the core says it is
         assert tuple(img.get_at(geom.cell_centre(row["x"], row["y"])))[:3] == colours[row["team"]]
@@ -262,7 +263,7 @@ def test_cli_screenshots_live_and_from_a_replay_in_tiles(core, tmp_path):
     for p in procs:
         finish(p)
     # the single window, rendered here from the same log with the same view
-    model = WallModel()
+    model = MatchView()
     src = ReplaySource(log)
     src.attach(model)
     src.seek(model, src.duration)

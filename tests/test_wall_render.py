@@ -13,9 +13,10 @@ import pygame  # noqa: E402
 import pytest  # noqa: E402
 
 from robo_comp.core.eventlog import EventLog  # noqa: E402
+from robo_comp.view import colours as C  # noqa: E402
 from robo_comp.wall import render as R  # noqa: E402
 from robo_comp.wall.interact import Command, Interaction  # noqa: E402
-from robo_comp.wall.model import WallModel  # noqa: E402
+from robo_comp.view.model import MatchView  # noqa: E402
 from robo_comp.wall.render import Overlay, Renderer  # noqa: E402
 from robo_comp.wall.replay import ReplaySource  # noqa: E402
 from robo_comp.wall.view import Layout, MapGeometry, TileSpec, ViewState  # noqa: E402
@@ -55,8 +56,8 @@ def snapshot() -> dict:
             "finds": []}
 
 
-def model() -> WallModel:
-    m = WallModel(clock=lambda: 0.0)
+def model() -> MatchView:
+    m = MatchView(clock=lambda: 0.0)
     m.load_snapshot(snapshot())
     m.apply("find.reported", {"id": 1, "team": "blue", "tag": 102, "x": 8.0, "y": 16.0, "kind": "victim",
                               "state": "confirmed", "evidence": [7]})
@@ -67,7 +68,7 @@ def model() -> WallModel:
     return m
 
 
-def render(m: WallModel, tile: TileSpec, view: ViewState | None = None, overlay: Overlay | None = None):
+def render(m: MatchView, tile: TileSpec, view: ViewState | None = None, overlay: Overlay | None = None):
     surf = pygame.Surface(tile.size, 0, 32)
     r = Renderer(m, tile, view or ViewState())
     r.draw(surf, None, overlay)
@@ -106,18 +107,18 @@ def test_screenshot_pixels_walls_robots_lost_marker_finds_scoreboard(tmp_path):
     geom = r.geometry()
     assert geom is not None
     # a wall cell (the inner wall at column 15) and a free floor cell
-    assert px(surf, geom.cell_centre(15, 8)) == R.WALL
-    assert px(surf, geom.cell_centre(8, 8)) == R.FLOOR
-    assert px(surf, geom.cell_centre(14, 8)) == R.NEAR_WALL  # cost shading beside the wall
+    assert px(surf, geom.cell_centre(15, 8)) == C.WALL
+    assert px(surf, geom.cell_centre(8, 8)) == C.FLOOR
+    assert px(surf, geom.cell_centre(14, 8)) == C.NEAR_WALL  # cost shading beside the wall
     # one robot of each team in its colour; the lost robot under its marker; the left one not drawn
-    assert px(surf, geom.cell_centre(5, 5)) == R.hex_rgb(RED)
-    assert px(surf, geom.cell_centre(10, 12)) == R.hex_rgb(BLUE)
-    assert px(surf, geom.cell_centre(20, 10)) == R.LOST_MARK
-    assert px(surf, geom.cell_centre(22, 12)) == R.FLOOR
+    assert px(surf, geom.cell_centre(5, 5)) == C.hex_rgb(RED)
+    assert px(surf, geom.cell_centre(10, 12)) == C.hex_rgb(BLUE)
+    assert px(surf, geom.cell_centre(20, 10)) == C.LOST_MARK
+    assert px(surf, geom.cell_centre(22, 12)) == C.FLOOR
     # finds by state, a discovery, a known object
-    assert px(surf, geom.cell_centre(8, 16)) == R.FIND_COLOURS["confirmed"]
-    assert px(surf, geom.cell_centre(3, 16)) == R.FIND_COLOURS["rejected"]
-    assert px(surf, geom.cell_centre(12, 2)) == R.DISCOVERY
+    assert px(surf, geom.cell_centre(8, 16)) == C.FIND_COLOURS["confirmed"]
+    assert px(surf, geom.cell_centre(3, 16)) == C.FIND_COLOURS["rejected"]
+    assert px(surf, geom.cell_centre(12, 2)) == C.DISCOVERY
     assert px(surf, geom.cell_centre(25, 15)) == R.OBJECT
     # the scoreboard: a row per team, in rank order, with text on it
     rows = r.score_rows
@@ -133,7 +134,7 @@ def test_screenshot_pixels_walls_robots_lost_marker_finds_scoreboard(tmp_path):
     assert (got != R.BOX_BG).any(axis=2).sum() > 20
     assert np.array_equal(got, pygame.surfarray.array3d(expect))
     # the team swatch in the scoreboard row
-    assert px(surf, (x + 3, y + h // 2)) == R.hex_rgb(BLUE)
+    assert px(surf, (x + 3, y + h // 2)) == C.hex_rgb(BLUE)
     pygame.image.save(surf, str(tmp_path / "wall.png"))
     assert pygame.image.load(str(tmp_path / "wall.png")).get_size() == (1000, 640)
 
@@ -197,7 +198,7 @@ def test_zoom_factor_fits_any_arena_into_any_window():
         assert g.edge_x(arena[0]) - g.edge_x(0) >= mw - 2 or g.edge_y(arena[1]) - g.edge_y(0) >= mh - 2
 
 
-def interaction(m: WallModel, view: ViewState, tile: TileSpec) -> tuple[Interaction, Renderer]:
+def interaction(m: MatchView, view: ViewState, tile: TileSpec) -> tuple[Interaction, Renderer]:
     r = Renderer(m, tile, view)
     return Interaction(m, view, r.layout, r.geometry, r.panel_boxes, r.robot_radius,
                        double_click=0.4, path_wait=1.0), r
@@ -264,7 +265,7 @@ def test_replay_feeds_the_model_from_an_event_log(tmp_path: Path):
     log.close()
     fake = [0.0]
     src = ReplaySource(tmp_path / "events.log", speed=4.0, clock=lambda: fake[0])
-    m = WallModel()
+    m = MatchView()
     src.attach(m)
     src.advance(m)
     assert m.arena is not None and not m.robots  # the log's first event carries the arena

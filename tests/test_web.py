@@ -24,7 +24,7 @@ pytest.importorskip("starlette", reason="the web extra is not installed (pip ins
 from conftest import wait_for, wait_robots
 from robo_comp.core.eventlog import EventLog
 from robo_comp.testing import Match, start_match
-from robo_comp.wall.model import WallModel
+from robo_comp.view.model import MatchView
 from robo_comp.protocol import public_event
 from robo_comp.world.public import arena_payload
 from robo_comp.world.scenario import bundled_scenario_path, load_scenario
@@ -402,7 +402,7 @@ def test_replay_seek_lands_on_the_right_state(browser, tmp_path: Path) -> None:
                 page.wait_for_function("() => robo.model.robots.size > 0", timeout=10000)
                 got = page.evaluate("() => [robo.model.robots.get(101).x, robo.model.robots.get(101).status]")
                 # the reference: the display wall's model fed with the log's public events up to `at`
-                ref = WallModel()
+                ref = MatchView()
                 from robo_comp.protocol.logfile import read_log
                 recs = list(read_log(log))
                 for rec in recs:

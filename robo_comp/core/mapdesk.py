@@ -14,7 +14,7 @@ from typing import Any
 
 from robo_comp import protocol as P
 from robo_comp.core.desk import Access, Outbox
-from robo_comp.core.registry import RobotStatus
+from robo_comp.protocol.states import RobotStatus
 from robo_comp.errors import FieldError
 from robo_comp.world.mapservice import MapService
 from robo_comp.world.scenario import Scenario

@@ -20,7 +20,7 @@ MATCH_FILE = "match.json"
 OPTIONS = {"teams": "--teams", "scenario_sha256": "--scenario", "practice": "--practice",
            "approve_uploads": "--approve-uploads", "rules": "--rules", "curve": "--curve",
            "pose_hz": "--pose-hz", "heartbeat": "--heartbeat", "port": "--port", "robots": "--robots",
-           "max_speed": "--max-speed"}
+           "max_speed": "--max-speed", "debug_replay": "--debug-replay"}
 
 
 def scenario_hash(path: str | None) -> str | None:

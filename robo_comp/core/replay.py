@@ -2,7 +2,7 @@
 
 A :class:`ReplayCore` is a core that takes its events from a match's event log instead of
 from robots: it rebuilds the state record by record with the same code that recovers a core
-after a crash (:class:`robo_comp.core.recovery.Replayer`), publishes each event on its PUB
+after a crash (:class:`robo_comp.match.restore.Restorer`), publishes each event on its PUB
 socket and pushes it to watching consoles, and answers every *reading* request (``robots``,
 ``monitor``, ``tasks``, ``snapshot``, ``score``, ``map``, ``picture.get`` ...) exactly as a
 live core would. So walls and consoles consume a replay like a live match: point their
@@ -24,9 +24,9 @@ from pathlib import Path
 from robo_comp import protocol as P
 from robo_comp.protocol.curve import keys_dir
 from robo_comp.protocol.logfile import LogRecord, read_recording
-from robo_comp.core.recovery import Replayer
 from robo_comp.core.server import Core
 from robo_comp.errors import FieldError, ForbiddenError
+from robo_comp.match.restore import Restorer
 from robo_comp.world.public import scenario_from_payload
 
 #: Requests a replay answers; everything else would change the match and is refused.
@@ -61,7 +61,7 @@ class ReplayCore(Core):
         self.log_path = log
         self.speed = speed
         self.exit_at_end = exit_at_end
-        self.replayer = Replayer(self)
+        self.replayer = Restorer(self.match)
         self.t0 = self.records[0].t if self.records else 0.0
         self.next = 0
         self.at = 0.0  # seconds of the recording played so far
@@ -78,8 +78,7 @@ class ReplayCore(Core):
         """Play what is due, then heartbeats to watchers (a replay has no robots to lose and no
         clock of its own to run)."""
         self.advance()
-        if self._refused_anon:
-            self._log_refused()
+        self.access.tell_refused()
         hb = P.request("heartbeat", 0, {"t": time.time(), "core_id": self.core_id})
         for ident, s in list(self.sessions.items()):
             if s.watching or s.tags:
@@ -126,12 +125,12 @@ class ReplayCore(Core):
     def _publish(self, rec: LogRecord) -> None:
         if rec.topic == "robot.positions":  # the log's batch of all teams → the feed's batch per team
             d = rec.data
-            robots = self.registry.robots
+            robots = self.match.registry.robots
             for tag, x, y, h in zip(d["tags"], d["x"], d["y"], d["heading"]):
                 r = robots.get(tag)
                 if r is not None:
-                    self._posed.setdefault(r.team, set()).add(tag)
-            self._publish_positions()
+                    self.match.posed.setdefault(r.team, set()).add(tag)
+            self.feed.publish_now()
         elif rec.topic not in ("core.started", "core.recovered"):
             self.emit(rec.topic, rec.team, rec.data, log_it=False)
 

@@ -25,9 +25,7 @@ import socket
 import time
 import traceback
 from collections import deque
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
-from functools import partial
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -35,85 +33,54 @@ import zmq
 
 from robo_comp import protocol as P
 from robo_comp.core.competition import Competition
-from robo_comp.protocol.curve import ServerKeys, ZapHandler, load_server_keys, secure_plain_server, secure_server
+from robo_comp.protocol.curve import ServerKeys, ZapHandler, load_server_keys
 from robo_comp.core.mapdesk import MapDesk
 from robo_comp.core.uploads import UploadDesk
-from robo_comp.core.eventlog import EventLog, StorageFault
+from robo_comp.core.eventlog import EventLog
 from robo_comp.core.guard import (
-    HANDSHAKE_SECONDS,
     PER_ADDRESS,
     PUB_INBOUND,
     SWEEP_SECONDS,
     ConnectionGuard,
     GuardLimits,
+    copy_received,
     raise_fd_limit,
 )
 from robo_comp.private_files import private_dir
 from robo_comp.core.recovery import RecoveryReport, recover
+from robo_comp.core.robotdesk import RobotDesk
+from robo_comp.core.sessiondesk import SessionDesk
+from robo_comp.core.feed import PositionFeed
+from robo_comp.core.outqueue import OutQueue
 from robo_comp.core.sessions import Session
-from robo_comp.core.registry import RobotRecord, RobotStatus, Registry
-from robo_comp.core.tasks import TaskMachine, TaskMode, TaskRecord, TaskState
-from robo_comp.protocol.taskspec import check_args, check_specs, find_spec
+from robo_comp.core.sockets import open_pub, open_router
+from robo_comp.match.model import Match
+from robo_comp.match.registry import RobotRecord
+from robo_comp.protocol.states import Phase
 from robo_comp.errors import (
     AuthError,
-    FieldError,
     ForbiddenError,
-    HeldError,
-    ImplausibleError,
     MalformedError,
-    NotYoursError,
-    RateLimitError,
     RoboCompError,
     StorageError,
-    TimeoutError_,
-    TooLargeError,
-    UnavailableError,
 )
-from robo_comp.match.plausibility import MAX_NOISE, MAX_SIGMA, PoseGate
 from robo_comp.plugins.manager import get_plugin_manager
 from robo_comp.scoring.config import ScoringConfig
-from robo_comp.scoring.match import CLOCK_PERIOD
-from robo_comp.teams.policy import check_owner, check_referee
-from robo_comp.teams.tokens import ORGANISER, REFEREE, Principal, TokenBook
+from robo_comp.match.clock import CLOCK_PERIOD
+from robo_comp.teams.policy import check_referee
+from robo_comp.teams.tokens import Principal, TokenBook
 from robo_comp.world.public import arena_payload
 from robo_comp.world.scenario import Scenario
 
 log = logging.getLogger("robo_comp.core")
 
-#: How long a console session may stay silent before it is forgotten (watchers heartbeat).
-SESSION_IDLE = 300.0
-STOP_TIMEOUT = 2.0
-#: Events queued per PUB subscriber before the slowest ones start missing events (ZMQ_SNDHWM).
-#: Positions travel conflated (one batch per team per pose period), so 2,000 events are tens of
-#: seconds of a 1,000-robot match.
-PUB_QUEUE = 2_000
 #: Position batches per second: reports that arrive in between are conflated (the newest pose wins).
 POSE_HZ = 10.0
-#: Robots per ``robot.positions`` event (and per logged sample record): one such chunk is the
-#: largest piece of background work between two looks at the socket.
-POSE_CHUNK = 500
-MAX_RESULT = 64 * 1024
-#: Without ``--max-speed``: the fastest a robot may be (cells/s) is this many times the scenario's
-#: robot speed (hosts declare their robots' speed at ``register``; a faster claim is cut to this).
-MAX_SPEED_FACTOR = 4.0
-#: Frames held back while the log cannot be written, at most (the oldest go first).
-HELD_FRAMES = 50_000
 #: Requests served while the event log cannot be written: they log nothing, or (stop) must never
 #: wait for a disk; everything else gets E_STORAGE and changes nothing.
 STORAGE_FREE = frozenset({"hello", "heartbeat", "bye", "watch", "robots", "monitor", "tasks", "snapshot", "arena",
                           "stats", "score", "map", "map.delta", "picture.get", "extensions", "stop", "report",
                           "reports", "reply"})
-
-
-@dataclass(slots=True)
-class PendingStop:
-    """A stop forwarded to a robot host, waiting for its acknowledgement."""
-
-    ident: bytes
-    req_id: int
-    tag: int
-    deadline: float
-    t0: float
 
 
 class Core:
@@ -129,43 +96,41 @@ class Core:
         self.state_dir = private_dir(state_dir)  # tokens, logs, uploads, pictures: the organiser's (0700)
         self.scenario = scenario
         self.tokens = TokenBook(self.state_dir, teams or [t.name for t in scenario.teams])
-        self._arena_payload = arena_payload(scenario, self.tokens.teams)
+        self.arena_payload = arena_payload(scenario, self.tokens.teams)
         #: CurveZMQ (``--curve``): the core's keys and the allow list from STATE/keys, else None.
         self.curve: ServerKeys | None = load_server_keys(self.state_dir, self.tokens.teams) if curve else None
-        self._zap: ZapHandler | None = None
-        # who the transport let in for the frame being handled: the CurveZMQ key's owner, or the
-        # PLAIN token's principal as "role:name" (the ZAP handler's user id); see _drain
-        self._key_owner: str | None = None
+        #: The transport's credential check (ZAP), made in bind().
+        self.zap: ZapHandler | None = None
+        #: Who the transport let in for the frame being handled: the CurveZMQ key's owner, or the
+        #: PLAIN token's principal as "role:name" (the ZAP handler's user id); see _drain.
+        self.key_owner: str | None = None
         self.host = host
         self.port = port
         self.pub_port = pub_port
         self.heartbeat = heartbeat
-        self.registry = Registry()
-        #: At most this many robots per team (None: what the scenario gives each team).
-        self.robots_per_team = robots_per_team
-        fastest_zone = max([1.0, *(z.speed_factor for z in scenario.zones)])
-        #: The fastest a robot may drive (cells/s): a host's declared speed is cut to it.
-        self.max_speed = float(max_speed) if max_speed else scenario.kinematics.speed * fastest_zone * MAX_SPEED_FACTOR
-        self._default_speed = min(self.max_speed, scenario.kinematics.speed * fastest_zone)
-        #: Fair play: which reported poses a robot could have reached (robo_comp.match.plausibility).
-        self.gate = PoseGate(scenario.walls, self.max_speed)
-        # claims about the world not believed since the last beat: (tag, kind) -> [count, the last reason]
-        self._implausible: dict[tuple[int, str], list[Any]] = {}
-        self.tasks = TaskMachine(self._task_started, self._task_finished)
+        self.pm = plugins or get_plugin_manager()
+        #: The match this core drives (robots, their tasks, the contest): no sockets; its events and
+        #: directives come back through this core's MatchOutput methods (emit, to_host, ...).
+        self.match = Match(scenario, self.tokens.teams, self, self.pm,
+                           scoring=scoring or ScoringConfig.from_table(scenario.scoring), practice=practice,
+                           robots_per_team=robots_per_team, max_speed=max_speed)
+        self.registry = self.match.registry
+        #: Who sees team code's debug drawing in replays (protocol.topics.DEBUG_REPLAY); set by the CLI.
+        self.debug_replay = "team"
         self.sessions: dict[bytes, Session] = {}
         # Who watches what: team name -> routing ids, and the referee's under None.
         self.watchers: dict[str | None, set[bytes]] = {}
-        self.pending_stops: dict[int, PendingStop] = {}
-        self.next_task_id = 1
         self.next_core_req = 1
         # The core owns its context: the ZAP endpoint (the transport's credential check) is one per context.
         self.ctx = zmq.Context()
+        copy_received(self.ctx)  # a received frame holds its own size, not a shared 8 KiB buffer (see guard.py)
         # Connections are file descriptors: take all the process may have, and bound them (see bind)
         nofile = raise_fd_limit()
         self.ctx.set(zmq.MAX_SOCKETS, max(1024, min(nofile, 65_535)))
         self.limits = GuardLimits.for_fd_limit(nofile, max_connections, max_per_address or PER_ADDRESS)
-        self._guard: ConnectionGuard | None = None
-        self._pub_guard: ConnectionGuard | None = None
+        #: The connection guards of the ROUTER and PUB sockets (made in bind()).
+        self.guard: ConnectionGuard | None = None
+        self.pub_guard: ConnectionGuard | None = None
         self.router: zmq.Socket | None = None
         self.pub: zmq.Socket | None = None
         self._running = False
@@ -173,55 +138,30 @@ class Core:
         self.started = time.monotonic()
         self.core_id = secrets.token_hex(8)  # tells clients when they talk to a restarted core
         self.stats = {"received": 0, "errors": 0, "events": 0, "dropped": 0, "unrouted": 0}
-        # Frames to send after this turn's log flush: (socket, frames, urgent). While the log cannot be
-        # written, only urgent ones leave (heartbeats, stops, refusals, reads, unlogged feed events);
-        # the others wait in _held until the records they acknowledge are in the log.
-        self._out: list[tuple[zmq.Socket, list[bytes], bool]] = []
-        self._held: list[tuple[zmq.Socket, list[bytes], bool]] = []
-        #: Why the event log cannot be written now (None while it can): see _commit.
-        self.storage_fault: str | None = None
-        self._fault_since = 0.0
-        # Routes whose connection went away (a send found no peer): nothing is pushed to them until
-        # their session proves itself again there, so whoever takes such an id next gets nothing.
-        self._unproven: set[bytes] = set()
-        # True while the short path of _handle may serve a proved message (no unproven route, no
-        # storage fault); otherwise every message takes _prove's full path.
-        self._plain_turn = True
-        # Refusals of connections without a session, counted per (type, code) and logged once a beat
-        # (a flood of bad hellos must not flood the log and the referee's console).
-        self._refused_anon: dict[tuple[str, str, Principal | None], list[Any]] = {}
-        self._moved: set[int] = set()  # moved since the last heartbeat (the log's sample)
-        self._posed: dict[str, set[int]] = {}  # team -> robots that reported since the last batch
+        #: What goes out, after each turn's log flush (core/outqueue.py).
+        self.out = OutQueue(self.stats, self.sessions, self.emit)
         # Background work cut into slices of bounded size (position batches, position samples for the
         # log): the loop does one slice per turn and looks at its socket in between, so that a stop
         # never waits behind a whole batch of 10,000 robots.
         self._slices: deque[Callable[[], None]] = deque()
-        self._urgent = False  # an urgent frame (a stop, its answer) is queued: send before handling more
+        #: The robots' poses: the live feed's conflated batches and the log's samples (core/feed.py).
+        self.feed = PositionFeed(self.match, self.emit, self._log_sample, self._slices)
         self.pose_period = 1.0 / pose_hz
         self._handlers: dict[str, Callable[[bytes, P.Message], dict[str, Any] | None]] = {
-            "hello": self._on_hello, "heartbeat": self._on_heartbeat, "bye": self._on_bye,
-            "watch": self._on_watch, "robots": self._on_robots, "monitor": self._on_monitor,
-            "tasks": self._on_tasks, "give": self._on_give, "stop": self._on_stop,
-            "snapshot": self._on_snapshot, "register": self._on_register, "report": self._on_report,
-            "reports": self._on_reports,
-            "task.next": self._on_task_next, "task.done": self._on_task_done, "radio": self._on_radio,
-            "leave": self._on_leave, "reply": self._on_host_reply, "arena": self._on_arena, "stats": self._on_stats,
-            "hosts": self._on_hosts, "handover": self._on_handover,
-        }
-        self.pm = plugins or get_plugin_manager()
+            "snapshot": self._on_snapshot, "arena": self._on_arena, "stats": self._on_stats}
         log_path = self.state_dir / "events.log"
-        # the log is opened after recovery (below); the desks reach it through the core
-        self.maps = MapDesk(self, self, scenario)
-        self.competition = Competition(self, self, scenario, self.tokens.teams, self.pm, self.state_dir,
-                                       self.maps, lambda: self.events,
-                                       scoring or ScoringConfig.from_table(scenario.scoring), practice)
-        self.uploads = UploadDesk(self, self, self.competition, self.state_dir,
-                                  approve_uploads or scenario.approve_uploads)
-        for desk in (self.competition, self.maps, self.uploads):
+        # The desks: each proves who may ask what and hands the rest to the match; the session desk
+        # is the others' Access. The log is opened after recovery (below); they reach it through the core.
+        self.access = SessionDesk(self, self.sessions, self.watchers)
+        self.maps = MapDesk(self.access, self, scenario)
+        self.competition = Competition(self.access, self, self.match, self.state_dir, lambda: self.events)
+        self.uploads = UploadDesk(self.access, self, self.state_dir, approve_uploads or scenario.approve_uploads)
+        self.robots = RobotDesk(self, self.access, self.uploads.host_reply)
+        for desk in (self.access, self.robots, self.competition, self.maps, self.uploads):
             self._handlers.update(desk.handlers())
         self.recovered: RecoveryReport | None = None
         if log_path.exists() and log_path.stat().st_size > 0:
-            self.recovered = recover(self, log_path)
+            self.recovered = recover(self.match, log_path)
             self.events = EventLog(log_path, fsync=fsync, seq=self.recovered.seq,
                                    good_end=self.recovered.good_end, legacy=self.recovered.legacy_tail)
         else:
@@ -236,47 +176,14 @@ class Core:
         file as this core runs it, never the one before an ``--override``)."""
         # the credential check is up before the first handshake can start: a CurveZMQ key from
         # STATE/keys, else a token as the PLAIN password (nothing of a peer without one is buffered)
-        self._zap = ZapHandler(self.ctx, self.curve.allowed if self.curve is not None else None,
-                               self.tokens.lookup)
+        self.zap = ZapHandler(self.ctx, self.curve.allowed if self.curve is not None else None,
+                              self.tokens.lookup)
         _seed_routing_ids()
-        self.router = self.ctx.socket(zmq.ROUTER)
-        if self.curve is not None:
-            secure_server(self.router, self.curve)
-        else:
-            secure_plain_server(self.router)
-        self.router.setsockopt(zmq.LINGER, 0)
-        self.router.setsockopt(zmq.MAXMSGSIZE, P.SOCKET_MAX_FRAME)
-        # A second connection that presents a routing id in use is ignored by libzmq, never handed
-        # the first one's messages (handover would give it the session's pushes and cut the owner off).
-        self.router.setsockopt(zmq.ROUTER_HANDOVER, 0)
-        # A send to a route with no connection fails (EHOSTUNREACH) instead of vanishing: the core
-        # then stops pushing to that route until its session proves itself there again.
-        self.router.setsockopt(zmq.ROUTER_MANDATORY, 1)
-        # Dead connections (a cut cable) are dropped by ZMTP heartbeats, so that their ids free up.
-        self.router.setsockopt(zmq.HEARTBEAT_IVL, int(max(1.0, self.heartbeat) * 2000))
-        self.router.setsockopt(zmq.HEARTBEAT_TIMEOUT, int(max(1.0, self.heartbeat) * 10_000))
-        # a connection that has not proved a credential within this time is closed by libzmq
-        self.router.setsockopt(zmq.HANDSHAKE_IVL, int(HANDSHAKE_SECONDS * 1000))
-        self.router.setsockopt(zmq.SNDHWM, 100_000)
-        self.router.setsockopt(zmq.RCVHWM, 100_000)
-        if self.port == 0:
-            self.port = self.router.bind_to_random_port(f"tcp://{self.host}")
-        else:
-            self.router.bind(f"tcp://{self.host}:{self.port}")
-        self._guard = ConnectionGuard.watch(self.router, self.port, self.limits)
-        self._zap.admit = self._admit
-        self.pub = self.ctx.socket(zmq.PUB)
-        self.pub.setsockopt(zmq.LINGER, 0)
-        # A slow subscriber (a wall on a weak link) gets at most this many events queued for it,
-        # then PUB drops for that subscriber only: bounded memory, and the core never waits.
-        self.pub.setsockopt(zmq.SNDHWM, PUB_QUEUE)
-        secure_server(self.pub, self.curve)
-        self.pub.setsockopt(zmq.MAXMSGSIZE, 1024)  # subscriptions: a topic, a few bytes
-        if self.pub_port == 0:
-            self.pub_port = self.pub.bind_to_random_port(f"tcp://{self.host}")
-        else:
-            self.pub.bind(f"tcp://{self.host}:{self.pub_port}")
-        self._pub_guard = ConnectionGuard.watch(self.pub, self.pub_port, self.limits, PUB_INBOUND)
+        self.router, self.port = open_router(self.ctx, self.host, self.port, self.curve, self.heartbeat)
+        self.guard = ConnectionGuard.watch(self.router, self.port, self.limits, hold=True)
+        self.zap.admit = self.access.admit
+        self.pub, self.pub_port = open_pub(self.ctx, self.host, self.pub_port, self.curve)
+        self.pub_guard = ConnectionGuard.watch(self.pub, self.pub_port, self.limits, PUB_INBOUND)
         shown = "127.0.0.1" if self.host in ("0.0.0.0", "*") else self.host
         info = {"router": f"tcp://{shown}:{self.port}", "pub": f"tcp://{shown}:{self.pub_port}",
                 "pid": os.getpid(), "protocol": P.PROTOCOL_VERSION, "teams": self.tokens.teams,
@@ -289,22 +196,22 @@ class Core:
         tmp.write_text(json.dumps(info, indent=2))
         os.replace(tmp, self.state_dir / "core.json")
         self.emit("core.started", None, {"router": info["router"], "teams": self.tokens.teams,
-                                         "arena": self._arena_payload})
+                                         "arena": self.arena_payload, "debug_replay": self.debug_replay})
         if self.recovered is not None:
             self.emit("core.recovered", None, self.recovered.to_dict())
         self._commit()
 
     def close(self) -> None:
         """Close the sockets and the log of a core that will not run (its start failed)."""
-        for guard in (self._guard, self._pub_guard):
+        for guard in (self.guard, self.pub_guard):
             if guard is not None:
                 guard.close()
         for sock in (self.router, self.pub):
             if sock is not None:
                 sock.close(0)
         self.router = self.pub = None
-        if self._zap is not None:
-            self._zap.close()
+        if self.zap is not None:
+            self.zap.close()
         self.ctx.term()  # the core's own context (see __init__)
         self.events.close()
 
@@ -341,9 +248,9 @@ class Core:
         gc.set_threshold(20_000, 50, 100)
         poller = zmq.Poller()
         poller.register(self.router, zmq.POLLIN)
-        if self._zap is not None:
-            poller.register(self._zap.sock, zmq.POLLIN)
-        for guard in (self._guard, self._pub_guard):
+        if self.zap is not None:
+            poller.register(self.zap.sock, zmq.POLLIN)
+        for guard in (self.guard, self.pub_guard):
             if guard is not None:
                 poller.register(guard.monitor, zmq.POLLIN)
         poller.register(wake, zmq.POLLIN)
@@ -356,38 +263,41 @@ class Core:
                 if next_tick - time.monotonic() > self.heartbeat:  # the clock went back: beat now
                     next_tick = next_pose = time.monotonic()
                 timeout = max(0.0, next_tick - time.monotonic())
-                if self.pending_stops or self.uploads.busy:
+                if self.robots.pending_stops or self.uploads.busy:
                     timeout = min(timeout, 0.05)
                 if self.storage_fault is not None:  # try the log again soon: resume within a fraction of a second
                     timeout = min(timeout, 0.2)
-                if self._posed:
+                if self.match.posed:
                     timeout = min(timeout, max(0.0, next_pose - time.monotonic()))
-                if self.competition.phase == "running":
+                if self.match.contest.phase is Phase.RUNNING:
                     timeout = min(timeout, max(0.0, next_clock - time.monotonic()))
                 if self._slices:  # background work left: look at the socket, then do the next slice
                     timeout = 0.0
-                pub_guard = self._pub_guard
-                if pub_guard is not None and pub_guard.sweeping:  # what PUB's subscribers sent, looked at often
+                pub_guard = self.pub_guard
+                # what each connection sent (PUB's subscribers) or holds (the ROUTER's), looked at often
+                if (pub_guard is not None and pub_guard.sweeping) or (self.guard is not None and self.guard.sweeping):
                     timeout = min(timeout, SWEEP_SECONDS)
                 if poller.poll(math.ceil(timeout * 1000)):
-                    if self._guard is not None:  # connections counted before their handshakes are judged
-                        self._guard.serve()
+                    if self.guard is not None:  # connections counted before their handshakes are judged
+                        self.guard.serve()
                     if pub_guard is not None:
                         pub_guard.serve()
-                    if self._zap is not None:
-                        self._zap.serve()
+                    if self.zap is not None:
+                        self.zap.serve()
                     self._drain()
                     with contextlib.suppress(BlockingIOError):
                         wake.recv(4096)
                 now = time.monotonic()
                 if pub_guard is not None:
                     pub_guard.sweep(now)
-                if self.pending_stops:
-                    self._expire_stops(now)
+                if self.guard is not None:
+                    self.guard.sweep(now)
+                if self.robots.pending_stops:
+                    self.robots.expire_stops(now)
                 if self.uploads.busy:
                     self.uploads.expire(now)
                 if now >= next_pose:
-                    self._queue_positions()
+                    self.feed.queue()
                     next_pose = now + self.pose_period
                 if now >= next_tick:
                     self._tick(now)
@@ -407,14 +317,14 @@ class Core:
             self.competition.log_clock()  # a clean stop records the clock to the last moment
             self._commit()
             self.events.close()
-            for guard in (self._guard, self._pub_guard):
+            for guard in (self.guard, self.pub_guard):
                 if guard is not None:
                     guard.close()
             self.router.close(0)
             assert self.pub is not None
             self.pub.close(0)
-            if self._zap is not None:  # after the servers: no handshake may find no handler
-                self._zap.close()
+            if self.zap is not None:  # after the servers: no handshake may find no handler
+                self.zap.close()
             self.ctx.term()  # the core's own context (see __init__)
 
     def _drain(self, budget: int = 2000) -> None:
@@ -427,9 +337,11 @@ class Core:
             except zmq.Again:
                 return
             owner = first.get("User-Id")
-            self._key_owner = owner if isinstance(owner, str) else None
+            self.key_owner = owner if isinstance(owner, str) else None
             # the rest of the message as bytes (cheaper than a Frame per part)
             frames = [first.bytes, *router.recv_multipart()] if first.more else [first.bytes]
+            if self.guard is not None:  # what this connection was handed, against what it sent (guard.py)
+                self.guard.took(first, frames)
             self.stats["received"] += 1
             ident = frames[0]
             if len(frames) != 2:
@@ -437,7 +349,7 @@ class Core:
                     f"expected exactly one frame per message, got {len(frames) - 1}"), None)
                 continue
             self._handle(ident, frames[1])
-            if self._urgent:  # a stop (or its answer) waits: send it before handling more
+            if self.out.urgent:  # a stop (or its answer) waits: send it before handling more
                 return
 
     def _handle(self, ident: bytes, frame: bytes) -> None:
@@ -451,9 +363,9 @@ class Core:
             # proved (the common case, kept short): the session's secret, compared in constant time;
             # a refusal below (a bad field, say) is then the session's, else nobody's
             proved = False
-            if found is not None and self._plain_turn:
+            if found is not None and self.out.plain:
                 try:
-                    proved = _compare(secret, found.secret) and found.key == self._key_owner
+                    proved = _compare(secret, found.secret) and found.key == self.key_owner
                 except TypeError:  # not ASCII text (bytes, a number, nil ...): not a secret of ours
                     pass
             if proved:
@@ -498,21 +410,15 @@ class Core:
                 "this message does not carry the session secret of this connection's session: every "
                 "message after 'hello' must carry the 'session' value the hello reply gave (as \"s\"); "
                 "a program that took another connection's routing id gets nothing")
-        if self._key_owner != sess.key:
+        if self.key_owner != sess.key:
             if self.curve is not None:
                 raise AuthError(f"this session was opened with {sess.key}'s CurveZMQ key; a frame sent with "
-                                f"{self._key_owner}'s key does not belong to it")
+                                f"{self.key_owner}'s key does not belong to it")
             raise AuthError(f"this session was opened by a connection that presented {sess.key}'s token; a "
-                            f"frame of a connection that presented {self._key_owner}'s does not belong to it")
+                            f"frame of a connection that presented {self.key_owner}'s does not belong to it")
         sess.last_seen = time.monotonic()
-        if self._unproven:
-            self._unproven.discard(ident)
-            self._replan()
+        self.out.proved(ident)
         return sess
-
-    def _replan(self) -> None:
-        """Whether _handle's short path may serve proved messages (see ``_plain_turn``)."""
-        self._plain_turn = not self._unproven and self.storage_fault is None
 
     def _send_error(self, ident: bytes, req_id: int, err: RoboCompError, sess: Session | None,
                     msg_type: str = "?") -> None:
@@ -520,161 +426,43 @@ class Core:
         self._reply(ident, P.error_reply(req_id, err))
         if self.storage_fault is not None:  # nothing more is logged until the log can be written
             return
-        if sess is None or msg_type in P.NOTIFICATIONS:  # counted, and logged once a beat (see _log_refused)
-            key = (msg_type, err.code, sess.who if sess is not None else None)
-            row = self._refused_anon.get(key)
-            if row is None:
-                self._refused_anon[key] = [1, err.message]
-            else:
-                row[0] += 1
+        if sess is None or msg_type in P.NOTIFICATIONS:  # counted, and logged once a beat
+            self.access.count_refused(msg_type, err, sess)
             return
         self.emit("refused", sess.who.team, {"by": sess.who.name, "type": msg_type,
-                                             "code": err.code, "message": err.message}, public=False)
-
-    def _log_refused(self) -> None:
-        """One ``refused`` event per (type, code, sender) with its ``count`` for the refusals since
-        the last beat of connections without a session and of notifications (a report refused ten
-        times a second is one line a beat for the referee, not ten)."""
-        rows, self._refused_anon = self._refused_anon, {}
-        for (msg_type, code, who), (count, message) in sorted(rows.items(), key=lambda kv: (kv[0][0], kv[0][1])):
-            self.emit("refused", who.team if who is not None else None, {
-                "by": who.name if who is not None else "unknown", "type": msg_type, "code": code,
-                "message": message, "count": count}, public=False)
-
-    def _admit(self, principal: Any) -> str | None:
-        """Asked by the ZAP handler about every principal that proved itself: None lets it in, a
-        sentence refuses the handshake (the core is full but for the referee and hosts, or the
-        principal holds its share of the sessions)."""
-        assert self._guard is not None
-        why = self._guard.admit(principal)
-        if why is None and not isinstance(principal, str):
-            why = self._sessions_full(principal)
-        return why
-
-    def _sessions_full(self, who: Principal) -> str | None:
-        """A sentence when ``who`` holds its share of sessions (a quarter of the core's connections;
-        the referee and hosts have no share), else None."""
-        if who.role in ("referee", "host"):
-            return None
-        share = max(16, self.limits.total // 4)
-        held = sum(1 for s in self.sessions.values() if s.who == who)
-        if held >= share:
-            return (f"{who.name} holds {held} sessions, its share of this core's {self.limits.total} connections; "
-                    "close some (or say bye) before opening more")
-        return None
-
-    def _log_refused_handshakes(self) -> None:
-        """One ``refused`` event (type ``connect``) and one log line per peer address whose
-        handshakes the transport refused since the last beat (no valid token or key, ``E_AUTH``)
-        or whose connections the guard cut (over a limit, ``E_RATE``), with their ``count``: a
-        flood is logged in bulk."""
-        rows: list[tuple[str, str, int, str]] = []
-        if self._zap is not None:
-            for (mechanism, address), row in sorted(self._zap.take_refused().items()):
-                rows.append(("E_AUTH", address, row.count, f"{row.count} connection(s) from {address or 'an unknown address'} "
-                             f"were refused ({mechanism}: {row.reason}); libzmq closed them before reading a message"))
-        for guard in (self._guard, self._pub_guard):
-            if guard is None:
-                continue
-            for address, cut in sorted(guard.take_cut().items()):
-                rows.append(("E_RATE", address, cut.count, f"{cut.count} connection(s) from {address} were cut at "
-                             f"once ({cut.reason}); the match goes on"))
-        for code, address, count, message in rows:
-            log.warning("%s", message)
-            self.emit("refused", None, {"by": "unknown", "type": "connect", "code": code, "message": message,
-                                        "count": count, "address": address}, public=False)
+                                             "code": err.code, "message": err.message})
 
     # ------------------------------------------------------------------ output
     def send(self, ident: bytes, frame: bytes, urgent: bool = False) -> None:
         """Queue a frame for session ``ident`` (a push, or a reply that comes later); it leaves in
-        :meth:`_commit`, after the log flush.
-
-        A route whose connection went away gets nothing until its session proves itself there
-        again (see :meth:`_prove`): whoever presents that routing id next gets no push."""
-        if self._unproven and ident in self._unproven:
-            self.stats["unrouted"] += 1
-            return
-        if urgent:
-            self._urgent = True
-        # the router exists once bound, and nothing is queued before: no None check on this hot path
-        self._out.append((self.router, [ident, frame], urgent))  # type: ignore[arg-type]
+        :meth:`_commit`, after the log flush; nothing goes to a route whose connection went away
+        until its session proves itself there again (see :meth:`_prove`)."""
+        self.out.push(self.router, ident, frame, urgent)  # type: ignore[arg-type]  # bound before any send
 
     def _reply(self, ident: bytes, frame: bytes) -> None:
-        """Queue the reply to the message that just came from ``ident`` (whoever sent it). During a
-        storage fault it leaves at once: only requests that log nothing are served then."""
-        self._out.append((self.router, [ident, frame], self.storage_fault is not None))  # type: ignore[arg-type]
+        """Queue the reply to the message that just came from ``ident`` (whoever sent it)."""
+        self.out.reply(self.router, ident, frame)  # type: ignore[arg-type]
+
+    @property
+    def storage_fault(self) -> str | None:
+        """Why the event log cannot be written now (None while it can)."""
+        return self.out.storage_fault
 
     def _commit(self) -> None:
-        """Flush the event log, then send every queued reply and event.
+        """Flush the event log, then send every queued reply and event (see core/outqueue.py): the
+        scoreboard goes out with the replies that changed it."""
+        self.match.contest.flush_score()
+        self.out.commit(self.events)
 
-        Nothing is acknowledged before the events it caused were handed to the OS (and, with
-        ``--fsync``, forced to disk): an acknowledged event survives ``kill -9`` of the core.
-        """
-        self._urgent = False
-        self.competition.flush_score()
-        try:
-            self.events.flush()
-        except StorageFault as fault:
-            if self.storage_fault is None:
-                self._storage_failed(fault)
-            out = [entry for entry in self._out if entry[2]]
-            self._held.extend(entry for entry in self._out if not entry[2])
-            self._out = []
-            if len(self._held) > HELD_FRAMES:  # bounded: the oldest pushes go (replies time out)
-                self.stats["dropped"] += len(self._held) - HELD_FRAMES
-                del self._held[:len(self._held) - HELD_FRAMES]
-        else:
-            if self.storage_fault is not None:
-                self._storage_restored()
-            out, self._held, self._out = self._held + self._out, [], []
-        for sock, frames, _urgent in out:
-            try:
-                sock.send_multipart(frames, zmq.NOBLOCK)
-            except zmq.Again:  # a peer's queue is full (slow consumer): drop, never block the loop
-                self.stats["dropped"] += 1
-            except zmq.ZMQError as e:
-                if e.errno == zmq.EHOSTUNREACH and frames[0] in self.sessions:
-                    # the session's connection is gone: whoever presents this id next must prove it
-                    self._unproven.add(frames[0])
-                    self._plain_turn = False
-                log.debug("send failed: %s", e)
-
-    # ------------------------------------------------------------------ events
-    def _storage_failed(self, fault: StorageFault) -> None:
-        """The log cannot be written: refuse what must be logged until it can (see _handle)."""
-        self.storage_fault = (f"the core cannot write its event log ({fault}): until it can, it refuses what "
-                              "would change the match (E_STORAGE); reads, stops and heartbeats go on. "
-                              "Organiser: free space on the state folder's disk (or fix it); the core goes on "
-                              "by itself")
-        self._fault_since = time.monotonic()
-        self._plain_turn = False
-        self.stats["storage_faults"] = self.stats.get("storage_faults", 0) + 1
-        log.error("%s", self.storage_fault)
-        self.emit("core.storage", None, {"ok": False, "message": self.storage_fault, "errno": fault.errno},
-                  log_it=False)
-
-    def _storage_restored(self) -> None:
-        seconds = time.monotonic() - self._fault_since
-        self.storage_fault = None
-        self._replan()
-        log.warning("the event log is written again after %.1f s", seconds)
-        self.emit("core.storage", None, {"ok": True, "seconds": round(seconds, 3),
-                                         "message": f"the event log is written again (after {seconds:.1f} s)"})
-        try:
-            self.events.flush()  # the event above
-        except StorageFault:
-            pass  # full again at once: the next turn notices
-
-    def emit(self, topic: str, team: str | None, data: dict[str, Any], *, public: bool = True,
-             log_it: bool = True) -> None:
+    def emit(self, topic: str, team: str | None, data: dict[str, Any], *, log_it: bool = True) -> None:
         """Log an event, publish its public view, and push it to watchers who may see it (an
         event that is not logged goes out even while the log cannot be written)."""
         self.stats["events"] += 1
         if log_it:
             self.events.append(topic, team, data)
-        view = P.public_event(topic, data) if public else None  # the one table (protocol/topics.py)
+        view = P.public_event(topic, data)  # who may see what: the one table (protocol/topics.py)
         if view is not None and self.pub is not None:
-            self._out.append((self.pub, [topic.encode(), P.pack(view)], not log_it))
+            self.out.publish(self.pub, [topic.encode(), P.pack(view)], not log_it)
         if team == P.EVERYONE:
             targets: list[bytes] = [i for group in self.watchers.values() for i in group]
         else:
@@ -688,84 +476,30 @@ class Core:
         if topic != "robot.positions":
             self.pm.hook.robo_comp_event(topic=topic, team=team, data=data)
 
-    def _set_watch(self, s: Session, on: bool) -> None:
-        s.watching = on
-        group = self.watchers.setdefault(s.who.team, set())
-        if on:
-            group.add(s.ident)
-        else:
-            group.discard(s.ident)
+    def forget_route(self, ident: bytes) -> None:
+        """Connection ``ident``'s session is gone: it is no longer an unproven route."""
+        self.out.proved(ident)
 
-    def _forget(self, ident: bytes) -> Session | None:
-        s = self.sessions.pop(ident, None)
-        if s is not None:
-            self._set_watch(s, False)
-        if self._unproven:
-            self._unproven.discard(ident)
-            self._replan()
-        return s
-
-    # ------------------------------------------------------------------ helpers
-    def session(self, ident: bytes) -> Session:
-        s = self.sessions.get(ident)
-        if s is None:
-            raise AuthError("say 'hello' with your team token first (the client does this for you)")
-        return s
-
-    def robot_for(self, ident: bytes, tag: int) -> RobotRecord:
-        """The robot ``tag`` as commanded by session ``ident`` (ownership checked)."""
-        s = self.session(ident)
-        r = self.registry.robots.get(tag)
-        if r is None:
-            if s.who.role == "referee":
-                self.registry.get(tag)
-            raise NotYoursError(
-                f"robot {tag} is not one of team {s.who.name}'s robots; a team may only see and command its own robots")
-        check_owner(s.who, tag, r.team)
-        return r
-
-    def _check_known(self, ident: bytes) -> None:
-        if ident not in self.sessions:
-            raise AuthError("this connection is not known to the core (did the core restart?); "
-                            "say hello and register your robots again")
-
-    def hosted(self, ident: bytes, tag: int) -> RobotRecord:
-        """The robot ``tag`` as reported by its host connection ``ident``."""
-        self._check_known(ident)
-        r = self.registry.robots.get(tag)
-        if r is None or r.session != ident:
-            raise NotYoursError(f"robot {tag} is not hosted by this connection; register it first")
-        if r.status != RobotStatus.CONNECTED:
-            self._mark_returned(r)
-        return r
-
-    def _send_host(self, r: RobotRecord, type_: str, body: dict[str, Any], req_id: int = 0) -> None:
-        if r.session is not None:  # a stop leaves at once, whatever the log's state (safety first)
+    # ------------------------------------------------------------------ the match's output (MatchOutput)
+    def to_host(self, r: RobotRecord, type_: str, body: dict[str, Any], req_id: int = 0) -> None:
+        """A directive to the host connection of robot ``r`` (a stop leaves at once, whatever the
+        log's state: safety first)."""
+        if r.session is not None:
             self.send(r.session, P.request(type_, req_id, body), type_ == "stop")
 
-    def _new_task(self, r: RobotRecord, name: str, args: list[Any], mode: TaskMode, by: str) -> TaskRecord:
-        t = TaskRecord(self.next_task_id, r.tag, name, args, mode, by)
-        self.next_task_id += 1
-        return t
+    def to_hosts(self, type_: str, body: dict[str, Any]) -> None:
+        """A directive to every robot host connection (``hold``)."""
+        frame = P.request(type_, 0, body)
+        for ident in self.access.host_sessions():
+            self.send(ident, frame)
 
-    def _task_started(self, r: RobotRecord, t: TaskRecord) -> None:
-        self.emit("task.started", r.team, {"tag": r.tag, "task_id": t.id, "name": t.name, "args": t.args})
+    def finished(self) -> None:
+        """The match has just finished: its results go into the state folder."""
+        self.competition.write_results_now()
 
-    def _task_finished(self, r: RobotRecord, t: TaskRecord) -> None:
-        self.registry.finished(r, t)
-        self.emit("task.done", r.team, {"tag": r.tag, "task_id": t.id, "name": t.name, "ok": t.ok,
-                                         "state": t.state, "status": t.status, "result": t.result})
-
-    def _mark_lost(self, r: RobotRecord, why: str) -> None:
-        if r.status == RobotStatus.CONNECTED:
-            r.status = RobotStatus.LOST
-            r.moving = False
-            self.emit("robot.lost", r.team, {"tag": r.tag, "x": r.x, "y": r.y, "message": why})
-            self.competition.feed({"kind": "robot.lost", "team": r.team, "tag": r.tag})
-
-    def has_session(self, ident: bytes) -> bool:
-        """Whether connection ``ident`` has a session."""
-        return ident in self.sessions
+    def discovered(self, r: RobotRecord, find: dict[str, Any]) -> None:
+        """A find was reported: the map service marks it for the team."""
+        self.maps.discovery(r.tag, r.team, find["x"], find["y"], find["kind"], find["evidence"])
 
     def new_request_id(self) -> int:
         """A fresh id for a request the core sends to a robot host (its reply comes as ``reply``)."""
@@ -773,245 +507,37 @@ class Core:
         self.next_core_req += 1
         return cid
 
-    def host_sessions(self) -> list[bytes]:
-        """Routing ids of the connections that host robots."""
-        return [ident for ident, s in self.sessions.items() if s.tags]
-
-    def halt_and_remove(self, tag: int, reason: str) -> None:
-        """Halt a robot (no confirmation awaited), cancel its tasks, take it out of the match."""
-        r = self.registry.get(tag)
-        if r.status == RobotStatus.CONNECTED:
-            self._send_host(r, "stop", {"tag": r.tag})
-        self.tasks.cancel_all(r, f"cancelled: {reason}", f"cancelled: {reason}")
-        r.moving = False
-        r.status = RobotStatus.DISQUALIFIED
-
-    def judged_pose(self, r: RobotRecord, claim: dict[str, Any], what: str) -> tuple[float, float, float]:
-        """The pose at which the match judges ``what`` of robot ``r`` (see :class:`~robo_comp.core.desk.Access`).
-
-        The organiser's simulation knows a robot's true pose, which its reports (the robot's own
-        estimate) only approach; so a host's claimed pose is used where the tracked pose bears it out
-        (within 3 sigma, plus the driving since the last report). Anything else is judged at the
-        tracked pose, and the referee gets an ``integrity`` event."""
-        tracked = (r.x, r.y, r.heading)
-        if not all(type(claim.get(k)) in (int, float) for k in ("x", "y")):
-            return tracked
-        x, y = float(claim["x"]), float(claim["y"])
-        since = time.time() - r.last_report if r.last_report else self.gate.lag
-        verdict = self.gate.bears_out((r.x, r.y), r.sigma, since, r.track.speed, (x, y))
-        if not verdict.ok:
-            self._disbelieve(r, what, f"{what} {verdict.reason}; judged where it is tracked")
-            return tracked
-        heading: Any = claim.get("heading")
-        if type(heading) in (int, float) and math.isfinite(heading):
-            return x, y, float(heading)
-        return x, y, r.heading
-
-    def _mark_returned(self, r: RobotRecord) -> None:
-        if r.status != RobotStatus.CONNECTED and r.tag not in self.competition.disqualified_robots:
-            r.status = RobotStatus.CONNECTED
-            self.emit("robot.returned", r.team, {"tag": r.tag, "x": r.x, "y": r.y})
-
     # ------------------------------------------------------------------ timers
-    def _queue_positions(self) -> None:
-        """Queue the newest pose of every robot that reported since the last batch for publishing,
-        in ``robot.positions`` events per team of at most :data:`POSE_CHUNK` robots, one per loop
-        turn: however often robots report, subscribers get at most ``pose_hz`` positions per robot
-        per second (conflation)."""
-        posed, self._posed = self._posed, {}
-        for team in sorted(posed):
-            tags = sorted(posed[team])
-            for k in range(0, len(tags), POSE_CHUNK):
-                self._slices.append(partial(self._publish_chunk, team, tags[k:k + POSE_CHUNK]))
-
-    def _publish_chunk(self, team: str, tags: list[int]) -> None:
-        """One ``robot.positions`` event for robots ``tags`` of ``team``. A robot that was lost or
-        left since it reported is left out: its ``robot.lost``/``robot.left`` went first."""
-        robots = self.registry.robots
-        connected = RobotStatus.CONNECTED
-        rows = [r for r in map(robots.__getitem__, tags) if r.status is connected]
-        if rows:
-            self.emit("robot.positions", team, {
-                "team": team, "tags": [r.tag for r in rows], "x": [r.x for r in rows],
-                "y": [r.y for r in rows], "heading": [r.heading for r in rows],
-                "moving": [r.moving for r in rows], "sigma": [r.sigma for r in rows]}, log_it=False)
-
-    def _publish_positions(self) -> None:
-        """Publish every robot that reported since the last batch now (a replay's step)."""
-        self._queue_positions()
-        while self._slices:
-            self._slices.popleft()()
-
-    def _log_positions(self) -> None:
-        """Queue the robots that moved since the last heartbeat for the log, as batched records of
-        at most :data:`POSE_CHUNK` robots (the feed had a batch every pose period; the log keeps one
-        sample per robot per beat)."""
-        if not self._moved or self.storage_fault is not None:  # samples: none kept while the log is down
-            return
-        tags = sorted(self._moved)
-        self._moved.clear()
-        for k in range(0, len(tags), POSE_CHUNK):
-            self._slices.append(partial(self._log_chunk, tags[k:k + POSE_CHUNK]))
-
-    def _log_chunk(self, tags: list[int]) -> None:
-        if self.storage_fault is not None:
-            return
-        rows = [self.registry.robots[t] for t in tags]
-        self.events.append("robot.positions", None, {
-            "tags": tags, "x": [r.x for r in rows], "y": [r.y for r in rows],
-            "heading": [r.heading for r in rows]})
+    def _log_sample(self, tags: list[int]) -> None:
+        """A sample of robots ``tags``' poses into the log (none while it cannot be written)."""
+        if self.storage_fault is None:
+            self.events.append("robot.positions", None, self.match.position_sample(tags))
 
     def _tick(self, now: float) -> None:
-        """Heartbeats out, lost detection, idle sessions forgotten, the match clock, map deltas."""
-        self._log_positions()
-        if self._refused_anon:
-            self._log_refused()
-        if self._implausible:
-            self._log_implausible()
-        if ((self._zap is not None and self._zap.refusals_waiting) or (self._guard and self._guard.cuts_waiting)
-                or (self._pub_guard and self._pub_guard.cuts_waiting)):
-            self._log_refused_handshakes()
+        """Once a heartbeat: position samples into the log, the referee's integrity events, map
+        deltas, the match clock; heartbeats, lost robots, idle sessions and refusals (the session
+        desk's)."""
+        if self.storage_fault is None:  # samples: none kept while the log cannot be written
+            self.feed.sample()
+        self.match.tell_integrity()
         self.maps.push()
-        self.competition.tick(now)
-        hb = P.request("heartbeat", 0, {"t": time.time(), "core_id": self.core_id})
-        limit = 3 * self.heartbeat
-        for ident, s in list(self.sessions.items()):
-            silent = now - s.last_seen
-            if s.tags:
-                self.send(ident, hb, True)
-                if silent > limit:
-                    for tag in s.tags:
-                        r = self.registry.robots[tag]
-                        if r.session == ident:
-                            self._mark_lost(r, f"no message from its host for {silent:.1f} s")
-            elif s.watching:
-                self.send(ident, hb, True)
-                if silent > max(SESSION_IDLE / 10, limit * 10):
-                    self._set_watch(s, False)
-            elif silent > SESSION_IDLE:
-                self._forget(ident)
+        self.match.contest.tick()
+        self.access.beat(now)
 
-    def _expire_stops(self, now: float) -> None:
-        for cid, p in list(self.pending_stops.items()):
-            if now >= p.deadline:
-                del self.pending_stops[cid]
-                err = P.error_reply(p.req_id, TimeoutError_(
-                    f"robot {p.tag} did not confirm the stop within {STOP_TIMEOUT:.0f} s; "
-                    "its host may be lost (it halts on its own when it loses the core)"))
-                self.send(p.ident, err, True)
-
-    # ------------------------------------------------------------------ session requests
-    def _check_key(self, who: Principal) -> None:
-        """With CurveZMQ a team's key lets in that team only, the organiser's key the robot hosts
-        (and the referee's key any role); with PLAIN, the token of the hello is the one the
-        connection proved (the same principal)."""
-        owner = self._key_owner
-        if self.curve is not None:
-            if who.role == "host":
-                if owner not in (REFEREE, ORGANISER):
-                    raise AuthError(f"this connection uses {owner}'s key; a robot host's token needs the "
-                                    f"organiser's key ({ORGANISER}.key_secret)")
-            elif owner not in (REFEREE, who.name):
-                raise AuthError(f"this connection uses team {owner}'s key; {who.name}'s token needs {who.name}'s key")
-        elif self._zap is None or self._zap.principals.get(owner or "") != who:
-            raise AuthError(f"this connection proved {owner or 'nobody'} when it connected; say hello with "
-                            "the same token the connection presented (the client does this for you)")
-
-    def _on_hello(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        who = self.tokens.lookup(msg.body["token"])
-        self._check_key(who)
-        instance = msg.body.get("instance")
-        if instance is not None and not P.INSTANCE_MIN <= len(instance) <= P.INSTANCE_MAX:
-            raise FieldError(f"hello's 'instance' must be a random id of {P.INSTANCE_MIN} to {P.INSTANCE_MAX} "
-                             "characters (robo_comp.protocol.new_instance_id), kept across reconnects")
-        full = self._sessions_full(who) if ident not in self.sessions else None
-        if full is not None:
-            raise RateLimitError(full)
-        old = self._forget(ident)  # only a proved hello gets here with a session (see _prove)
-        sess = Session(ident, who, str(msg.body.get("client", "client"))[:64], time.monotonic(),
-                       key=self._key_owner, instance=instance)
-        if instance is not None:  # the same client again (a new connection): its old session ends now
-            for other in [o for o in self.sessions.values() if o.instance == instance and o.who == who]:
-                self._end_session(other, "its client said hello again on a new connection")
-        self.sessions[ident] = sess
-        if old is not None and old.who == who:
-            sess.tags = old.tags
-            self._set_watch(sess, old.watching)
-        elif old is not None:  # the same program, now someone else: its robots are not the new one's
-            self._release_robots(old, "its host's connection now speaks for someone else")
-        return {"session": sess.secret, "role": who.role, "team": who.team, "protocol": P.PROTOCOL_VERSION,
-                "core_id": self.core_id,
-                "match": self.competition.state(),
-                "pub_port": self.pub_port, "heartbeat": self.heartbeat, "teams": self.tokens.teams,
-                "arena": {"name": self.scenario.name, "width": self._arena_payload["width"],
-                          "height": self._arena_payload["height"]}}
-
-    def _release_robots(self, s: Session, why: str) -> None:
-        """Detach the robots of session ``s`` from its connection (they are lost until they register again)."""
-        for tag in s.tags:
-            r = self.registry.robots[tag]
-            if r.session == s.ident:
-                self._mark_lost(r, why)
-                r.session = None
-        s.tags = set()
-
-    def _on_heartbeat(self, ident: bytes, msg: P.Message) -> None:
-        s = self.sessions.get(ident)
-        if s is not None:
-            for tag in s.tags:
-                r = self.registry.robots[tag]
-                if r.session == ident and r.status == RobotStatus.LOST:
-                    self._mark_returned(r)
-        return None
-
-    def _on_bye(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        s = self.sessions.get(ident)
-        if s is not None:
-            self._end_session(s, "its host said bye without leaving")
-        return {}
-
-    def _end_session(self, s: Session, why: str) -> None:
-        """Forget session ``s`` (a bye, or its client's new hello); its robots are lost until they
-        register again."""
-        self._forget(s.ident)
-        for tag in s.tags:
-            r = self.registry.robots[tag]
-            if r.session == s.ident and r.status == RobotStatus.CONNECTED:
-                self._mark_lost(r, why)
-
-    def _on_watch(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        s = self.session(ident)
-        self._set_watch(s, bool(msg.body.get("on", True)))
-        return {"watching": s.watching}
-
-    def _on_robots(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        s = self.session(ident)
-        team = None if s.who.role == "referee" else s.who.team
-        return {"robots": [r.summary() for r in self.registry.of_team(team)]}
-
-    def _on_monitor(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        return self.robot_for(ident, msg.body["tag"]).monitor()
-
-    def _on_tasks(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        r = self.robot_for(ident, msg.body["tag"])
-        return {"tag": r.tag, "advertised": list(r.tasks.values()),
-                "current": r.current.summary() if r.current else None,
-                "pending": r.pending.summary() if r.pending else None,
-                "queued": [t.summary() for t in r.queue], "done": [t.summary() for t in r.done]}
-
+    # ------------------------------------------------------------------ the core's own requests
     def _on_arena(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        self.session(ident)
-        return self._arena_payload
+        self.access.session(ident)
+        return self.arena_payload
 
     def _on_stats(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        check_referee(self.session(ident).who, "read the core's counters")
+        check_referee(self.access.session(ident).who, "read the core's counters")
         by_status: dict[str, int] = {}
         for r in self.registry.robots.values():
             by_status[r.status] = by_status.get(r.status, 0) + 1
         sessions_by: dict[str, int] = {}
         for s in self.sessions.values():
             sessions_by[s.who.name] = sessions_by.get(s.who.name, 0) + 1
-        guard = self._guard
+        guard = self.guard
         return dict(self.stats, robots=by_status, sessions=len(self.sessions), sessions_by=sessions_by,
                     connections=guard.open if guard else 0, connections_cut=guard.cut_total if guard else 0,
                     connection_limit=self.limits.total,
@@ -1021,430 +547,10 @@ class Core:
                     recovered=self.recovered.to_dict() if self.recovered is not None else None)
 
     def _on_snapshot(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        s = self.session(ident)
+        s = self.access.session(ident)
         team = None if s.who.role == "referee" else s.who.team
-        return {"arena": self._arena_payload, "teams": self.tokens.teams,
-                "robots": [r.summary() for r in self.registry.of_team(team)], "seq": self.events.seq,
-                "match": self.competition.state(), "score": self.competition.board.table(),
-                "finds": [f for f in self.competition.finds if team is None or f["team"] == team]}
-
-    def _on_give(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        s = self.session(ident)
-        r = self.robot_for(ident, msg.body["tag"])
-        return self.give_task(r, msg.body["task"], msg.body.get("args", []), bool(msg.body.get("queue", False)),
-                              s.who.name)
-
-    def give_task(self, r: RobotRecord, name: str, args: list[Any], queue: bool, by: str) -> dict[str, Any]:
-        """Give robot ``r`` a task now (interrupting) or queued; ownership is the caller's check."""
-        self.competition.check_robot(r.tag)
-        self.competition.check_phase("give")
-        spec = find_spec(r.tasks, name, r.tag)
-        args = check_args(spec, args)
-        if r.status == RobotStatus.LEFT:
-            raise UnavailableError(f"robot {r.tag} has left the arena; it takes no tasks until it returns")
-        if not queue and r.status != RobotStatus.CONNECTED:
-            raise UnavailableError(
-                f"robot {r.tag} is {r.status} and cannot start a task now; queue it (--queue) for when it returns")
-        t = self._new_task(r, spec["name"], args, TaskMode.QUEUE if queue else TaskMode.NOW, by)
-        self.emit("task.given", r.team, {"tag": r.tag, "task_id": t.id, "name": t.name, "args": args,
-                                          "mode": t.mode, "by": by})
-        started = self.tasks.give(r, t, idle_ok=r.status == RobotStatus.CONNECTED)
-        if started is not None:
-            self._send_host(r, "task.start", started.wire())
-        if queue:
-            return {"task_id": t.id, "mode": "queue", "position": len(r.queue)}
-        if started is t:
-            return {"task_id": t.id, "mode": "now", "interrupts": None}
-        assert r.current is not None  # t waits for the running task's next movement boundary
-        self._send_host(r, "task.interrupt", t.wire())
-        return {"task_id": t.id, "mode": "now", "interrupts": r.current.id}
-
-    def _on_stop(self, ident: bytes, msg: P.Message) -> None:
-        r = self.robot_for(ident, msg.body["tag"])
-        self.competition.check_robot(r.tag)
-        if r.status != RobotStatus.CONNECTED or r.session is None:
-            raise UnavailableError(
-                f"robot {r.tag} is {r.status}; it halts by itself when it loses the core, and cannot be reached now")
-        cid = self.new_request_id()
-        now = time.monotonic()
-        self.pending_stops[cid] = PendingStop(ident, msg.id, r.tag, now + STOP_TIMEOUT, now)
-        self._send_host(r, "stop", {"tag": r.tag}, cid)
-        return None  # the reply goes out when the robot confirms (see _on_host_reply)
-
-    def _on_hosts(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        """The robot hosts (the referee's view): who, since when, last heard, which robots."""
-        check_referee(self.session(ident).who, "list the robot hosts")
-        now = time.monotonic()
-        rows = []
-        for sid, s in self.sessions.items():
-            if s.who.role != "host":
-                continue
-            held = sorted(t for t in s.tags if self.registry.robots[t].session == sid)
-            rows.append({"host": sid.hex(), "team": s.who.team, "client": s.client, "opened": s.opened,
-                         "silent": round(now - s.last_seen, 3), "tags": held,
-                         "robots": [self.registry.robots[t].robot_id for t in held]})
-        rows.sort(key=lambda row: (row["team"] or "", row["opened"]))
-        return {"hosts": rows}
-
-    def _on_handover(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        """The referee hands robots over: each is halted and released by the host that holds it, and
-        the next host that registers it (with its robot id) takes it."""
-        who = self.session(ident).who
-        check_referee(who, "hand robots over from one robot host to another")
-        tags = msg.body["tags"]
-        if not tags or len(tags) > 1000 or any(type(t) is not int for t in tags):
-            raise FieldError("'tags' must be a list of 1 to 1000 robot tags")
-        released = []
-        for tag in tags:
-            r = self.registry.get(tag)
-            old = r.session
-            if old is not None:  # the host halts the robot and lets it go (no separate stop)
-                self.send(old, P.request("release", 0, {"tag": tag, "message":
-                                                         "the referee handed this robot over to another host"}))
-                if old in self.sessions:
-                    self.sessions[old].tags.discard(tag)
-            if r.status == RobotStatus.CONNECTED:
-                r.status = RobotStatus.LOST
-                r.moving = False
-                self.emit("robot.lost", r.team, {"tag": tag, "x": r.x, "y": r.y,
-                                                 "message": "handed over by the referee; waiting for its next host"})
-                self.competition.feed({"kind": "robot.lost", "team": r.team, "tag": tag})
-            r.session = None
-            released.append(tag)
-            self.emit("robot.handover", r.team, {"tag": tag, "by": who.name, "from": old.hex() if old else None},
-                      public=False)
-        return {"released": released}
-
-    # ------------------------------------------------------------------ robot-host requests
-    def robot_limit(self, team: str) -> int:
-        """How many robots ``team`` may register: ``--robots``, else what the scenario gives it
-        (a team the scenario does not name: as many as its largest team)."""
-        if self.robots_per_team is not None:
-            return self.robots_per_team
-        counts = {t.name: t.robots for t in self.scenario.teams}
-        return counts.get(team, max(counts.values(), default=1))
-
-    def _on_register(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        b = msg.body
-        who = self.tokens.lookup(b["token"])
-        team = who.team
-        if who.role != "host" or team is None:
-            raise ForbiddenError(
-                "robots register only through the organiser's robot host, with a host token "
-                "(STATE/hosts/<team>.token); a team's token gives its robots commands but never speaks "
-                "for the world (see docs/security.md, 'Who runs what')")
-        self._check_key(who)
-        robot_id = b["robot_id"]
-        if not (0 < len(robot_id) <= 64):
-            raise FieldError("'robot_id' must have 1 to 64 characters")
-        specs = check_specs(b.get("tasks", []))
-        sess = self.sessions.get(ident)
-        if sess is not None and sess.who != who:
-            raise AuthError(f"this connection's session speaks for {sess.who.name}; robots of "
-                            f"{who.name} register on a connection of their own")
-        r = self.registry.lookup(team, robot_id)
-        returning = r is not None
-        if r is None:
-            limit = self.robot_limit(team)
-            have = len(self.registry.of_team(team))
-            if have >= limit:
-                raise ForbiddenError(
-                    f"team {team} has its {limit} robot{'s' if limit != 1 else ''} already (the scenario gives "
-                    f"each team {limit}); robot {robot_id!r} is one too many and was not registered. A robot "
-                    "that comes back registers with its old robot id; the organiser may allow more with "
-                    "'robo-comp core --robots N'")
-            if "x" in b and "y" in b:
-                where = self.gate.where(float(b["x"]), float(b["y"]))
-                if not where.ok:
-                    raise ImplausibleError(f"robot {robot_id!r} cannot start there: {where.reason}")
-        elif (r.session is not None and r.session != ident and r.session in self.sessions
-              and r.status == RobotStatus.CONNECTED):
-            holder = self.sessions[r.session]
-            raise HeldError(
-                f"robot {robot_id!r} (tag {r.tag}) of team {team} is held by another robot host (connected "
-                f"since {time.strftime('%H:%M:%S', time.localtime(holder.opened))}, {len(holder.tags)} robots, "
-                f"heard {time.monotonic() - holder.last_seen:.1f} s ago) and was not taken from it. Stop that "
-                f"host first (its robots are lost after {3 * self.heartbeat:g} s without it, and then this "
-                f"host takes them), or ask the referee: 'robo-comp ctl hosts' lists the hosts, "
-                f"'robo-comp ctl handover {r.tag}' hands the robot to the next host that registers it")
-        if sess is None:
-            full = self._sessions_full(who)
-            if full is not None:
-                raise RateLimitError(full)
-            sess = Session(ident, who, "robots", time.monotonic(), key=self._key_owner)
-            self.sessions[ident] = sess
-        if r is None:
-            r = self.registry.add(team, robot_id)
-        elif r.session is not None and r.session != ident and r.session in self.sessions:
-            self.sessions[r.session].tags.discard(r.tag)
-        r.session = ident
-        sess.tags.add(r.tag)
-        r.tasks = specs
-        declared = b.get("speed")
-        speed = min(self.max_speed, float(declared)) if declared and declared > 0 else self._default_speed
-        r.track.speed, r.track.cap = speed, self.gate.capacity(speed)
-        self._registered_pose(r, b, returning)
-        was = r.status
-        r.status = RobotStatus.DISQUALIFIED if r.tag in self.competition.disqualified_robots else RobotStatus.CONNECTED
-        r.last_report = time.time()
-        if returning:
-            done = b.get("done")
-            if done is not None and r.current is not None and done.get("task_id") == r.current.id:
-                # the host finished it while the core could not hear (the core was down, the link
-                # cut): its task.done comes with the registration; taken once, like task.done
-                self._take_done(r, done)
-            elif r.current is not None and r.current.id != b.get("task_id"):
-                if b.get("fresh", True):
-                    # the host no longer runs what we think it runs (it restarted): start afresh
-                    self.tasks.finish(r, r.current, False, "the robot's host restarted and lost this task",
-                                      state=TaskState.CANCELLED)
-                # else the host never got this task (the core went down, or the link, before it
-                # arrived): the reply below hands it over again
-            self.emit("robot.returned", r.team, {"tag": r.tag, "x": r.x, "y": r.y, "was": was,
-                                                 "tasks": list(specs.values())})
-        else:
-            self.emit("robot.registered", r.team, {"tag": r.tag, "team": r.team, "robot_id": robot_id,
-                                                   "x": r.x, "y": r.y, "heading": r.heading,
-                                                   "tasks": list(specs.values())})
-        self.tasks.advance(r)
-        return {"session": sess.secret, "tag": r.tag, "team": r.team, "returning": returning,
-                "heartbeat": self.heartbeat,
-                "task": r.current.wire() if r.current else None,
-                "hold": self.competition.phase in ("paused", "finished")}
-
-    def _registered_pose(self, r: RobotRecord, b: dict[str, Any], returning: bool) -> None:
-        """Take the pose a robot registers with, if it could be there: a new robot anywhere free in
-        the arena, a returning one within what it could have driven while it was away (after a core
-        restart, anywhere free: this core never placed it)."""
-        if "heading" in b:
-            r.heading = float(b["heading"])
-        if "x" in b and "y" in b:
-            x, y = float(b["x"]), float(b["y"])
-            verdict = self.gate.admit(r.track, x, y, 0.0, time.monotonic(), away=returning)
-            if verdict.ok:
-                r.x, r.y = x, y
-            else:
-                self._disbelieve(r, "pose", verdict.reason)
-
-    def _disbelieve(self, r: RobotRecord, kind: str, why: str) -> None:
-        """A claim about robot ``r`` (a ``pose``, a ``picture``'s or a ``bump``'s place) was not
-        believed: counted, and told to the referee in one ``integrity`` event per robot and kind a beat."""
-        row = self._implausible.get((r.tag, kind))
-        if row is None:
-            self._implausible[(r.tag, kind)] = [1, why]
-        else:
-            row[0] += 1
-            row[1] = why
-
-    def _log_implausible(self) -> None:
-        """The ``integrity`` events (referee only) of the claims not believed since the last beat."""
-        rows, self._implausible = self._implausible, {}
-        for (tag, kind), (count, why) in sorted(rows.items()):
-            r = self.registry.robots[tag]
-            self.emit("integrity", None, {"kind": kind, "tag": tag, "team": r.team, "count": count,
-                                          "x": r.x, "y": r.y, "message": why}, public=False)
-
-    def _on_report(self, ident: bytes, msg: P.Message) -> None:
-        """One robot's pose (a row of :meth:`_take_rows`, without its loop)."""
-        b = msg.body
-        r = self.hosted(ident, b["tag"])
-        x, y = b["x"], b["y"]
-        mono = time.monotonic()
-        if not PoseGate.quick(r.track, x, y, 0.0, mono):
-            why = self._pose_refusal(r, x, y, 0.0, mono)
-            if why:
-                raise ImplausibleError(f"robot {r.tag}'s pose was not taken: {why}")
-        r.x, r.y, r.heading, r.moving, r.sigma = x, y, b["heading"], b.get("moving", False), 0.0
-        if b.get("sensors") is not None:
-            r.sensors = b["sensors"]
-        r.last_report = time.time()
-        self._moved.add(r.tag)
-        self._posed.setdefault(r.team, set()).add(r.tag)
-        return None
-
-    def _pose_refusal(self, r: RobotRecord, x: float, y: float, sigma: float, now: float) -> str:
-        """Why robot ``r`` could not be at ``(x, y)`` now ("" when it could: ``PoseGate.admit``, and
-        its track moves on); a refused pose is counted for the referee's ``integrity`` event."""
-        verdict = self.gate.admit(r.track, x, y, sigma, now)
-        if not verdict.ok:
-            self._disbelieve(r, "pose", verdict.reason)
-        return verdict.reason
-
-    def _on_reports(self, ident: bytes, msg: P.Message) -> None:
-        """Many robots of one host in one message (a host reports its robots in batches): the rows of
-        :meth:`_take_rows`."""
-        b = msg.body
-        n = P.check_reports(b)
-        self._check_known(ident)
-        foreign, refused = self._take_rows(ident, b["tags"], b["x"], b["y"], b["heading"], b.get("moving") or [False] * n,
-                                           b.get("sensors") or [None] * n, b.get("sigma") or [0.0] * n)
-        if foreign:  # the others' rows were taken
-            raise NotYoursError(f"robots {foreign[:10]} are not hosted by this connection; register them first")
-        if refused:
-            raise ImplausibleError(f"the poses of robots {[t for t, _ in refused[:10]]} were not taken (the "
-                                   f"referee sees why): {refused[0][1]}")
-        return None
-
-    def _take_rows(self, ident: bytes, tags: Sequence[int], xs: Sequence[float], ys: Sequence[float],
-                   headings: Sequence[float], moving: Sequence[bool], sensors: Sequence[dict[str, Any] | None],
-                   sigmas: Sequence[float]) -> tuple[list[int], list[tuple[int, str]]]:
-        """Take the poses of robots hosted by ``ident`` (published in the next ``robot.positions``
-        batch); returns the tags not hosted there and the refused rows with why. The rows are taken in
-        one loop without calls (the checks of :meth:`hosted` and :meth:`PoseGate.admit`'s common case,
-        inlined): a core with 10,000 robots at 10 Hz takes 100,000 rows a second."""
-        now = time.time()
-        mono = time.monotonic()
-        foreign = []
-        refused = []
-        robots = self.registry.robots
-        took: list[int] = []  # published in the next batch; all of the host's team (it registered them)
-        taken = took.append
-        connected = RobotStatus.CONNECTED
-        sqrt = math.sqrt
-        max_sigma = MAX_SIGMA
-        max_noise = MAX_NOISE
-        try:
-            for tag, x, y, h, mv, sn, sg in zip(tags, xs, ys, headings, moving, sensors, sigmas):
-                r = robots.get(tag)
-                if r is None or r.session != ident:
-                    foreign.append(tag)
-                    continue
-                if r.status is not connected:
-                    self._mark_returned(r)
-                # PoseGate.quick inlined (a call a row costs a fifth of the row): the common case of
-                # PoseGate.admit. The rest (a new anchor once a second, refusals, longer moves) asks
-                # admit, which refills.
-                tr = r.track
-                until, x_lo, x_hi, y_lo, y_hi = tr.box
-                lx, ly, lnoise, left = tr.hop
-                dx = x - lx
-                dy = y - ly
-                noise = 3.0 * sg if sg < max_sigma else max_noise
-                hop = sqrt(dx * dx + dy * dy) - lnoise - noise
-                if mono < until and x_lo <= x <= x_hi and y_lo <= y <= y_hi and hop <= left:
-                    tr.hop = (x, y, noise, left - hop if hop > 0.0 else left)
-                else:
-                    why = self._pose_refusal(r, x, y, sg, mono)
-                    if why:
-                        refused.append((tag, why))
-                        continue
-                r.x = x  # one store each: a five-way tuple assignment builds and unpacks a tuple a row
-                r.y = y
-                r.heading = h
-                r.moving = mv
-                r.sigma = sg
-                if sn is not None:
-                    r.sensors = sn
-                r.last_report = now
-                taken(tag)
-        finally:
-            if took:
-                self._moved.update(took)
-                team = self.sessions[ident].who.team
-                assert team is not None  # a host's session: register needs a team's host token
-                self._posed.setdefault(team, set()).update(took)
-        return foreign, refused
-
-    def _on_task_next(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        r = self.hosted(ident, msg.body["tag"])
-        t = r.current or self.tasks.advance(r)
-        return {"task": t.wire() if t is not None else None}
-
-    def _on_task_done(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        b = msg.body
-        r = self.hosted(ident, b["tag"])
-        tid = b["task_id"]
-        if r.current is None or r.current.id != tid:
-            if any(t.id == tid for t in r.done):  # sent again (its answer was lost): taken once
-                return {"next": r.current.wire() if r.current is not None else None, "duplicate": True}
-            raise FieldError(f"task {tid} is not robot {r.tag}'s current task")
-        nxt = self._take_done(r, b)
-        return {"next": nxt.wire() if nxt is not None else None}
-
-    def _take_done(self, r: RobotRecord, b: dict[str, Any]) -> TaskRecord | None:
-        """Finish ``r``'s current task with the host's report ``b`` (ok, status, result); return
-        the task that starts next."""
-        result = b.get("result")
-        if len(P.pack(result)) > MAX_RESULT:
-            raise TooLargeError(f"a task result may be at most {MAX_RESULT} bytes once packed")
-        if not isinstance(b.get("ok"), bool) or not isinstance(b.get("status"), str):
-            raise FieldError("a task's report needs 'ok' (true or false) and 'status' (text)")
-        return self.tasks.complete(r, b["ok"], b["status"][:500], result)
-
-    def _on_radio(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        b = msg.body
-        r = self.hosted(ident, b["tag"])
-        size = len(P.pack(b["data"]))
-        if size > P.MAX_RADIO:
-            raise TooLargeError(f"a radio message may be at most {P.MAX_RADIO} bytes; this one is {size}")
-        now = time.monotonic()
-        r.radio_allowance = min(P.RADIO_RATE, r.radio_allowance + (now - r.radio_checked) * P.RADIO_RATE)
-        r.radio_checked = now
-        if r.radio_allowance < 1.0:
-            raise RateLimitError(f"robot {r.tag} may send at most {P.RADIO_RATE:.0f} radio messages per second")
-        r.radio_allowance -= 1.0
-        to = b.get("to")
-        if to is None:
-            targets = [x for x in self.registry.of_team(r.team) if x.tag != r.tag]
-        else:
-            t = self.registry.robots.get(to)
-            if t is None or t.team != r.team:
-                raise NotYoursError(f"robot {to} is not on team {r.team}; the radio reaches your own team only")
-            targets = [t]
-        delivered = 0
-        body = {"from": r.tag, "to": to, "data": b["data"]}
-        for t in targets:
-            if t.status == RobotStatus.CONNECTED and t.session is not None:
-                self.send(t.session, P.request("radio", 0, dict(body, tag=t.tag)))
-                delivered += 1
-        self.emit("radio", r.team, dict(body, delivered=delivered), public=False)
-        return {"delivered": delivered}
-
-    def _on_leave(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
-        r = self.hosted(ident, msg.body["tag"])
-        r.status = RobotStatus.LEFT
-        r.moving = False
-        r.session = None
-        self.sessions[ident].tags.discard(r.tag)
-        self.emit("robot.left", r.team, {"tag": r.tag, "x": r.x, "y": r.y})
-        return {}
-
-    def _on_host_reply(self, ident: bytes, msg: P.Message) -> None:
-        raw = msg.body
-        p = self.pending_stops.get(msg.id)
-        if p is None:
-            self.uploads.host_reply(ident, msg.id, raw)
-            return None  # an upload's answer, or a late answer to a stop that already timed out
-        r = self.registry.robots[p.tag]
-        if r.session != ident:  # request ids are easy to guess: only the robot's own host confirms
-            raise NotYoursError(f"this connection does not host robot {p.tag}; its stop is not yours to confirm")
-        del self.pending_stops[msg.id]
-        err, body = raw.get("error"), raw.get("body")
-        if not isinstance(err, (dict, type(None))) or not isinstance(body, (dict, type(None))):
-            self.send(p.ident, P.error_reply(p.req_id, RoboCompError(
-                f"robot {p.tag}'s host answered the stop with a malformed reply; it may not have halted")), True)
-            raise FieldError("a reply's 'error' and 'body' must be maps")
-        if not raw.get("ok"):
-            err = err or {}
-            self.send(p.ident, P.error_reply(p.req_id, RoboCompError(
-                f"robot {p.tag} could not stop: {err.get('message', 'no reason given')}")), True)
-            return None
-        body = body or {}
-        if type(body.get("heading")) in (int, float) and math.isfinite(body["heading"]):
-            r.heading = float(body["heading"])
-        x: Any = body.get("x")
-        y: Any = body.get("y")
-        if type(x) in (int, float) and type(y) in (int, float) and not self._pose_refusal(r, x, y, r.sigma,
-                                                                                         time.monotonic()):
-            r.x, r.y = float(x), float(y)  # where it halted, if it could be there (else where it is tracked)
-        r.moving = False
-        cancelled = self.tasks.cancel_all(r, "stopped", "cancelled by stop")
-        ms = (time.monotonic() - p.t0) * 1000
-        self.emit("robot.stopped", r.team, {"tag": r.tag, "x": r.x, "y": r.y, "cancelled": cancelled,
-                                             "ms": round(ms, 3)})
-        self.send(p.ident, P.ok_reply(p.req_id, {  # a stop is answered at once, even during a storage fault
-            "tag": r.tag, "x": r.x, "y": r.y, "heading": r.heading, "cancelled": cancelled, "ms": ms}), True)
-        return None
+        return dict(self.match.snapshot(team), arena=self.arena_payload, teams=self.tokens.teams,
+                    seq=self.events.seq)
 
 
 _compare = hmac.compare_digest

@@ -18,19 +18,16 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from robo_comp import protocol as P
 from robo_comp.core.desk import Access, Outbox
-from robo_comp.core.registry import RobotRecord, RobotStatus
-from robo_comp.protocol.taskspec import check_specs
+from robo_comp.match.registry import RobotRecord
+from robo_comp.protocol.states import Phase, RobotStatus
 from robo_comp.errors import (
     FieldError, ForbiddenError, NotYoursError, RoboCompError, UnavailableError, UploadError,
 )
 from robo_comp.sandbox import contract
-
-if TYPE_CHECKING:  # pragma: no cover
-    from robo_comp.core.competition import Competition
 
 #: Most robots one upload may go to.
 MAX_TAGS = 64
@@ -64,11 +61,10 @@ class PendingUpload:
 class UploadDesk:
     """The core's upload service: handlers, the forwarding to hosts and their answers."""
 
-    def __init__(self, access: Access, out: Outbox, competition: Competition, state_dir: Path,
-                 approve_uploads: bool = False) -> None:
+    def __init__(self, access: Access, out: Outbox, state_dir: Path, approve_uploads: bool = False) -> None:
         self.access = access
         self.out = out
-        self.competition = competition
+        self.contest = access.match.contest
         self.approve_uploads = approve_uploads
         self.asks: dict[int, HostAsk] = {}  # by forwarded request id (an ask spanning hosts: several)
         self.pending: dict[int, PendingUpload] = {}
@@ -78,7 +74,7 @@ class UploadDesk:
     def handlers(self) -> dict[str, Callable[[bytes, P.Message], dict[str, Any] | None]]:
         """Request handlers this module adds to the core."""
         return {"upload": self._on_upload, "unload": self._on_unload, "extensions": self._on_extensions,
-                "approve": self._on_approve, "advertise": self._on_advertise, "log": self._on_log,
+                "approve": self._on_approve, "advertise": self._on_advertise, "log": self._on_log, "draw": self._on_draw,
                 "sandbox.reset": self._on_sandbox_reset}
 
     # ------------------------------------------------------------------ checks
@@ -107,7 +103,7 @@ class UploadDesk:
     def _on_upload(self, ident: bytes, msg: P.Message) -> dict[str, Any] | None:
         s = self.access.session(ident)
         robots = self._robots(ident, msg.body["tags"])
-        self.competition.check_phase("upload")
+        self.contest.check_phase("upload")
         filename, source = self._source(msg.body)
         sha = contract.source_hash(source)
         team = robots[0].team
@@ -117,12 +113,12 @@ class UploadDesk:
         body = {"filename": filename, "source": source, "sha256": sha, "run": bool(msg.body.get("run"))}
         tags = [r.tag for r in robots]
         if (self.approve_uploads and s.who.role == "team"
-                and self.competition.phase == "running"):
+                and self.contest.phase is Phase.RUNNING):
             uid = self.next_upload
             self.next_upload += 1
             self.pending[uid] = PendingUpload(uid, team, s.who.name, tags, body)
             self.out.emit("upload.pending", team, {"upload_id": uid, "team": team, "tags": tags,
-                                                    "filename": filename, "sha256": sha, "by": s.who.name}, public=False)
+                                                    "filename": filename, "sha256": sha, "by": s.who.name})
             return {"pending": uid, "results": [],
                     "message": f"{filename} waits for the referee's approval (upload {uid})"}
         self._forward(robots, body, s.who.name, lambda results: self._reply(ident, msg.id, filename, results))
@@ -140,7 +136,7 @@ class UploadDesk:
         if not ok:
             self.out.emit("upload.done", p.team, {"upload_id": uid, "team": p.team, "tags": p.tags,
                                                    "filename": p.body["filename"], "ok": False,
-                                                   "message": f"{p.body['filename']}: blocked by the referee"}, public=False)
+                                                   "message": f"{p.body['filename']}: blocked by the referee"})
             return {"upload_id": uid, "ok": False}
         robots = [self.access.registry.robots[t] for t in p.tags if t in self.access.registry.robots]
         robots = [r for r in robots if r.status == RobotStatus.CONNECTED and r.session is not None]
@@ -176,7 +172,7 @@ class UploadDesk:
 
         def done(results: list[dict[str, Any]]) -> None:
             self.out.emit("sandbox.reset", robots[0].team, {"tags": [r.tag for r in robots], "by": s.who.name,
-                                                             "results": results}, public=False)
+                                                             "results": results})
             self.out.send(ident, P.ok_reply(msg.id, {"results": results}))
         self._ask(robots, "sandbox.reset", {}, done)
         return None
@@ -188,8 +184,7 @@ class UploadDesk:
 
     def _set_tasks(self, r: RobotRecord, adverts: list[Any]) -> None:
         """What robot ``r`` advertises from now on (checked like at registration)."""
-        r.tasks = check_specs(adverts)
-        self.out.emit("robot.tasks", r.team, {"tag": r.tag, "tasks": list(r.tasks.values())})
+        self.access.match.advertise(r, adverts)
 
     def _on_log(self, ident: bytes, msg: P.Message) -> None:
         tag = msg.body.get("tag")
@@ -197,7 +192,22 @@ class UploadDesk:
         if tag is not None:
             self.access.hosted(ident, tag)
         self.out.emit("robot.log", s.who.team, {"tag": tag, "stream": msg.body["stream"][:16],
-                                                 "text": msg.body["text"][:2000]}, public=False)
+                                                 "text": msg.body["text"][:2000]})
+        return None
+
+    def _on_draw(self, ident: bytes, msg: P.Message) -> None:
+        """A host's new frames of debug drawing: checked again here (robo_comp/protocol/drawing.py),
+        logged as ``debug.draw`` for the team's own views and the referee only."""
+        from robo_comp.protocol.drawing import clean_frame
+
+        s = self.access.session(ident)
+        tags, frames = msg.body["tags"], msg.body["frames"]
+        if len(tags) != len(frames) or len(tags) > P.MAX_REPORTS:
+            raise FieldError("draw: 'tags' and 'frames' must be lists of the same length")
+        for tag in tags:
+            self.access.hosted(ident, tag)  # only the host's own robots draw
+        self.out.emit("debug.draw", s.who.team,
+                      {"team": s.who.team, "tags": list(tags), "frames": [clean_frame(f) for f in frames]})
         return None
 
     def host_reply(self, ident: bytes, cid: int, raw: dict[str, Any]) -> bool:
@@ -260,8 +270,7 @@ class UploadDesk:
                  reply: Callable[[list[dict[str, Any]]], None], upload_id: int | None = None) -> None:
         team = robots[0].team
         self.out.emit("upload.sent", team, {"tags": [r.tag for r in robots], "filename": body["filename"],
-                                             "sha256": body["sha256"], "by": by, "upload_id": upload_id},
-                       public=False)
+                                             "sha256": body["sha256"], "by": by, "upload_id": upload_id})
 
         def done(results: list[dict[str, Any]]) -> None:
             results.sort(key=lambda row: row.get("tag", 0))
@@ -274,7 +283,7 @@ class UploadDesk:
                 "filename": body["filename"], "sha256": body["sha256"], "ok": ok, "by": by,
                 "module": good[0].get("name") if good else None, "version": good[0].get("version") if good else None,
                 "message": (first_error or {}).get("message") or f"{body['filename']} loaded on "
-                                                                 f"{len(good)} robot(s)"}, public=False)
+                                                                 f"{len(good)} robot(s)"})
             if body.get("run"):
                 self._run_now(good, by)
             reply(results)
@@ -300,11 +309,11 @@ class UploadDesk:
             if first is None or r is None:
                 continue
             try:
-                self.access.give_task(r, first, [], queue=False, by=by)
+                self.access.match.give(r, first, [], queue=False, by=by)
             except RoboCompError as e:
                 self.out.emit("refused", r.team, {"by": by, "type": "upload", "code": e.code,
                                                    "message": f"could not run {first} on robot {r.tag}: "
-                                                              f"{e.message}"}, public=False)
+                                                              f"{e.message}"})
 
     def _reply(self, ident: bytes, req_id: int, filename: str, results: list[dict[str, Any]]) -> None:
         bad = [row for row in results if not row.get("ok")]
@@ -323,8 +332,7 @@ class UploadDesk:
             self.out.send(ident, P.error_reply(req_id, NotYoursError(
                 f"no robot of these has a module called {name!r} (see 'extensions TAG')")))
             return
-        self.out.emit("upload.unloaded", self.access.registry.robots[tags[0]].team, {"tags": tags, "name": name},
-                       public=False)
+        self.out.emit("upload.unloaded", self.access.registry.robots[tags[0]].team, {"tags": tags, "name": name})
         self.out.send(ident, P.ok_reply(req_id, {"name": name, "tags": tags}))
 
     def _keep(self, team: str, filename: str, sha: str, source: str) -> None:

@@ -9,8 +9,8 @@ from typing import Any
 def _mcap(args: argparse.Namespace) -> int:
     from robo_comp.export.mcap import export_mcap
 
-    s = export_mcap(Path(args.log), Path(args.out), Path(args.pictures) if args.pictures else None)
-    print(f"export: {s.records} records of {args.log} -> {s.out}: "
+    s = export_mcap(Path(args.log), Path(args.out), Path(args.pictures) if args.pictures else None, args.view)
+    print(f"export: view {s.view}: {s.records - s.withheld} of {s.records} records of {args.log} -> {s.out}: "
           + ", ".join(f"{t} {n}" for t, n in sorted(s.messages.items())))
     if s.missing_pictures:
         print(f"export: {len(s.missing_pictures)} pictures not found beside the log "
@@ -28,8 +28,12 @@ def add_parser(sub: Any) -> None:
                                        "the arena as nav_msgs/OccupancyGrid on /arena/map, each robot's pose "
                                        "on /robots/tagTAG/pose (e.g. /robots/tag101/pose), tasks on /tasks, finds on /finds and /finds/point, "
                                        "pictures on /pictures (PNG) and /pictures/meta, the scoreboard on /score, "
-                                       "every record on /events. Needs pip install 'robo_comp[mcap]'.")
+                                       "every record the view sees on /events. Needs pip install 'robo_comp[mcap]'.")
     m.add_argument("log", help="the event log (a core's STATE/events.log)")
     m.add_argument("out", help="the MCAP file to write")
     m.add_argument("--pictures", metavar="DIR", help="the match's pictures (default: pictures/ beside the log)")
+    m.add_argument("--view", default="public", metavar="VIEW",
+                   help="what of the match the file carries: public (default; a file to hand out: what the public "
+                        "feeds carried, no private records, fields or picture images), team:NAME (what that team's "
+                        "consoles were sent, its own pictures) or referee (everything)")
     m.set_defaults(func=_mcap)

@@ -11,6 +11,9 @@
     robo-comp league report season season/report.html    # one static page with plots and each match's limits
     robo-comp league cancel season 12                    # a match that cannot be played: out
     robo-comp league repair season                       # a damaged league.db: keep what can be read
+    robo-comp league rerun season 12                     # play match 12 again here (a crash: the same crash)
+    robo-comp league compare ./v1 ./v2                   # is v2 better than v1? (paired by seed, 95 % interval)
+    robo-comp league compare rescuers@1a2b rescuers --league season   # two submissions, the league's opponents
 
 Ctrl-C stops a run at once; 'league run' again plays what it stopped. One run per league at a
 time. An entrant over its limits in a match forfeits that match. See docs/league.md.
@@ -49,6 +52,11 @@ def add_parser(sub: Any) -> None:
     i.add_argument("--seconds", type=float, help="match length in simulated seconds (default 300)")
     i.add_argument("--teams-per-match", type=int, help="teams in one match (default 2)")
     i.add_argument("--seed", type=int, help="the league's seed (every match's seed follows from it)")
+    i.add_argument("--rules", metavar="MODULE:OBJECT",
+                   help="scoring rules plugin for every match instead of the default search-and-rescue rules "
+                        "(as core --rules; the module must be importable where matches are played)")
+    i.add_argument("--debug-replay", choices=("team", "everyone"),
+                   help="who sees a team's debug drawing in the match replays: the team (default) or everyone")
     i.add_argument("--reference", type=int, default=0, metavar="N",
                    help="submit a reference field of N entrants (4 or fewer: the reference teams; more: "
                         "ref-00..ref-NN of known strength order)")
@@ -71,6 +79,9 @@ def add_parser(sub: Any) -> None:
     r.add_argument("--workers", type=int, default=None, help="local processes (default: the CPU count)")
     r.add_argument("--ray", metavar="ADDRESS", help="play on a Ray cluster: auto (this machine's cluster), "
                    "an address such as 10.0.0.1:6379, or local (start one here)")
+    from robo_comp.sandbox import oswall
+
+    oswall.add_option(r)
     r.set_defaults(func=_run)
 
     t = lsub.add_parser("table", help="the leaderboard (μ − 3σ)")
@@ -95,7 +106,35 @@ def add_parser(sub: Any) -> None:
     f.add_argument("league", metavar="LEAGUE")
     f.set_defaults(func=_repair)
 
-    for sp in (i, s, r, t, o, c):
+    rr = lsub.add_parser("rerun", help="play one league match again on this machine (the same seed, scenario "
+                         "and code: a crash shows again, with its traceback)")
+    rr.add_argument("league", metavar="LEAGUE")
+    rr.add_argument("match", metavar="MATCH", type=int)
+    rr.add_argument("--team", action="append", default=[], metavar="TEAM=PATH",
+                    help="play TEAM with the code in PATH (a folder or .py) instead of its submission")
+    rr.add_argument("--log", metavar="OUT.log", help="where the match's log goes (default: rerun-MATCH.log here)")
+    rr.set_defaults(func=_rerun)
+
+    cp = lsub.add_parser("compare", help="play two versions of a team against the same opponents, scenarios and "
+                         "seeds; print the mean score difference with its 95 %% confidence interval",
+                         description="A and B are folders or .py files (opponents: reference teams), or with "
+                         "--league two submissions TEAM@VERSION (or TEAM: its newest) of that league (opponents: "
+                         "the league's other teams, its scenarios, robots and match length).")
+    cp.add_argument("a", metavar="A")
+    cp.add_argument("b", metavar="B")
+    cp.add_argument("--league", help="compare two submissions of this league")
+    cp.add_argument("--against", help="comma-separated opponents: reference teams (frontier, explorer, "
+                    "random_walker, sitter), or with --league its teams (default: frontier,explorer; with "
+                    "--league: up to 3 of its other teams)")
+    cp.add_argument("--scenarios", help="comma-separated scenarios (default: office; with --league its pool)")
+    cp.add_argument("--seeds", type=int, default=4, help="seeds per opponent and scenario (default 4)")
+    cp.add_argument("--robots", type=int, help="robots per team (default 4, or the league's)")
+    cp.add_argument("--seconds", type=float, help="match length (default 120, or the league's)")
+    cp.add_argument("--workers", type=int, default=None, help="local processes (default: the CPU count)")
+    cp.add_argument("--out", default="compare", help="folder for the match logs (default ./compare)")
+    cp.set_defaults(func=_compare, ray=None)
+
+    for sp in (i, s, r, t, o, c, rr, cp):
         sp.set_defaults(func=_guarded(sp.get_default("func")))
     p.set_defaults(func=lambda args: p.print_help() or 2)
 
@@ -139,7 +178,11 @@ def _init(args: argparse.Namespace) -> int:
     if (root / "league.db").exists():
         raise FieldError(f"{root} already holds a league; submit to it or run it")
     changes: dict[str, Any] = {}
-    for key in ("name", "robots", "seconds", "teams_per_match", "seed"):
+    if args.rules:
+        from robo_comp.plugins.manager import load_rules
+
+        load_rules(args.rules)  # refused here, in a sentence, rather than at the first match
+    for key in ("name", "robots", "seconds", "teams_per_match", "seed", "debug_replay", "rules"):
         v = getattr(args, key)
         if v is not None:
             changes[key] = v
@@ -201,7 +244,11 @@ def runner_for(args: argparse.Namespace) -> Any:
     from robo_comp.league.runner import LocalRunner, RayRunner
 
     if args.ray:
-        return RayRunner(args.ray)
+        from robo_comp.sandbox import oswall
+
+        # the cluster's workers do not inherit this environment: the OS layer's setting goes with the job
+        setting = os.environ.get(oswall.ENV)
+        return RayRunner(args.ray, **({"runtime_env": {"env_vars": {oswall.ENV: setting}}} if setting else {}))
     return LocalRunner(args.workers or os.cpu_count() or 1)
 
 
@@ -212,7 +259,12 @@ def _run(args: argparse.Namespace) -> int:
         raise FieldError("--teams, --rounds and --unranked choose what a --format schedules; without "
                          "--format, 'league run' plays the matches already scheduled")
     from robo_comp.league.runner import Stopped
+    from robo_comp.sandbox import oswall
 
+    if args.ray:  # the workers' machines run the team code: they get the organiser's setting
+        oswall.choose(args.os_sandbox)
+    else:  # this machine does: a run that cannot wall team code stops before its first match
+        oswall.at_start("league run", args.os_sandbox)
     with _store(args) as store:
         store.lock()  # one run per league; the kernel drops it however this process ends
         runner = runner_for(args)
@@ -294,6 +346,93 @@ def _report(args: argparse.Namespace) -> int:
         m["log"] = str(rel / m["log"])
     write_report(out, view)
     print(f"wrote {out} ({len(view['standings'])} teams, {len(view['matches'])} matches)")
+    return 0
+
+
+def _code(store: Any, spec: str) -> tuple[str, dict[str, str]]:
+    """``TEAM@VERSION`` (or ``TEAM``: its newest) of a league: the team and its files."""
+    team, _, version = spec.partition("@")
+    subs = store.submissions(team)
+    if not subs:
+        raise FieldError(f"the league has no submission of team {team!r}")
+    if not version:
+        return team, store.newest()[team].files
+    chosen = [x for x in subs if x.version.startswith(version)]
+    if len(chosen) != 1:
+        raise FieldError(f"team {team} has {'no' if not chosen else 'more than one'} version starting with "
+                         f"{version!r}; its versions: {', '.join(x.version for x in subs)}")
+    return team, chosen[0].files
+
+
+def _compare(args: argparse.Namespace) -> int:
+    from robo_comp.league import compare, reference, season
+
+    seeds = list(range(1, max(1, args.seeds) + 1))
+    if args.league:
+        with _store(args) as store:
+            team_a, a = _code(store, args.a)
+            team_b, b = _code(store, args.b)
+            cfg = store.settings()
+            newest = store.newest()
+            names = ([x.strip() for x in args.against.split(",") if x.strip()] if args.against
+                     else [t for t in sorted(newest) if t not in (team_a, team_b)][:3])
+            missing = [x for x in names if x not in newest]
+            if missing:
+                raise FieldError(f"the league has no team {', '.join(missing)}")
+            opponents = {x: newest[x].files for x in names}
+        scenarios = args.scenarios.split(",") if args.scenarios else list(cfg["scenarios"])
+        robots, seconds = args.robots or cfg["robots"], args.seconds or cfg["seconds"]
+    else:
+        a, b = season.read_submission(args.a), season.read_submission(args.b)
+        for files in (a, b):
+            season.check_submission(files)
+        names = [x.strip() for x in (args.against or "frontier,explorer").split(",") if x.strip()]
+        try:
+            opponents = {x.replace("_", "-"): {"play.py": reference.source(x.replace("-", "_"))} for x in names}
+        except KeyError as e:
+            raise FieldError(str(e.args[0])) from None
+        scenarios = args.scenarios.split(",") if args.scenarios else ["office"]
+        robots, seconds = args.robots or 4, args.seconds or 120.0
+    if not opponents:
+        raise FieldError("no opponent to play against: give --against")
+    n = len(opponents) * len(scenarios) * len(seeds)
+    print(f"playing {2 * n} matches: A and B each against {', '.join(opponents)} on {', '.join(scenarios)}, "
+          f"seeds {seeds[0]}..{seeds[-1]} ({robots} robots, {seconds:g} s)", file=sys.stderr, flush=True)
+    runner = runner_for(args)
+    try:
+        result = compare.compare(a, b, opponents, scenarios, seeds, robots=robots, seconds=seconds,
+                                 out=Path(args.out), runner=runner)
+    finally:
+        runner.close()
+    print(compare.report(result))
+    return 0
+
+
+def _rerun(args: argparse.Namespace) -> int:
+    from robo_comp.league import season
+    from robo_comp.league.engine import play_match
+    from robo_comp.league.forensics import crash_text, rerun_command
+
+    with _store(args) as store:
+        spec = store.spec(args.match)
+    for pair in args.team:
+        team, sep, path = pair.partition("=")
+        entrant = next((e for e in spec["entrants"] if e["team"] == team), None)
+        if not sep or entrant is None:
+            raise FieldError(f"--team wants TEAM=PATH with a team of match {args.match} "
+                             f"({', '.join(e['team'] for e in spec['entrants'])}), not {pair!r}")
+        entrant["files"] = season.read_submission(path)
+        entrant["version"] = "local"
+    spec["log"] = args.log or f"rerun-{args.match}.log"
+    result = play_match(spec)
+    print(f"match {args.match} played again ({spec['scenario']}, seed {spec['seed']}): "
+          + ", ".join(f"{t} {s:g}" for t, s in result["scores"].items()))
+    for c in result.get("crashes") or []:
+        print(crash_text(c, seed=spec["seed"], scenario=spec["scenario"],
+                         command=rerun_command(args.league, args.match)))
+    if not result.get("crashes"):
+        print("no team code crashed in this match")
+    print(f"watch it: robo-comp web --replay {spec['log']}")
     return 0
 
 

@@ -1,6 +1,6 @@
 """One league match: the entrants' code in the real sandbox, played by the bench's engine.
 
-A league match is the official match engine (:class:`robo_comp.testing.bench.Bench`: the robot
+A league match is the official match engine (:class:`robo_comp.engine.bench.Bench`: the robot
 host's call table, the core's find judge and scoring rules, the core's event names) run on a
 simulated clock, so the same scenario, seed and code give the same scores and a byte-identical
 event log. :func:`play_match` takes and returns plain data, so a process pool or a Ray worker
@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from robo_comp.errors import FieldError
+from robo_comp.league.forensics import crashes
 
 #: The task every robot of an entrant runs.
 PLAY = "play"
@@ -35,7 +36,7 @@ COLOURS = ("#e6194b", "#4363d8", "#3cb44b", "#f58231", "#911eb4", "#42d4f4", "#f
 def load_match_scenario(spec: str) -> Any:
     """The scenario of a match: a bundled name (``office``), a file path, or
     ``generated:SEED[:DIFFICULTY[:TEAMS]]`` (a procedurally generated one)."""
-    from robo_comp.testing.match import resolve_scenario
+    from robo_comp.world.scenario import resolve_scenario
     from robo_comp.world.scenario import load_scenario, parse_scenario
 
     if spec.startswith("generated:"):
@@ -64,25 +65,27 @@ def match_scenario(scenario: Any, teams: list[str], robots: int, seconds: float)
     return dataclasses.replace(scenario, teams=placed, duration=float(seconds))
 
 
-#: A league match's limits per entrant (see :class:`robo_comp.testing.bench.Budget`): events
-#: and log bytes per robot per simulated second, real seconds of computing and growth of the
-#: worker's memory per match. A normal entrant uses a fifth of them or less (the reference
-#: frontier team: 6 events and 1 KiB per robot-second); going over ends the match as the
-#: entrant's forfeit.
+#: A league match's limits per entrant (see :class:`robo_comp.engine.budget.Budget`): events
+#: and log bytes per robot per simulated second, CPU seconds of its code, real seconds the
+#: match may wait for its code (a backstop: real time grows with the machine's load) and
+#: memory (its sandbox's and the worker's growth for it) per match. A normal entrant uses a
+#: fifth of them or less (the reference frontier team: 6 events and 1 KiB per robot-second, a
+#: few CPU seconds); going over ends the match as the entrant's forfeit.
 EVENTS_PER_ROBOT_SECOND = 25
 LOG_BYTES_PER_ROBOT_SECOND = 4096
-WALL_SECONDS = 120.0
+CPU_SECONDS = 120.0
+WALL_SECONDS = 480.0
 MEMORY_MIB = 512.0
 
 
 def league_budget(robots: int, seconds: float, spec: dict[str, Any] | None = None) -> Any:
     """The budget of a league match of ``robots`` robots a team and ``seconds`` simulated
     seconds; ``spec["limits"]`` may override any field (for tests and organisers)."""
-    from robo_comp.testing.bench import Budget
+    from robo_comp.engine.budget import Budget
 
     scale = max(1, robots) * max(1.0, seconds)
     fields: dict[str, Any] = {"events": int(EVENTS_PER_ROBOT_SECOND * scale), "log_bytes": int(LOG_BYTES_PER_ROBOT_SECOND * scale),
-              "wall_seconds": WALL_SECONDS, "memory_mib": MEMORY_MIB}
+              "cpu_seconds": CPU_SECONDS, "wall_seconds": WALL_SECONDS, "memory_mib": MEMORY_MIB}
     fields.update((spec or {}).get("limits") or {})
     return Budget(**fields)
 
@@ -91,18 +94,21 @@ def play_match(spec: dict[str, Any]) -> dict[str, Any]:
     """Play one match and write its event log; return its result (plain data).
 
     ``spec``: ``id``, ``scenario`` (see :func:`load_match_scenario`), ``seed``, ``seconds``,
-    ``robots`` (per team), ``entrants`` (``[{"team", "version", "files": {name: source}}]``)
-    and ``log`` (where the core-format event log goes; None: not written).
+    ``robots`` (per team), ``entrants`` (``[{"team", "version", "files": {name: source}}]``),
+    ``debug_replay`` (who sees team code's debug drawing in the replay: ``team``, the default,
+    or ``everyone``), ``rules`` (a scoring rules plugin ``MODULE:OBJECT``, as ``core --rules``;
+    None: the installed rules) and ``log`` (where the core-format event log goes; None: not written).
 
     The result: ``id``, ``scores`` (team → score), ``ranks`` (team → 1 for the best; equal
     scores share a rank), ``victims`` (team → victims confirmed), ``bumps`` (team → count),
     ``sim_seconds``, ``wall_seconds``, ``events``, ``log`` and ``digest`` (SHA-256 of the log),
-    ``forfeit`` (None, or ``{"team", "limit", "message"}``: the entrant that went over a
+    ``crashes`` (where team code raised: robot, task, last robot call, line, traceback, match
+    time; :func:`robo_comp.league.forensics.crashes`), ``forfeit`` (None, or ``{"team", "limit", "message"}``: the entrant that went over a
     match limit; it ranks last whatever its score, the others rank by score) and ``limits``
     (team → what its code ran into: sandbox limits that stopped a robot, calls the call
     budget held back, and its use of the match limits), for the student's match report.
     """
-    from robo_comp.testing.bench import Bench
+    from robo_comp.engine.bench import Bench
 
     t0 = time.perf_counter()
     teams = [e["team"] for e in spec["entrants"]]
@@ -112,8 +118,14 @@ def play_match(spec: dict[str, Any]) -> dict[str, Any]:
     scenario = match_scenario(load_match_scenario(str(spec["scenario"])), teams, robots,
                               float(spec.get("seconds", 300)))
     budget = league_budget(robots, scenario.duration, spec)
-    with Bench(scenario, teams={t: robots for t in teams}, seed=int(spec.get("seed", 0)),
-               max_sim_seconds=scenario.duration, budget=budget) as bench:
+    pm = None
+    if spec.get("rules"):  # the league's scoring rules plugin, as core --rules
+        from robo_comp.plugins.manager import load_rules
+
+        pm = load_rules(str(spec["rules"]))
+    with Bench(scenario, teams={t: robots for t in teams}, seed=int(spec.get("seed", 0)), pm=pm,
+               max_sim_seconds=scenario.duration, budget=budget, practice=False) as bench:
+        bench.debug_replay = debug_replay(spec.get("debug_replay"))  # recorded in the log's core.started
         for entrant in spec["entrants"]:
             for name, source in sorted(entrant["files"].items()):
                 bench.load(name, source, team=entrant["team"])
@@ -126,11 +138,12 @@ def play_match(spec: dict[str, Any]) -> dict[str, Any]:
         restarts: dict[tuple[int, str], int] = {}
 
         def again(tag: int, outcome: dict[str, Any]) -> list[tuple[str, list[Any]]]:
-            why = outcome.get("reason")
-            if outcome["ok"] or outcome.get("start_error") or why not in ("stopped", "error"):
+            result = outcome.get("result")
+            why = result.get("reason") if isinstance(result, dict) else None
+            if outcome["ok"] or outcome.get("refused") or why not in ("bumped", "error"):
                 return []  # done, or a broken limit (the sandbox said which)
             n = restarts.get((tag, why), 0)
-            if n >= (RESTARTS if why == "stopped" else RETRIES):
+            if n >= (RESTARTS if why == "bumped" else RETRIES):
                 return []
             restarts[(tag, why)] = n + 1
             return [(PLAY, list(plan[tag][0][1]))]
@@ -148,19 +161,33 @@ def play_match(spec: dict[str, Any]) -> dict[str, Any]:
         forfeit: dict[str, Any] | None = None if bench.forfeit is None else {"team": bench.forfeit.team, "limit": bench.forfeit.limit,
                                                       "message": bench.forfeit.message, "t": bench.forfeit.t}
         limits = {t: limits_hit(out.events, t, bench.used.get(t, {}), budget) for t in teams}
+        crashed = [c.plain() for c in crashes(out.events)]
     return {"id": spec.get("id"), "scores": scores, "ranks": ranks_of(scores, forfeit["team"] if forfeit else None),
             "victims": victims, "bumps": bumps, "sim_seconds": out.sim_seconds,
             "wall_seconds": round(time.perf_counter() - t0, 4), "events": len(out.events),
-            "log": str(log) if log else None, "digest": digest, "forfeit": forfeit, "limits": limits}
+            "log": str(log) if log else None, "digest": digest, "forfeit": forfeit, "limits": limits,
+            "crashes": crashed}
+
+
+def debug_replay(value: Any) -> str:
+    """A match's ``debug_replay`` choice, checked (``team`` when not given)."""
+    from robo_comp.protocol.topics import DEBUG_REPLAY
+
+    if value in (None, ""):
+        return "team"
+    if value not in DEBUG_REPLAY:
+        raise FieldError(f"debug_replay must be one of {', '.join(DEBUG_REPLAY)}, not {value!r}")
+    return str(value)
 
 
 def limits_hit(events: list[dict[str, Any]], team: str, used: dict[str, float], budget: Any) -> dict[str, Any]:
     """What ``team``'s code ran into in a match: ``sandbox`` (the messages of the sandbox
     limits that stopped one of its robots' ``play``: time, memory, output), ``held_calls``
     (calls the call budget answered later) and ``use`` (its share of each match limit, 0..1;
-    the wall-clock share is not deterministic and so not in the result)."""
+    the CPU, real-time and memory shares are not deterministic and so not in the result)."""
     stopped = sorted({str(e.get("status")) for e in events
-                      if e["topic"] == "task.done" and e["team"] == team and e.get("reason") == "limit"})
+                      if e["topic"] == "task.done" and e["team"] == team and isinstance(e.get("result"), dict)
+                      and e["result"].get("reason") == "limit"})
     use = {}
     for name in ("events", "log_bytes"):
         cap = getattr(budget, name)
@@ -180,6 +207,6 @@ def ranks_of(scores: dict[str, float], forfeit: str | None = None) -> dict[str, 
     return ranks
 
 
-__all__ = ["COLOURS", "EVENTS_PER_ROBOT_SECOND", "LOG_BYTES_PER_ROBOT_SECOND", "MEMORY_MIB", "PLAY", "RESTARTS",
-           "RETRIES", "WALL_SECONDS", "league_budget", "limits_hit", "load_match_scenario", "match_scenario",
-           "play_match", "ranks_of"]
+__all__ = ["COLOURS", "CPU_SECONDS", "EVENTS_PER_ROBOT_SECOND", "LOG_BYTES_PER_ROBOT_SECOND", "MEMORY_MIB", "PLAY",
+           "RESTARTS", "RETRIES", "WALL_SECONDS", "debug_replay", "league_budget", "limits_hit", "load_match_scenario",
+           "match_scenario", "play_match", "ranks_of"]

@@ -171,7 +171,21 @@ def render_report(view: dict[str, Any]) -> str:
                      f"<td class='name'>{e(m['scenario'])}</td><td>{m['seed']}</td>"
                      f"<td class='name'>{'yes' if m['ranked'] else 'test'}</td><td class='name'>{teams}</td>"
                      f"<td>{link}</td><td class='name'>{'<br>'.join(e(n) for n in m.get('notes', []))}</td></tr>")
-    parts.append("</table></body></html>")
+    parts.append("</table>")
+    crashed = [m for m in view["matches"] if m.get("crashes")]
+    if crashed:
+        from robo_comp.league.forensics import crash_text, rerun_command
+
+        parts.append("<h2>Where team code crashed</h2><p class='hint'>The robot, its last robot call, the line "
+                     "and the traceback through the team's files, the match time and the seed; the command "
+                     "plays that match again on your machine (the same crash: league matches are "
+                     "deterministic). Add <code>--team TEAM=PATH</code> to play your edited folder instead.</p>")
+        for m in crashed:
+            command = rerun_command(view.get("root", "LEAGUE"), m["id"])
+            text = "\n".join(crash_text(c, seed=m["seed"], scenario=m["scenario"], command=command)
+                             for c in m["crashes"])
+            parts.append(f"<h3>match {m['id']}</h3><pre>{e(text)}</pre>")
+    parts.append("</body></html>")
     return "".join(parts)
 
 

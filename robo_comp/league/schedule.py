@@ -6,7 +6,8 @@
   ``n / 2`` matches; one bye per round with an odd count); for groups larger than two, every
   group of ``size`` teams;
 * **Swiss** — each round pairs teams of neighbouring standing that have not met yet (a
-  rematch only when no pairing avoids one), the bye going round;
+  rematch only when no pairing avoids one), two teams that both owe the same start side only
+  when no other pairing avoids a rematch, the bye going round;
 * **double elimination** — two-team matches seeded by rating; a team is out after its second
   loss; the winners' and the losers' brackets are the teams with no loss and with one loss,
   paired best seed against worst seed; the grand final is played again when the finalist
@@ -17,7 +18,7 @@ from __future__ import annotations
 import itertools
 import random
 from collections import Counter
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from typing import Any
 
 #: The formats ``robo-comp league run --format`` knows.
@@ -51,46 +52,80 @@ def round_robin(teams: list[str], size: int = 2) -> list[list[list[str]]]:
 
 
 def swiss_round(standing: list[str], played: Iterable[frozenset[str]],
-                byes: Iterable[str] = ()) -> list[list[str]]:
+                byes: Iterable[str] = (), lean: Mapping[str, int] | None = None) -> list[list[str]]:
     """Pairs for one Swiss round: down the standing (best first), each team meets the nearest
     one it has not met yet, searching further down (backtracking) when a greedy pairing would
     force a rematch later. Only when no pairing avoids a rematch, each team meets the nearest
     one it has met the fewest times (``played`` lists every earlier meeting, repeats too), so
     the pairs still change from round to round. With an odd count, the lowest team that has not
-    had a bye (``byes``) sits the round out."""
+    had a bye (``byes``) sits the round out.
+
+    ``lean`` (team → matches it started on the first side minus those on the second, so far)
+    keeps the sides even over a season: two teams that lean the same way are not paired
+    where another pairing without a rematch exists (one of them would have to take its
+    over-played side again), so that every team's sides stay at most one apart."""
     times = Counter(played)
     met = set(times)
     free = list(standing)
+    side = dict(lean or {})
+    outs: list[str | None] = [None]
     if len(free) % 2:
         had = set(byes)
-        out = next((t for t in reversed(free) if t not in had), free[-1])
-        free.remove(out)
-    budget = [20_000]  # search steps: a league of hundreds stays fast; past it, greedy
+        waiting: list[str | None] = [t for t in reversed(free) if t not in had] or [free[-1]]
+        # the lowest team without a bye sits out; the next few only where that keeps sides even
+        outs = waiting[:4] if side else waiting[:1]
 
-    def search(rest: list[str]) -> list[list[str]] | None:
+    def clash(a: str, b: str) -> bool:
+        return side.get(a, 0) * side.get(b, 0) > 0
+
+    def search(rest: list[str], clashes: int, budget: list[int]) -> list[list[str]] | None:
+        """A pairing of ``rest`` without a rematch and with at most ``clashes`` pairs of teams
+        leaning the same way (None: none, or the search ran out of steps)."""
         if not rest:
             return []
         a, others = rest[0], rest[1:]
         for i, b in enumerate(others):
             if frozenset((a, b)) in met:
                 continue
+            c = clash(a, b)
+            if c and clashes == 0:
+                continue
             budget[0] -= 1
             if budget[0] < 0:
                 return None
-            tail = search(others[:i] + others[i + 1:])
+            tail = search(others[:i] + others[i + 1:], clashes - c, budget)
             if tail is not None:
                 return [[a, b], *tail]
         return None
 
-    found = search(free)
-    if found is not None:
-        return found
+    # fewest pairs that lean the same way first (none where possible), then any pairing without a
+    # rematch; a search runs at most 20,000 steps: a league of hundreds stays fast, past it greedy
+    for clashes in ([0, 1, 2, len(free)] if side else [len(free)]):
+        for out in outs:
+            rest = [t for t in free if t != out]
+            found = search(rest, clashes, [20_000])
+            if found is not None:
+                return found
+    if outs[0] is not None:
+        free.remove(outs[0])
     pairs = []
     while len(free) > 1:  # no pairing avoids a rematch (or the search ran out): fewest meetings
         a = free.pop(0)
-        k = min(range(len(free)), key=lambda i: (times[frozenset((a, free[i]))], i))
+        k = min(range(len(free)), key=lambda i: (times[frozenset((a, free[i]))], clash(a, free[i]), i))
         pairs.append([a, free.pop(k)])
     return pairs
+
+
+def side_lean(matches: Iterable[list[str]]) -> dict[str, int]:
+    """Team → matches it played on the first side minus those on the second (two-team
+    matches, each given in side order): what :func:`swiss_round` keeps even."""
+    lean: dict[str, int] = {}
+    for teams in matches:
+        if len(teams) == 2:
+            a, b = teams
+            lean[a] = lean.get(a, 0) + 1
+            lean[b] = lean.get(b, 0) - 1
+    return lean
 
 
 def balance(groups: list[list[str]], scenarios: int, *, prior: dict[str, list[int]] | None = None,
@@ -254,4 +289,5 @@ def champion(seeds: list[str], losses: dict[str, int]) -> str | None:
     return alive[0] if len(alive) == 1 else None
 
 
-__all__ = ["FORMATS", "balance", "champion", "elimination_round", "round_robin", "scrimmage", "swiss_round"]
+__all__ = ["FORMATS", "balance", "champion", "elimination_round", "round_robin", "scrimmage", "side_lean",
+           "swiss_round"]

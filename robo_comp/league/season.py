@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from robo_comp.errors import FieldError, UploadError
+from robo_comp.league.forensics import rerun_command
 from robo_comp.league import ratings, schedule
 from robo_comp.league.engine import PLAY
 from robo_comp.league.store import LeagueStore, MatchRow, Submission
@@ -85,7 +86,7 @@ def check_submission(files: dict[str, str]) -> dict[str, dict[str, Any]]:
     live match is; the modules together must advertise ``play(robot, width, height, index,
     count)``. Returns the advertised tasks; raises :class:`UploadError` with the file and
     line, or :class:`FieldError` when ``play`` is missing."""
-    from robo_comp.testing.bench import Bench
+    from robo_comp.engine.bench import Bench
 
     with Bench("demo_room", robots=1) as bench:
         for name, source in sorted(files.items()):
@@ -115,7 +116,7 @@ def submit(store: LeagueStore, team: str, files: dict[str, str], who: str) -> tu
 def submit_reference(store: LeagueStore, count: int = 4, who: str = "reference") -> list[Submission]:
     """Submit a reference field: the first ``count`` reference teams (at most 4), or for more,
     ``count`` entrants of known strength order: ``ref-00`` (strongest) to ``ref-NN``, the
-    frontier team with handicap 0 to NN (each step: its robots start 4 s later)."""
+    frontier team with handicap 0 to NN (each step: its robots start 7 s later)."""
     from robo_comp.league import reference
 
     if count <= len(reference.NAMES):
@@ -288,7 +289,9 @@ def run_format(store: LeagueStore, runner: Any, fmt: str, *, rounds: int | None 
         byes = {t for rnd in {m.round for m in earlier}
                 for t in set(names) - {t for m in earlier if m.round == rnd for t in m.teams}}
         for i in range(rounds or max(1, (len(names) - 1).bit_length())):
-            pairs = schedule.swiss_round(standing(store, names), played, byes)
+            lean = schedule.side_lean(m.teams for m in store.matches()  # as the store's balance counts them
+                                      if m.status != "cancelled" and m.scenario in cfg["scenarios"])
+            pairs = schedule.swiss_round(standing(store, names), played, byes, lean)
             played += [frozenset(p) for p in pairs]
             byes |= set(names) - {t for p in pairs for t in p}
             add(play(store, runner, store.schedule(fmt, base + i, pairs, ranked=ranked, per_round=True), stream=stream))
@@ -340,12 +343,14 @@ def league_view(store: LeagueStore) -> dict[str, Any]:
     order = {m.id: i + 1 for i, m in enumerate(m for m in matches if m.ranked and m.result is not None)}
     history = {team: [[order.get(mid, 0), round(ratings.ordinal(mu, sigma), 3)] for mid, mu, sigma in h]
                for team, h in store.history().items()}
-    return {"name": cfg["name"], "generated": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
+    return {"name": cfg["name"], "root": str(store.root), "generated": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
             "standings": rows, "history": history, "scores": per_scenario, "held": rating_hold(store),
             "matches": [{"id": m.id, "format": m.format, "round": m.round, "scenario": m.scenario, "seed": m.seed,
                          "ranked": m.ranked, "status": m.status, "teams": m.teams,
                          "scores": (m.result or {}).get("scores", {}),
-                         "forfeit": (m.result or {}).get("forfeit"), "notes": match_notes(m.result),
+                         "forfeit": (m.result or {}).get("forfeit"),
+                         "notes": match_notes(m.result, rerun_command(str(store.root), m.id)),
+                         "crashes": (m.result or {}).get("crashes") or [],
                          "log": str(store.log_path(m.id).relative_to(store.root)),
                          "seconds": (m.result or {}).get("wall_seconds")} for m in matches]}
 
@@ -366,13 +371,21 @@ def order_free(store: LeagueStore) -> list[dict[str, Any]]:
              "matches": counts.get(t, 0)} for i, t in enumerate(order)]
 
 
-def match_notes(result: dict[str, Any] | None) -> list[str]:
+def match_notes(result: dict[str, Any] | None, rerun: str | None = None) -> list[str]:
     """What a match's report says about the limits its entrants ran into: the forfeit, the
     sandbox limits that stopped a robot, calls the call budget held back, and a match limit
-    an entrant used more than half of (see docs/league.md, "Limits")."""
+    an entrant used more than half of (see docs/league.md, "Limits"); and where team code
+    crashed (robot, call, line, match time), with ``rerun``, the command that plays it again."""
     if not result:
         return []
     notes = []
+    for c in result.get("crashes") or []:
+        call = f", last call {c['call']}" if c.get("call") else ""
+        where = f"line {c['line']}" if c.get("line") else "no line of its files"
+        notes.append(f"{c['team']}: robot {c['tag']}'s {c['task']} crashed at {c['t']:g} s, {where}{call}: "
+                     f"{c['message']}")
+    if result.get("crashes") and rerun:
+        notes.append(f"reproduce it: {rerun}")
     forfeit = result.get("forfeit")
     if forfeit:
         notes.append(f"{forfeit['message']} (at {forfeit.get('t', 0):g} s)")

@@ -45,7 +45,7 @@ CREATE TABLE IF NOT EXISTS rating_history (
 
 #: Settings a new league gets (``robo-comp league init`` changes them through :meth:`LeagueStore.configure`).
 DEFAULTS: dict[str, Any] = {"name": "League", "scenarios": ["office", "generated:1:0.5"], "robots": 4,
-                            "seconds": 300, "teams_per_match": 2, "seed": 0}
+                            "seconds": 300, "teams_per_match": 2, "seed": 0, "debug_replay": "team"}
 
 
 @dataclass(frozen=True)
@@ -347,7 +347,8 @@ class LeagueStore:
             s = self.submission(sid)
             entrants.append({"team": team, "version": s.version, "files": s.files})
         return {"id": m.id, "scenario": m.scenario, "seed": m.seed, "seconds": cfg["seconds"],
-                "robots": cfg["robots"], "entrants": entrants, "log": str(self.log_path(m.id))}
+                "robots": cfg["robots"], "entrants": entrants, "log": str(self.log_path(m.id)),
+                "debug_replay": cfg.get("debug_replay", "team"), "rules": cfg.get("rules")}
 
     def started(self, mid: int) -> None:
         """Match ``mid`` is being played (one more attempt)."""

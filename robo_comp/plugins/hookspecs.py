@@ -8,12 +8,13 @@ in a plugin of its own (see :mod:`robo_comp.sandbox.parent`).
 """
 from __future__ import annotations
 
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import pluggy
 
-from robo_comp.robots.steps import RobotView, TaskSpec
-from robo_comp.scoring.config import ScoringConfig
+if TYPE_CHECKING:  # types only, as pytest's hookspecs do: the hooks' callers import this module
+    from robo_comp.robots.steps import CellPath, TaskSpec
+    from robo_comp.scoring.config import ScoringConfig
 
 PROJECT = "robo_comp"
 hookspec = pluggy.HookspecMarker(PROJECT)
@@ -28,10 +29,21 @@ class BoardView(Protocol):
     first_finder: dict[str, str]
 
 
-class HostedRobot(RobotView, Protocol):
-    """A robot as a robot host's plugins see it (a :class:`robo_comp.robots.host.SimRobot`)."""
+class HostedRobot(Protocol):
+    """A robot as a robot host's plugins see it (a :class:`robo_comp.robots.runtime.SimRobot`):
+    what its tasks see (:class:`robo_comp.robots.steps.RobotView`) and its robot id."""
 
+    tag: int
     robot_id: str
+
+    def cell(self) -> tuple[int, int]:
+        """The robot's current cell."""
+
+    def plan_to(self, goal: tuple[int, int]) -> CellPath | None:
+        """A path from the current cell to ``goal`` (inclusive), or None."""
+
+    def in_bounds(self, x: int, y: int) -> bool:
+        """True when ``(x, y)`` is a free cell of the arena."""
 
 
 # ---------------------------------------------------------------------- tasks

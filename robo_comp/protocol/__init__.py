@@ -4,7 +4,8 @@ nothing of theirs.
 
 - :mod:`~robo_comp.protocol.wire`: the envelope (encoding, decoding, session secret, routing ids);
 - :mod:`~robo_comp.protocol.messages`: the message table and the checks run on every message;
-- :mod:`~robo_comp.protocol.topics`: event topics and their public view;
+- :mod:`~robo_comp.protocol.topics`: the one table of event topics: fields and who may see them;
+- :mod:`~robo_comp.protocol.states`: the wire's state words as enums;
 - :mod:`~robo_comp.protocol.taskspec`: advertised task descriptions and task-call checks;
 - :mod:`~robo_comp.protocol.replies`: the one reply decoder;
 - :mod:`~robo_comp.protocol.arena`: reading the arena payload;
@@ -17,6 +18,7 @@ from robo_comp.protocol.messages import (
     ANY_ROLE,
     CONSOLE_ONLY,
     CORE_TO_HOST,
+    TO_HOST,
     HOST_ONLY,
     MAX_RADIO,
     MAX_REPORTS,
@@ -28,9 +30,13 @@ from robo_comp.protocol.messages import (
     check_reports,
     decode,
     validate,
+    validate_to_host,
 )
 from robo_comp.protocol.replies import reply_body, reply_error
-from robo_comp.protocol.topics import EVERYONE, PRIVATE_KEYS, PRIVATE_TOPICS, PUBLIC_TOPICS, TOPICS, public_event, public_view
+from robo_comp.protocol.topics import (
+    AFTER_MATCH_TOPICS, DEBUG_REPLAY, EVERYONE, PRIVATE_FIELDS, PRIVATE_TOPICS, PUBLIC_TOPICS, TABLE, TOPICS, EventView,
+    check_event, public_event, readable, replay_public_event,
+)
 from robo_comp.protocol.wire import (
     INSTANCE_MAX,
     INSTANCE_MIN,
@@ -57,10 +63,10 @@ from robo_comp.protocol.wire import (
 
 __all__ = [
     "ANY_ROLE", "CONSOLE_ONLY", "HOST_ONLY", "ROLE_MESSAGES", "INSTANCE_MAX", "INSTANCE_MIN",
-    "CORE_TO_HOST", "EVERYONE", "MAX_FRAME", "MAX_RADIO", "MAX_REPORTS", "NOTIFICATIONS", "OPENING",
-    "PRIVATE_KEYS", "PRIVATE_TOPICS", "PUBLIC_TOPICS", "PROTOCOL_VERSION", "RADIO_RATE", "REQUESTS", "ROUTING_ID_BYTES", "SESSION_BYTES",
+    "CORE_TO_HOST", "TO_HOST", "validate_to_host", "EVERYONE", "EventView", "MAX_FRAME", "MAX_RADIO", "MAX_REPORTS", "NOTIFICATIONS", "OPENING",
+    "AFTER_MATCH_TOPICS", "DEBUG_REPLAY", "PRIVATE_FIELDS", "TABLE", "check_event", "PRIVATE_TOPICS", "PUBLIC_TOPICS", "PROTOCOL_VERSION", "RADIO_RATE", "REQUESTS", "ROUTING_ID_BYTES", "SESSION_BYTES",
     "SESSION_KEY", "SOCKET_MAX_FRAME", "TOPICS", "Message", "check_reports", "decode", "decode_envelope",
     "describe_type", "error_reply", "event_frames", "is_finite", "new_instance_id", "new_routing_id", "new_session_secret",
-    "ok_reply", "pack", "public_event", "public_view", "reply_body", "reply_error", "request", "unpack", "unpack_walls",
+    "ok_reply", "pack", "public_event", "readable", "replay_public_event", "reply_body", "reply_error", "request", "unpack", "unpack_walls",
     "validate",
 ]

@@ -101,23 +101,43 @@ REQUESTS: dict[str, dict[str, tuple[str, bool]]] = {
     "bump": {"tag": (_INT, True), "x": (_NUM, False), "y": (_NUM, False), "with": (_OPT_INT, False)},
     "advertise": {"tag": (_INT, True), "tasks": (_LIST, True)},
     "log": {"tag": (_OPT_INT, False), "stream": (_STR, True), "text": (_STR, True)},
+    # debug drawing of team code (robo_comp/protocol/drawing.py): one frame per robot, for its team only
+    "draw": {"tags": (_LIST, True), "frames": (_LIST, True)},
     # replies from a robot host to a core-initiated request (stop, upload, unload, extensions)
     "reply": {},
 }
 
 #: Types a sender may use without a reply on success.
-NOTIFICATIONS = frozenset({"report", "reports", "heartbeat", "bump", "log"})
+NOTIFICATIONS = frozenset({"report", "reports", "heartbeat", "bump", "log", "draw"})
 #: Robots in one ``reports`` message at most.
 MAX_REPORTS = 1000
 
-#: Messages the core sends to robot hosts (requests expect a ``reply``).
-CORE_TO_HOST = ("heartbeat", "task.start", "task.interrupt", "stop", "radio", "hold", "map.delta", "event",
-                "upload", "unload", "extensions", "sandbox.reset", "release")
+#: Messages the core sends to robot hosts (requests expect a ``reply``) and their fields: a host
+#: checks every one it gets against this table (:func:`validate_to_host`), as the core checks
+#: every request against :data:`REQUESTS`.
+TO_HOST: dict[str, dict[str, tuple[str, bool]]] = {
+    "heartbeat": {"t": (_NUM, False), "core_id": (_STR, False)},
+    "task.start": {"tag": (_INT, True), "task_id": (_INT, True), "name": (_STR, True), "args": (_LIST, True)},
+    "task.interrupt": {"tag": (_INT, True), "task_id": (_INT, True), "name": (_STR, True), "args": (_LIST, True)},
+    "stop": {"tag": (_INT, True)},
+    "radio": {"tag": (_INT, True), "from": (_INT, True), "to": (_OPT_INT, False), "data": (_ANY, True)},
+    "hold": {"on": (_BOOL, True), "phase": (_STR, False)},
+    "map.delta": {"version": (_INT, True)},
+    "event": {"topic": (_STR, True), "data": (_MAP, True)},
+    "upload": {"tags": (_LIST, True), "filename": (_STR, True), "source": (_ANY, True)},
+    "unload": {"tags": (_LIST, True), "name": (_STR, True)},
+    "extensions": {"tags": (_LIST, True)},
+    "sandbox.reset": {"tags": (_LIST, True)},
+    "release": {"tag": (_INT, True), "message": (_STR, False)},
+    "reply": {},
+}
+#: Their type names.
+CORE_TO_HOST = tuple(t for t in TO_HOST if t != "reply")
 
 #: Messages only the organiser's robot hosts send (``STATE/hosts/<team>.token``): they say what
 #: happens in the world (robots, poses, pictures, bumps, task results) and answer for robots.
 HOST_ONLY = frozenset({"register", "report", "reports", "task.next", "task.done", "radio", "leave",
-                       "picture", "bump", "advertise", "log", "reply"})
+                       "picture", "bump", "advertise", "log", "draw", "reply"})
 #: Messages every principal may send (a host reports a find for its team's code, reads the map).
 ANY_ROLE = frozenset({"hello", "heartbeat", "bye", "arena", "map", "map.delta", "find"})
 #: Messages of consoles, walls and scripts: a team's or the referee's token.
@@ -137,11 +157,16 @@ _ALLOWED: dict[str, tuple[type, ...] | None] = {
     _ANY: None, _INT: (int,), _OPT_INT: (int, _NONE), _NUM: (int, float), _STR: (str,),
     _BOOL: (bool,), _LIST: (list,), _MAP: (dict,), _BIN: (bytes,),
 }
-# Per type: (field, allowed types, required, kind) rows, built once.
-_CHECKS: dict[str, list[tuple[str, tuple[type, ...] | None, bool, str]]] = {
-    t: [(name, _ALLOWED[kind], req, kind) for name, (kind, req) in spec.items()]
-    for t, spec in REQUESTS.items()
-}
+Rows = list[tuple[str, tuple[type, ...] | None, bool, str]]
+
+
+def _rows(table: dict[str, dict[str, tuple[str, bool]]]) -> dict[str, Rows]:
+    """Per type: (field, allowed types, required, kind) rows, built once."""
+    return {t: [(name, _ALLOWED[kind], req, kind) for name, (kind, req) in spec.items()] for t, spec in table.items()}
+
+
+_CHECKS = _rows(REQUESTS)
+_HOST_CHECKS = _rows(TO_HOST)
 
 
 def check_reports(body: dict[str, Any]) -> int:
@@ -233,9 +258,15 @@ def validate(raw: dict[str, Any], id_: int) -> Message:
     body = raw.get("body", {})
     if type(body) is dict and _FITS[type_](body):  # the common case: every field as the table says
         return Message(type_, id_, body)
+    _check_body(type_, body, _CHECKS[type_])
+    return Message(type_, id_, body)
+
+
+def _check_body(type_: str, body: Any, rows: Rows) -> None:
+    """Raise :class:`FieldError` naming the first field of ``body`` the rows do not admit."""
     if type(body) is not dict:
         raise FieldError(f"'body' of {type_!r} must be a map, got {describe_type(body)}")
-    for name, allowed, required, kind in _CHECKS[type_]:
+    for name, allowed, required, kind in rows:
         if name not in body:
             if required:
                 raise FieldError(f"{type_!r} needs the field {name!r} ({kind})")
@@ -244,6 +275,24 @@ def validate(raw: dict[str, Any], id_: int) -> Message:
                 f"field {name!r} of {type_!r} must be {kind}, got {describe_type(body[name])}")
         elif kind == _NUM and not is_finite(body[name]):
             raise FieldError(f"field {name!r} of {type_!r} must be a finite number, got {body[name]!r}")
+
+
+def validate_to_host(raw: Any) -> Message:
+    """Check a decoded message from the core on a robot host (:data:`TO_HOST`): a type the table
+    names, an integer id, the fields it needs of the kinds it says. Raises the error that names what
+    is wrong; a host logs it and ignores the message (a reply is checked by its own decoder)."""
+    if type(raw) is not dict:
+        raise MalformedError(f"a message from the core must be a map, got {describe_type(raw)}")
+    type_ = raw.get("type")
+    if type(type_) is not str or type_ not in TO_HOST:
+        raise UnknownTypeError(f"the core sent a message of type {type_!r}, which robot hosts do not take")
+    id_ = raw.get("id", 0)
+    if type(id_) is not int:
+        raise MalformedError("a message from the core needs an integer 'id'")
+    if type_ == "reply":
+        return Message(type_, id_, raw)
+    body = raw.get("body", {})
+    _check_body(type_, body, _HOST_CHECKS[type_])
     return Message(type_, id_, body)
 
 

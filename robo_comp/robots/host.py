@@ -4,7 +4,10 @@ The host says hello with its team token, fetches the arena, registers its robots
 with a stable robot id, so a reconnect keeps the tag) and then runs a fixed-rate loop:
 advance every robot's movement, ask finished tasks for their next step, report positions.
 When the core goes silent for three heartbeat intervals every robot halts and the host
-reconnects on its own; the robots resume where they were once registered again.
+reconnects on its own; the robots resume where they were once registered again. The robots run
+their tasks in the task runtime (:class:`robo_comp.robots.runtime.TaskRuntime`) that the engine
+runs too; this host is its :class:`~robo_comp.robots.runtime.RuntimeEnv`: it plans in a thread,
+uploads pictures to the core and reports each task's end to it.
 """
 from __future__ import annotations
 
@@ -16,10 +19,8 @@ import signal
 import sys
 import threading
 import time
-from collections import deque
 from collections.abc import Callable
-from concurrent.futures import Future, ThreadPoolExecutor
-from dataclasses import dataclass, field
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -28,19 +29,20 @@ import zmq
 
 from robo_comp import protocol as P
 from robo_comp.client import open_dealer
-from robo_comp.match.plausibility import PoseGate, Track
+from robo_comp.match.plausibility import PoseGate
 from robo_comp.protocol.curve import ClientKeys, load_public, secure_client
-from robo_comp.protocol.taskspec import check_args
+from robo_comp.protocol.session import ClientSession
 from robo_comp.errors import FieldError, RoboCompError
 from robo_comp.plugins.manager import get_plugin_manager
-from robo_comp.robots.drivers import ArenaDriver
 from robo_comp.robots.oneworld import Foreign, is_real, merge_readings
-from robo_comp.robots.steps import Answer, Capture, CellPath, Plan, TaskFailed, TaskRun, TaskSpec, no_steps
-from robo_comp.robots.teamcode import TeamCode, free_cell, in_bounds, stop_status
+from robo_comp.robots.readings import ReadingWatch
+from robo_comp.robots.runtime import PLANNING, RunningTask, SimRobot, TaskRuntime, plan_around
+from robo_comp.robots.steps import Compute, Plan, TaskSpec
+from robo_comp.robots.teamcode import TeamCode
 from robo_comp.world.arena import Arena
 from robo_comp.world.localization import Localization
 from robo_comp.world.mapservice import MapView
-from robo_comp.world.planner import find_path, warm_up
+from robo_comp.world.planner import warm_up
 from robo_comp.world.sensors import warm_up as sensors_warm_up
 from robo_comp.world.public import scenario_from_payload
 from robo_comp.world.scenario import Scenario
@@ -59,6 +61,8 @@ def _log_refusal(what: str) -> Reply:
             log.warning("%s refused: %s", what, body.get("message"))
     return on_reply
 
+#: Tags the host's "registered" line names at most.
+SAY_TAGS = 12
 #: Robots per ``reports`` message; the host looks at the core's socket between two messages
 #: (so a stop never waits long behind a big host's reports).
 REPORT_CHUNK = 100
@@ -67,70 +71,6 @@ REPORT_CHUNK = 100
 #: Seconds a connection that is still saying hello and registering gets before the host tries a new
 #: one (a link that delays every byte by 150 ms needs about a second for the handshake's round trips).
 HANDSHAKE_PATIENCE = 3.0
-
-
-@dataclass(slots=True)
-class RunningTask:
-    """A task a robot is running: its id, name and generator of steps (and, while it waits for
-    one, the path being planned off the loop; what comes back is sent into the generator)."""
-
-    id: int
-    name: str
-    gen: TaskRun
-    pictures: list[int] = field(default_factory=list)
-    plan: Future[CellPath | None] | None = None
-    answer: Answer = None
-
-
-@dataclass(slots=True)
-class SimRobot:
-    """One simulated robot hosted here."""
-
-    robot_id: str
-    driver: ArenaDriver
-    host: RobotHost
-    tag: int = 0
-    task: RunningTask | None = None
-    pending: dict[str, Any] | None = None  # a task given "now" that waits for the movement boundary
-    inbox: deque[dict[str, Any]] = field(default_factory=lambda: deque(maxlen=100))
-    last_report: float = 0.0
-    last_sensed: float = 0.0
-    #: Its camera fixes' track (which knows the fix taken last): a fix that the robot could not have
-    #: driven to is refused (robo_comp.match.plausibility).
-    fix: Track | None = None
-
-    # RobotView for tasks -------------------------------------------------
-    def cell(self) -> tuple[int, int]:
-        """The robot's current cell."""
-        return self.driver.cell()
-
-    def in_bounds(self, x: int, y: int) -> bool:
-        """True when (x, y) is a free cell of the arena."""
-        return in_bounds(self.host.walls, x, y)
-
-    def free_cell(self) -> tuple[int, int]:
-        """The free cell the robot believes it is in (a noisy estimate may round into a wall)."""
-        x, y, _ = self.driver.pose
-        return free_cell(self.host.walls, x, y)
-
-    def plan_to(self, goal: tuple[int, int]) -> list[tuple[int, int]] | None:
-        """A 4-connected path from the (free) cell the robot believes it is in to ``goal``, around
-        the cells where the host's other robots are now; straight through them when there is no
-        way around. (Tasks ``yield Plan(goal)`` instead: the host plans that off its loop.)"""
-        return plan_around(self.host.walls, self.free_cell(), goal, self.others_cells())
-
-    def others_cells(self) -> set[tuple[int, int]]:
-        """The cells the host's other robots stand in now, and those of other hosts' robots the
-        camera sees (:mod:`robo_comp.robots.oneworld`)."""
-        me = self
-        cells = {r.cell() for r in self.host.robots.values() if r is not me}
-        world = self.host.world
-        if world is not None:
-            for rid in self.host.foreign.seen:
-                if rid in world:
-                    p = world.pose(rid)
-                    cells.add((int(round(p.x)), int(round(p.y))))
-        return cells
 
 
 #: How much lower the planner thread's scheduling priority is than the host loop's (Linux
@@ -149,23 +89,6 @@ def _lower_priority() -> None:
         os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), PLANNER_NICE)
     except (AttributeError, OSError):  # not Linux, or not allowed: plans then compete as equals
         pass
-
-
-def plan_around(walls: np.ndarray, start: tuple[int, int], goal: tuple[int, int],
-                occupied: set[tuple[int, int]]) -> list[tuple[int, int]] | None:
-    """A path from ``start`` to ``goal`` around the ``occupied`` cells, straight through them when
-    there is no way around (None: no path at all). Pure: it runs in the host's planner thread."""
-    occupied = occupied - {start, goal}
-    if occupied:
-        blocked = walls.copy()
-        h, w = blocked.shape
-        for x, y in occupied:
-            if 0 <= x < w and 0 <= y < h:
-                blocked[y, x] = True
-        path = find_path(blocked, start, goal)
-        if path is not None:
-            return path
-    return find_path(walls, start, goal)
 
 
 def collect_tasks(pm: Any) -> dict[str, TaskSpec]:
@@ -195,6 +118,8 @@ class RobotHost:
         self.truth = truth
         self.report_interval = 1.0 / report_hz
         self.sensor_interval = 1.0 / sensor_hz
+        #: Standing robots whose readings changed: reported within a sensing period (robots/readings.py).
+        self.readings_watch = ReadingWatch(self.sensor_interval)
         self.tick = 1.0 / tick_hz
         self.pm = plugins or get_plugin_manager()
         self.driver_kind = driver
@@ -206,25 +131,20 @@ class RobotHost:
         self.rng = random.Random(seed)
         self.seed = seed
         self.sock: zmq.Socket | None = None
-        #: The session secret the core gave at hello; every later message carries it.
-        self.session: str | None = None
+        #: The session with the core (protocol/session.py): hello, the secret, heartbeats, a restarted core.
+        self.s = ClientSession(token, "robots")
         self.poller = zmq.Poller()
         self.robots: dict[str, SimRobot] = {}
         self.by_tag: dict[int, SimRobot] = {}
         self.walls = np.zeros((1, 1), dtype=bool)
         self.team: str | None = None
-        self.heartbeat = 1.0
         self.state = "down"  # down, hello, arena, registering, up
         self.replies: dict[int, Reply] = {}
-        self.next_id = 1
-        self.last_rx = 0.0
-        self.last_tx = 0.0
         self.state_since = 0.0
         self._running = False
         self.reconnects = 0
         self._waiting = 0
         self.holding = False
-        self.core_id: str | None = None
         self.world: Arena | None = None
         self.loc: Localization | None = None
         #: The team's map as the map service shares it, kept current by pushed deltas.
@@ -236,7 +156,8 @@ class RobotHost:
         # a heartbeat or a report behind hundreds of plans.
         self.planner = ThreadPoolExecutor(max_workers=1, thread_name_prefix="planner",
                                           initializer=_lower_priority)
-        self._planning: dict[str, SimRobot] = {}  # robots waiting for a plan, by robot id
+        #: The robots' tasks run here as they run on the engine (this host is the runtime's env).
+        self.runtime = TaskRuntime(self)
         # A real positioning system: the fixes of an overhead camera (robo-comp camera run), instead
         # of the simulated one; and, in simulation, the true poses its synthetic cameras draw.
         self.positioning = positioning
@@ -267,13 +188,20 @@ class RobotHost:
         #: Robots another host still holds (E_HELD): asked for again once a heartbeat, quietly.
         self.held: set[str] = set()
         self._held_retry = 0.0
-        #: This host process, the same across its reconnects: its hello on a new connection ends the session
-        #: of its old one at once (whose late frames would otherwise keep its robots for three heartbeats).
-        self.instance = P.new_instance_id()
         #: Robots the referee handed over to another host: this host leaves them alone.
         self.released: set[str] = set()
         #: robot id -> its task.done not yet answered by the core (sent again on re-registering).
         self.unacked_done: dict[str, dict[str, Any]] = {}
+
+    @property
+    def heartbeat(self) -> float:
+        """The core's heartbeat interval in seconds."""
+        return self.s.heartbeat
+
+    @property
+    def session(self) -> str | None:
+        """The session secret of the current connection (every message after hello carries it)."""
+        return self.s.secret
 
     FIX_SILENCE = 2.0
     """Seconds without a message from the camera after which the host connects to it afresh."""
@@ -301,17 +229,21 @@ class RobotHost:
     # ------------------------------------------------------------------ sending
     def _send(self, type_: str, body: dict[str, Any], on_reply: Reply | None = None) -> None:
         assert self.sock is not None
-        rid = self.next_id
-        self.next_id += 1
+        rid, frame = self.s.frame(type_, body, time.monotonic())
         if on_reply is not None:
             self.replies[rid] = on_reply
-        self.sock.send(P.request(type_, rid, body, self.session))
-        self.last_tx = time.monotonic()
+        self.sock.send(frame)
+
+    def _notify(self, type_: str, body: dict[str, Any], sock: zmq.Socket | None = None) -> None:
+        """A message that wants no answer (reports, printed lines), on ``sock`` (default: the host's)."""
+        sock = sock or self.sock
+        assert sock is not None
+        sock.send(self.s.frame(type_, body, time.monotonic(), rid=0)[1])
 
     def _answer(self, rid: int, body: dict[str, Any]) -> None:
         assert self.sock is not None
-        self.sock.send(P.ok_reply(rid, body, self.session))
-        self.last_tx = time.monotonic()
+        self.sock.send(P.ok_reply(rid, body, self.s.secret))
+        self.s.last_tx = time.monotonic()
 
     # ------------------------------------------------------------------ connection
     def _open(self) -> None:
@@ -319,12 +251,13 @@ class RobotHost:
         if self.sock is not None:
             self.poller.unregister(self.sock)
             self.sock.close(0)
-        self.session = None  # a new connection opens a new session
         self.sock = open_dealer(self.ctx, self.url, self.curve, self.token, SNDHWM=100_000, RCVHWM=100_000)
         self.poller.register(self.sock, zmq.POLLIN)
         self.replies.clear()
         self._set_state("hello")
-        self._send("hello", {"token": self.token, "client": "robots", "instance": self.instance}, self._on_hello)
+        rid, frame = self.s.hello(self.s.last_rx)  # a new connection opens a new session
+        self.replies[rid] = self._on_hello
+        self.sock.send(frame)
 
     def _set_state(self, state: str) -> None:
         self.state = state
@@ -339,9 +272,7 @@ class RobotHost:
         if not ok:
             raise SystemExit(f"robots: the core refused us: {body.get('message')}")
         self.team = body["team"]
-        self.session = body.get("session")
-        self.heartbeat = float(body.get("heartbeat", 1.0))
-        self.core_id = body.get("core_id")
+        self.s.opened(body)
         self._set_state("arena")
         self._send("arena", {}, self._on_arena)
 
@@ -399,8 +330,12 @@ class RobotHost:
     def team_log(self, tag: int | None, stream: str, text: str) -> None:
         """Forward a line team code printed (or a sandbox notice) to the team's consoles."""
         if self.state == "up" and self.sock is not None:
-            self.sock.send(P.request("log", 0, {"tag": tag if tag in self.by_tag else None,
-                                                "stream": stream, "text": text[:2000]}, self.session))
+            self._notify("log", {"tag": tag if tag in self.by_tag else None, "stream": stream, "text": text[:2000]})
+
+    def team_draw(self, tags: list[int], frames: list[list[Any]]) -> None:
+        """Send the robots' new frames of debug drawing to the core (for the team's views only)."""
+        if self.state == "up" and self.sock is not None:
+            self.sock.send(P.request("draw", 0, {"tags": tags, "frames": frames}, self.session))
 
     def code_request(self, type_: str, body: dict[str, Any], on_reply: Reply) -> None:
         """A request to the core on behalf of team code (a find, the radio)."""
@@ -485,7 +420,7 @@ class RobotHost:
                 log.warning("robot %s: %s", r.robot_id, body.get("message"))
                 # another connection runs it for the core: it holds still and reports nothing (its task,
                 # if the core still has one, comes back with the registration that takes it)
-                self._halt(r)
+                self.runtime.halt(r)
                 self.by_tag.pop(r.tag, None)
             self.held.add(r.robot_id)
         elif not ok:
@@ -507,7 +442,7 @@ class RobotHost:
                     r.task = None
                     r.driver.halt()
             elif r.task is None or r.task.id != task["task_id"]:
-                self._start(r, task)
+                self.runtime.start(r, task)
         self._waiting -= 1
         if self._waiting <= 0:
             self._set_state("up")
@@ -516,14 +451,17 @@ class RobotHost:
     def _say_up(self) -> None:
         """One line on stdout when the robots are registered (again, after a reconnect), so the
         person who started the host sees it work."""
-        tags = ", ".join(str(r.tag) for r in self.robots.values() if r.tag)
+        all_tags = sorted(r.tag for r in self.robots.values() if r.tag)
+        tags = ", ".join(map(str, all_tags[:SAY_TAGS]))
+        if len(all_tags) > SAY_TAGS:  # a host of a thousand robots says one line, not a page
+            tags += f", ... {all_tags[-1]} ({len(all_tags)} tags)"
         again = f" again (reconnect {self.reconnects}: the core is back)" if self.reconnects else ""
         print(f"robots: team {self.team}: {len(self.robots)} robot(s) registered{again} with the core at "
               f"{self.url}; tags {tags or '-'}", flush=True)
 
     def _lost_core(self, now: float) -> None:
         """Halt every robot and start reconnecting."""
-        self._reconnect(f"lost the core (silent for {now - self.last_rx:.1f} s)")
+        self._reconnect(f"lost the core (silent for {now - self.s.last_rx:.1f} s)")
 
     def _reconnect(self, why: str) -> None:
         """Hello and register again on a fresh socket; robots hold still meanwhile."""
@@ -539,20 +477,22 @@ class RobotHost:
 
     # ------------------------------------------------------------------ messages from the core
     def _dispatch(self, frame: bytes) -> None:
-        self.last_rx = time.monotonic()
         try:
             msg = P.unpack(frame)
-            type_ = msg["type"]
-            rid = msg.get("id", 0)
-            body = msg.get("body") or {}
-        except Exception:
-            log.error("unreadable message from the core; ignored")
+            checked = P.validate_to_host(msg)  # the field table of what the core sends hosts
+        except Exception as e:
+            self.s.last_rx = time.monotonic()
+            log.error("a message from the core that this host cannot take, ignored: %s",
+                      getattr(e, "message", None) or e.__class__.__name__)
+            return
+        type_, rid = checked.type, checked.id
+        body = msg.get("body") or {}
+        over = self.s.heard(msg, time.monotonic())
+        if over is not None and self.state == "up":  # the core forgot this session, or restarted
+            self._reconnect(over.value)
             return
         if type_ == "reply":
             exc = P.reply_error(msg)
-            if exc is not None and exc.code == "E_AUTH" and self.state == "up":
-                self._reconnect("the core does not know this connection")
-                return
             cb = self.replies.pop(rid, None)
             if cb is not None:  # an error reaches the callback as {"code", "message", "details"}
                 cb(exc is None, body if exc is None else {"code": exc.code, "message": exc.message,
@@ -561,15 +501,13 @@ class RobotHost:
                 log.warning("core: %s", exc.message)
             return
         if type_ == "heartbeat":
-            if self.state == "up" and body.get("core_id") not in (None, self.core_id):
-                self._reconnect("the core restarted")
             return
         if type_ == "event":
             return
         if type_ == "release":  # the referee handed a robot to another host: halt it and let it go
             gone = self.by_tag.pop(body.get("tag", -1), None)
             if gone is not None:
-                self._halt(gone)
+                self.runtime.halt(gone)
                 gone.task = None
                 gone.tag = 0
                 self.released.add(gone.robot_id)
@@ -593,10 +531,9 @@ class RobotHost:
         if type_ == "stop":
             if r is None:
                 assert self.sock is not None  # the stop came in on it
-                self.sock.send(P.error_reply(rid, RoboCompError("no such robot on this host"),
-                                             self.session))
+                self.sock.send(P.error_reply(rid, RoboCompError("no such robot on this host"), self.s.secret))
                 return
-            self._halt(r)
+            self.runtime.halt(r)
             self._answer(rid, {"tag": r.tag, "x": r.driver.x, "y": r.driver.y, "heading": r.driver.heading})
         elif type_ == "radio" and r is not None:
             r.inbox.append({"from": body.get("from"), "data": body.get("data")})
@@ -604,62 +541,31 @@ class RobotHost:
             if r.task is None or r.task.id != body["task_id"]:
                 if r.task is not None:
                     r.driver.halt()
-                self._start(r, body)
+                self.runtime.start(r, body)
         elif type_ == "task.interrupt" and r is not None:
-            if r.task is not None:
-                self.pm.hook.robo_comp_task_interrupted(robot=r, task_name=r.task.name, task_id=r.task.id,
-                                                        by_task_id=body["task_id"])
-            if r.task is None or not r.driver.moving:
-                if r.task is not None:
-                    self._done(r, False, f"interrupted by task {body['task_id']}")
-                self._start(r, body)
-            else:
-                r.pending = body
+            self.runtime.interrupt(r, body)
 
-    # ------------------------------------------------------------------ tasks
-    def _start(self, r: SimRobot, task: dict[str, Any]) -> None:
-        """Begin ``task`` on ``r`` (validated again here, as the robot must)."""
-        r.pending = None
-        spec = self._spec(r.tag, task["name"])
-        try:
-            if spec is None:
-                raise TaskFailed(f"this robot has no task {task['name']!r}")
-            args = check_args(spec.advert(), task.get("args", []))
-            r.task = RunningTask(task["task_id"], task["name"], spec.run(r, *args))
-        except (TaskFailed, RoboCompError) as e:
-            r.task = RunningTask(task["task_id"], task["name"], no_steps())
-            self._done(r, False, str(e))
-            return
-        self._advance(r)
+    # ------------------------------------------------------------------ the runtime's env (RuntimeEnv)
+    def spec(self, r: SimRobot, name: str) -> TaskSpec | None:
+        """Task ``name`` as robot ``r`` runs it: uploaded code first (it may replace a built-in)."""
+        return self._spec(r.tag, name)
 
-    def _advance(self, r: SimRobot) -> None:
-        """Ask the task for its next step (the robot is at a movement boundary)."""
-        t = r.task
-        assert t is not None
-        while True:
-            try:
-                step = t.gen.send(t.answer)
-                t.answer = None
-            except StopIteration as stop:
-                self._done(r, True, "done", stop.value)
-                return
-            except TaskFailed as e:
-                self._done(r, False, str(e))
-                return
-            except Exception as e:  # a task bug must not take the host down
-                self._done(r, False, f"task {t.name} crashed: {e!r}")
-                return
-            if isinstance(step, Plan):  # the robot waits at its boundary; the loop goes on
-                occupied = r.others_cells() if step.avoid_robots else set()
-                t.plan = self.planner.submit(plan_around, self.walls, r.free_cell(), step.goal, occupied)
-                self._planning[r.robot_id] = r
-                return
-            if isinstance(step, Capture):
-                self._take_picture(r, t, step.label)
-            r.driver.begin(step)
-            return
+    def plan(self, r: SimRobot, step: Plan) -> Any:
+        """Plan in the host's planner thread: the robot waits at its boundary; the loop goes on."""
+        occupied = r.others_cells() if step.avoid_robots else set()
+        assert r.task is not None
+        r.task.plan = self.planner.submit(plan_around, self.walls, r.free_cell(), step.goal, occupied)
+        return PLANNING
 
-    def _take_picture(self, r: SimRobot, t: RunningTask, label: str) -> None:
+    def compute(self, r: SimRobot, step: Compute) -> bool:
+        """Team code computes: the robot waits a tick (the sandbox is pumped by the loop)."""
+        return False
+
+    def interrupted(self, r: SimRobot, t: RunningTask, by_task_id: int) -> None:
+        """The plugins hear of an interrupt before it takes effect."""
+        self.pm.hook.robo_comp_task_interrupted(robot=r, task_name=t.name, task_id=t.id, by_task_id=by_task_id)
+
+    def capture(self, r: SimRobot, t: RunningTask, label: str) -> None:
         """Take the camera picture at the robot's true pose and upload it as evidence."""
         assert self.world is not None
         png = self.world.camera(r.robot_id)
@@ -676,21 +582,14 @@ class RobotHost:
         else:
             log.warning("picture refused: %s", body.get("message"))
 
-    def _done(self, r: SimRobot, ok: bool, status: str, result: Any = None) -> None:
-        t = r.task
-        if t is None:
-            return
-        if t.pictures and (result is None or isinstance(result, dict)):
-            result = dict(result or {}, pictures=list(t.pictures))
-        r.task = None
-        t.gen.close()  # team code still running is cancelled here
-        r.driver.halt()
+    def task_ended(self, r: SimRobot, task_id: int, ok: bool, status: str, result: Any) -> None:
+        """Report a task's end to the core (kept until it answers)."""
         self._report_one(r, time.monotonic())  # the owner sees the final pose with the result
-        done = {"tag": r.tag, "task_id": t.id, "ok": ok, "status": status, "result": result}
+        done = {"tag": r.tag, "task_id": task_id, "ok": ok, "status": status, "result": result}
         # kept until the core answers: a core that goes down before it does gets it again with
         # the robot's registration after the reconnect
         self.unacked_done[r.robot_id] = done
-        self._send("task.done", done, lambda ok_, body: self._on_done_reply(r, t.id, ok_, body))
+        self._send("task.done", done, lambda ok_, body: self._on_done_reply(r, task_id, ok_, body))
 
     def _on_done_reply(self, r: SimRobot, task_id: int, ok: bool, body: dict[str, Any]) -> None:
         held = self.unacked_done.get(r.robot_id)
@@ -698,15 +597,7 @@ class RobotHost:
             del self.unacked_done[r.robot_id]  # taken, or refused for what it says (not for who sent it)
         nxt = body.get("next") if ok else None
         if nxt is not None and r.task is None:
-            self._start(r, nxt)
-
-    def _halt(self, r: SimRobot) -> None:
-        """Stop at once: no movement, no task, nothing pending (the core cancels them)."""
-        r.driver.halt()
-        if r.task is not None:
-            r.task.gen.close()
-        r.task = None
-        r.pending = None
+            self.runtime.start(r, nxt)
 
     # ------------------------------------------------------------------ loop
     def _clock_went_back(self, now: float) -> None:
@@ -714,7 +605,7 @@ class RobotHost:
         before is in the future now, and would hold back heartbeats, reports and sensing until the
         clock caught up. Take them all as now."""
         log.warning("the clock went back; the host goes on from now")
-        self.last_tx = self.last_rx = self.state_since = now
+        self.s.last_tx = self.s.last_rx = self.state_since = now
         for r in self.robots.values():
             r.last_report = min(r.last_report, now)
             r.last_sensed = min(r.last_sensed, now)
@@ -737,37 +628,11 @@ class RobotHost:
                     r.driver.update(dt)
                 self.world.place(r.robot_id, self.team or "", *r.driver.pose)
             if r.driver.step is not None and r.driver.update(dt):
-                if r.driver.bump is not None and r.task is not None:
-                    b = r.driver.bump
-                    other = self.robots.get(b.get("other") or "")
-                    self._done(r, False, stop_status(b, f"robot {other.tag}" if other is not None else None))
-                elif r.pending is not None:
-                    nxt = r.pending
-                    self._done(r, False, f"interrupted by task {nxt['task_id']}")
-                    self._start(r, nxt)
-                elif r.task is not None:
-                    self._advance(r)
-        if self._planning:
-            self._take_plans()
+                self.runtime.boundary(r)
+        if self.runtime.planning:
+            self.runtime.take_plans()
         if self.foreign.seen:
             self.foreign.expire(self.world, time.monotonic())
-
-    def _take_plans(self) -> None:
-        """Hand finished plans to their tasks (a task replaced or stopped meanwhile drops its plan)."""
-        for rid, r in list(self._planning.items()):
-            t = r.task
-            if t is None or t.plan is None:
-                del self._planning[rid]
-            elif t.plan.done():
-                del self._planning[rid]
-                try:
-                    t.answer = t.plan.result()
-                except Exception as e:  # a planner bug fails this task, not the host
-                    t.plan = None
-                    self._done(r, False, f"planning failed: {e!r}")
-                    continue
-                t.plan = None
-                self._advance(r)
 
     def _report_one(self, r: SimRobot, now: float) -> None:
         """Report what one robot believes (the positioning system's estimate) at once, and
@@ -777,8 +642,7 @@ class RobotHost:
             sensors = self._sense([r]).get(r.tag)
         body = self._pose_rows([r], now, {r.tag: sensors} if sensors is not None else {})
         assert self.sock is not None  # a task ends on a connected host (its task.done follows on this socket)
-        self.sock.send(P.request("reports", 0, body, self.session))
-        self.last_tx = now
+        self._notify("reports", body)
 
     def _pose_rows(self, robots: list[SimRobot], now: float,
                    readings: dict[int, dict[str, Any]]) -> dict[str, Any]:
@@ -797,6 +661,7 @@ class RobotHost:
             s = readings.get(r.tag)
             if s is not None:
                 r.last_sensed = now
+                self.readings_watch.sent(r.robot_id, s)
             sensors.append(s)
         body: dict[str, Any] = {"tags": tags, "x": xs, "y": ys, "heading": hs, "moving": moving, "sigma": sigmas}
         if readings:
@@ -827,13 +692,19 @@ class RobotHost:
         return readings
 
     def _report(self, now: float) -> None:
-        """Report moving robots every report interval, idle ones once a second, in ``reports``
+        """Report moving robots every report interval, idle ones once a second and when their
+        readings changed (within a sensing period, :mod:`robo_comp.robots.readings`), in ``reports``
         messages of up to ``REPORT_CHUNK`` robots; the sensors of all robots due are read in one
         vectorised pass."""
-        due = [r for r in self.by_tag.values() if r.driver.moving or now - r.last_report >= 1.0]
-        if not due:
+        due: list[SimRobot] = []
+        standing: list[SimRobot] = []
+        for r in self.by_tag.values():
+            (due if r.driver.moving or now - r.last_report >= 1.0 else standing).append(r)
+        changed = self.readings_watch.changed(self.world, standing, now)
+        if not due and not changed:
             return
-        sensing = [r for r in due if now - r.last_sensed >= self.sensor_interval]
+        sensing = [r for r in due if now - r.last_sensed >= self.sensor_interval] + changed
+        due += changed
         readings = self._sense(sensing) if sensing else {}
         sock = self.sock
         assert sock is not None  # reports go out while the host is up
@@ -844,8 +715,7 @@ class RobotHost:
                     return
             chunk = due[start:start + REPORT_CHUNK]
             body = self._pose_rows(chunk, now, {r.tag: readings[r.tag] for r in chunk if r.tag in readings})
-            sock.send(P.request("reports", 0, body, self.session))
-        self.last_tx = now
+            self._notify("reports", body, sock)
 
     def _drain(self) -> None:
         """Handle what the core has sent, without waiting (also between chunks of a tick's work);
@@ -910,7 +780,7 @@ class RobotHost:
                     continue
             if moved and self.state == "up" and self.sock is not None:
                 rows = list(moved.values())
-                self.sock.send(P.request("reports", 0, self._pose_rows(rows, time.monotonic(), {}), self.session))
+                self._notify("reports", self._pose_rows(rows, time.monotonic(), {}))
 
     def _fix_plausible(self, r: SimRobot, x: float, y: float, sigma: float) -> bool:
         """Whether a camera fix of robot ``r`` is one it could have driven to since the fixes taken
@@ -971,7 +841,7 @@ class RobotHost:
         # The planner thread holds the GIL in its numpy glue: make the loop's wait for it short
         # (CPython's default lets a thread keep it 5 ms before it must hand it over).
         sys.setswitchinterval(0.0005)
-        self.last_rx = time.monotonic()
+        self.s.last_rx = time.monotonic()
         self._open()
         last = time.monotonic()
         next_tick = last + self.tick
@@ -1007,18 +877,18 @@ class RobotHost:
                         next_report = now + self.report_interval
                 last = now
                 next_tick = now + self.tick
-                if self.state == "up" and now - self.last_tx > self.heartbeat:
+                if self.state == "up" and self.s.beat_due(now):
                     self._send("heartbeat", {})
                 if self.held and self.state == "up" and now >= self._held_retry:
                     self._held_retry = now + self.heartbeat
                     for rid in list(self.held):
                         if rid in self.robots and rid not in self.released:
                             self._register(self.robots[rid])
-                silent = now - self.last_rx
                 # connecting takes handshake round trips (PLAIN or CURVE, then hello and register): on
                 # a slow link a fresh connection gets HANDSHAKE_PATIENCE before it is given up
-                patience = 3 * self.heartbeat if self.state == "up" else max(3 * self.heartbeat, HANDSHAKE_PATIENCE)
-                if silent > 3 * self.heartbeat and now - self.state_since > patience:
+                beats = 3 * self.heartbeat
+                patience = beats if self.state == "up" else max(beats, HANDSHAKE_PATIENCE)
+                if self.s.silent(now) and now - self.state_since > patience:
                     self._lost_core(now)
         if leave and self.state == "up":
             for r in self.by_tag.values():

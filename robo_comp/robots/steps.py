@@ -43,6 +43,16 @@ class Wait:
 
 
 @dataclass(frozen=True, slots=True)
+class Compute(Wait):
+    """Team code computes (a sandboxed task between two robot calls, run ``run_id``): the robot
+    stands still. A robot host looks again after ``seconds`` (a driver takes it as a
+    :class:`Wait`); the engine waits for the team code at once, with its clock stopped (step-locked:
+    team code computes in no simulated time, one robot at a time)."""
+
+    run_id: int = 0
+
+
+@dataclass(frozen=True, slots=True)
 class Plan:
     """Plan a path from the robot's cell to ``goal``, off the host's loop: the robot stands at a
     movement boundary meanwhile, and the path (a list of cells, start and goal included, or None
@@ -53,7 +63,7 @@ class Plan:
     avoid_robots: bool = True
 
 
-Step = Move | Turn | Capture | Wait | Plan
+Step = Move | Turn | Capture | Wait | Compute | Plan
 
 #: A planned path: cells from the robot's cell to the goal, both included.
 CellPath = list[tuple[int, int]]
@@ -63,7 +73,19 @@ Answer = CellPath | None
 
 
 class TaskFailed(Exception):
-    """Raised by a task to end with ``ok = False`` and this message as its status."""
+    """Raised by a task to end with ``ok = False`` and this message as its status.
+
+    ``reason`` says why in one word (the task's result carries it: ``failed``, or for team code
+    what the sandbox said: ``error``, ``limit``, ``cancelled``, ``restart``); ``line`` is the line
+    of team code that raised, where known."""
+
+    def __init__(self, message: str, reason: str = "failed", line: int | None = None,
+                 traceback: list[str] | None = None) -> None:
+        super().__init__(message)
+        self.reason = reason
+        self.line = line
+        #: Team code's traceback through its own files (``file:line in function: code``), where known.
+        self.traceback = traceback or []
 
 
 class RobotView(Protocol):

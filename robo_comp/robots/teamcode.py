@@ -15,22 +15,30 @@ sandbox says. Nothing here starts a thread.
   cancelled when its generator is closed). Between movements the generator waits a tick.
 * A robot runs only the modules uploaded *to it*; the host's robots share the sandbox process,
   so a module's newest version applies to every robot of the host that has it.
+* **Step-locked** (``step_locked=True``, the engine's mode): every call waits for its run's turn;
+  a run computes while its task yields :class:`~robo_comp.robots.steps.Compute`, and the engine
+  waits for it (:meth:`TeamCode.wait_run`) with its clock stopped, so the runs of a team's robots
+  take turns in the same order every time, and the calls that take no time are answered in that
+  order, each paid from the robot's call budget (``pacer``) in simulated time.
 """
 from __future__ import annotations
 
 import logging
 import math
+import time
 from collections.abc import Callable, Generator
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
-from robo_comp.errors import RoboCompError
+from robo_comp.errors import RoboCompError, UploadError
+from robo_comp.protocol import drawing
+from robo_comp.sandbox.api import MOVEMENTS
 from robo_comp.sandbox.contract import source_hash
 from robo_comp.sandbox.parent import (
-    PENDING, Limits, LoadFailed, Loaded, LogLine, RpcCall, Sandbox, SandboxRestarted, SandboxStopped, TaskDone,
-    TaskFailed as SbFailed,
+    PENDING, Drawing, Limits, LoadFailed, Loaded, LogLine, RpcCall, Sandbox, SandboxRestarted, SandboxStopped,
+    TaskDone, TaskFailed as SbFailed,
 )
-from robo_comp.robots.steps import Move, Plan, Step, TaskFailed, TaskSpec, Turn, Wait
+from robo_comp.robots.steps import Compute, Move, Plan, Step, TaskFailed, TaskSpec, Turn, Wait
 from robo_comp.world.planner import find_path
 
 log = logging.getLogger("robo_comp.robots.teamcode")
@@ -39,7 +47,7 @@ Reply = Callable[[bool, dict[str, Any]], None]
 
 
 class CodeRobot(Protocol):
-    """What team code sees of one hosted robot (a :class:`robo_comp.robots.host.SimRobot`)."""
+    """What team code sees of one hosted robot (a :class:`robo_comp.robots.runtime.SimRobot`)."""
 
     robot_id: str
     tag: int
@@ -72,6 +80,9 @@ class CodeHost(Protocol):
 
     def code_picture(self, r: Any, on_reply: Reply) -> None:
         """Take a picture with robot ``r`` and send it to the core; ``on_reply(ok, body)`` gets its id."""
+
+    def team_draw(self, tags: list[int], frames: list[list[Any]]) -> None:
+        """Send the robots' new frames of debug drawing to the core (a ``draw`` notification)."""
 
 #: How long a team-code task waits between two looks at its sandbox (one host tick at most).
 WAIT_SECONDS = 0.02
@@ -174,6 +185,9 @@ class CallSite(Protocol):
     def request(self, type_: str, body: dict[str, Any], on_reply: Reply) -> None:
         """A request to the match (``find``, ``radio``) on this robot's behalf."""
 
+    def draw(self, shapes: list[list[Any]]) -> None:
+        """The robot's new frame of debug drawing (checked), for its team's views."""
+
 
 Settle = Callable[[bool, Any], None]
 
@@ -219,15 +233,79 @@ def _radio(s: CallSite, args: list[Any], settle: Settle) -> Any:
     return PENDING
 
 
+def _draw(s: CallSite, args: list[Any], settle: Settle) -> Any:
+    s.draw(drawing.clean_frame(args[0] if args else None))
+    return None
+
+
 #: The robot calls that take no simulated time: name -> answer(site, args, settle). An answer
 #: returns the value, or PENDING and later calls ``settle(ok, value or error body)``.
+#: ``draw`` is the frame of debug drawing the sandbox sends with a movement call
+#: (``robot.draw_dot``/``draw_line``/``draw_text`` collect it in the sandbox, see
+#: :mod:`robo_comp.protocol.drawing`): no answer goes back, and no call budget is drawn.
 ROBOT_CALLS: dict[str, Callable[[CallSite, list[Any], Settle], Any]] = {
     "position": _position, "sense": _sense, "plan": _plan, "map_piece": _map_piece,
     "take_picture": _take_picture, "upload_picture": _take_picture, "look": _look,
-    "report_find": _report_find, "radio": _radio,
+    "report_find": _report_find, "radio": _radio, "draw": _draw,
 }
+#: The robot API team code sees in the sandbox that is answered in the sandbox itself (debug
+#: drawing: collected there, sent as one ``draw`` with the next movement call).
+DRAW_CALLS = ("draw_dot", "draw_line", "draw_text")
+
+
+def no_settle(ok: bool, value: Any) -> None:
+    """The ``settle`` of a call that gets no answer (``draw``)."""
+
+
+def take_drawing(site: CallSite, rec: Drawing) -> None:
+    """A :class:`~robo_comp.sandbox.parent.Drawing` from the sandbox, through the call table."""
+    answer_call(site, "draw", [rec.shapes], no_settle)
+
+
+@dataclass(slots=True)
+class DebugCanvas:
+    """Every robot's newest frame of debug drawing, and which of them to record next tick.
+
+    The same on a robot host (sent to the core) and on the bench (written to the match log): a
+    frame replaces the robot's last one; :meth:`changed` gives, per team, the frames that differ
+    from what was recorded last, at most once per :data:`~robo_comp.protocol.drawing.TICK`."""
+
+    team_of: Callable[[int], str | None]
+    frames: dict[int, list[list[Any]]] = field(default_factory=dict)
+    recorded: dict[int, list[list[Any]]] = field(default_factory=dict)
+    dirty: bool = False
+
+    def draw(self, tag: int, shapes: list[list[Any]]) -> None:
+        """Robot ``tag``'s new frame (already checked)."""
+        if self.frames.get(tag, []) != shapes or tag not in self.frames:
+            self.frames[tag] = shapes
+            self.dirty = True
+
+    def changed(self) -> dict[str, tuple[list[int], list[list[list[Any]]]]]:
+        """Per team, ``(tags, frames)`` of the frames not yet recorded (in tag order); marks them recorded."""
+        out: dict[str, tuple[list[int], list[list[list[Any]]]]] = {}
+        if not self.dirty:
+            return out
+        self.dirty = False
+        for tag in sorted(self.frames):
+            shapes = self.frames[tag]
+            if self.recorded.get(tag, []) == shapes:
+                continue
+            self.recorded[tag] = shapes
+            team = self.team_of(tag)
+            if team is not None:
+                tags, frames = out.setdefault(team, ([], []))
+                tags.append(tag)
+                frames.append(shapes)
+        return out
+
+    def record(self, events: list[dict[str, Any]], t: float) -> None:
+        """Append one ``debug.draw`` event per team with new frames to a bench's event list
+        (the match's limits do not count them: drawing costs nothing)."""
+        for team, (tags, frames) in self.changed().items():
+            events.append({"t": t, "topic": "debug.draw", "team": team, "tags": tags, "frames": frames})
 #: The robot calls that move the robot: they become movement steps (:func:`movement_steps`).
-MOVEMENT_CALLS = ("move", "turn", "go_to")
+MOVEMENT_CALLS = MOVEMENTS
 
 
 def answer_call(site: CallSite, name: str, args: list[Any], settle: Settle) -> Any:
@@ -274,6 +352,7 @@ class HostSite:
 
     host: CodeHost
     r: CodeRobot
+    canvas: DebugCanvas | None = None
 
     @property
     def walls(self) -> Any:  # noqa: D102
@@ -299,15 +378,20 @@ class HostSite:
     def request(self, type_: str, body: dict[str, Any], on_reply: Reply) -> None:  # noqa: D102
         self.host.code_request(type_, dict(body, tag=self.r.tag), on_reply)
 
+    def draw(self, shapes: list[list[Any]]) -> None:  # noqa: D102
+        if self.canvas is not None:
+            self.canvas.draw(self.r.tag, shapes)
+
 
 @dataclass(slots=True)
 class CodeRun:
-    """A task of team code running on one robot."""
+    """A task of team code running on one robot: the call it waits for an answer to (a movement,
+    or in step-locked mode any call), and how it ended."""
 
     run_id: int
     tag: int
     task: str
-    call: tuple[int, Generator[Step, Any, Any], Callable[[], Any]] | None = None
+    call: RpcCall | None = None
     outcome: TaskDone | SbFailed | None = None
 
 
@@ -327,17 +411,31 @@ class TeamCode:
 
     host: CodeHost
     limits: Limits = field(default_factory=Limits)
+    #: The engine's mode (see the module docstring): calls answered in turn, runs waited for.
+    step_locked: bool = False
+    #: Step-locked: ``pacer(tag, call)`` -> simulated seconds the call waits for its robot's budget.
+    pacer: Callable[[int, str], float] | None = None
+    #: ``on_answer(tag, call, args, ok, value)``: every call answered (the engine logs them).
+    on_answer: Callable[[int, str, list[Any], bool, Any], None] | None = None
+    #: A replayable sandbox (hash seed from the host's seed, no address randomisation).
+    deterministic: bool = False
     sb: Sandbox | None = None
     #: module names each robot may run (uploaded to that robot)
     enabled: dict[int, set[str]] = field(default_factory=dict)
     loads: dict[int, LoadJob] = field(default_factory=dict)
     runs: dict[int, CodeRun] = field(default_factory=dict)
+    #: The robots' debug drawing, sent to the core at most once per drawing.TICK (real seconds here).
+    canvas: DebugCanvas = field(init=False)
+    next_draw: float = 0.0
+
+    def __post_init__(self) -> None:
+        self.canvas = DebugCanvas(lambda tag: self.host.team)
 
     # ------------------------------------------------------------------ the sandbox
     def _sandbox(self) -> Sandbox:
         if self.sb is None:  # started on the first upload, for the robots registered by then
             self.sb = Sandbox(self.host.team or "team", list(self.host.by_tag), None, self.limits,
-                              seed=self.host.seed)
+                              seed=self.host.seed, deterministic=self.deterministic)
         return self.sb
 
     def add_tag(self, tag: int) -> None:
@@ -356,8 +454,11 @@ class TeamCode:
         return self.sb is not None and self.sb.alive and self.sb.wants_write()
 
     def deadline(self) -> float | None:
-        """When :meth:`pump` must run at the latest (a sandbox timer)."""
-        return self.sb.deadline() if self.sb is not None else None
+        """When :meth:`pump` must run at the latest (a sandbox timer, or drawing to send)."""
+        due = self.sb.deadline() if self.sb is not None else None
+        if self.canvas.dirty and not self.step_locked:
+            due = self.next_draw if due is None else min(due, self.next_draw)
+        return due
 
     def close(self) -> None:
         """End the sandbox process."""
@@ -376,6 +477,24 @@ class TeamCode:
             self._answer_load(LoadJob(rid, tags, filename, sha), None, e)
             return
         self.loads[load_id] = LoadJob(rid, tags, filename, sha)
+
+    def load_now(self, filename: str, source: str, tags: list[int], timeout: float = 10.0) -> Any:
+        """Check and load ``source`` for ``tags`` at once (the engine's upload: it waits); returns
+        the module's :class:`~robo_comp.sandbox.contract.ModuleInfo` or raises the checked
+        :class:`~robo_comp.errors.UploadError`. Calls ``init(robot)`` makes are refused, as on a host."""
+        sb = self._sandbox()
+        lid = sb.begin_load(filename, source)
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            for rec in sb.poll(0.05):
+                if isinstance(rec, Loaded) and rec.load_id == lid:
+                    for t in tags:
+                        self.enabled.setdefault(t, set()).add(rec.module.name)
+                    return rec.module
+                if isinstance(rec, LoadFailed) and rec.load_id == lid:
+                    raise rec.error
+                self._take(rec)
+        raise UploadError(f"{filename}: timeout: no answer from the sandbox", file=filename, rule="timeout")
 
     def unload(self, tags: list[int], name: str) -> list[int]:
         """Take module ``name`` away from ``tags``; the sandbox drops it when no robot has it."""
@@ -455,23 +574,32 @@ class TeamCode:
                         advert["description"], source="upload")
 
     def _run(self, r: CodeRobot, name: str, args: list[Any]) -> Generator[Step, Any, Any]:
-        """The task generator of a team-code task: movement steps from the sandbox's calls."""
+        """The task generator of a team-code task: movement steps from the sandbox's calls (and,
+        step-locked, every other call answered in turn)."""
         sb = self._sandbox()
         try:
             run_id = sb.start_task(r.tag, name, args)
         except RoboCompError as e:
-            raise TaskFailed(e.message) from None
+            raise TaskFailed(e.message, "refused") from None
         run = self.runs[run_id] = CodeRun(run_id, r.tag, name)
         try:
             while run.outcome is None:
-                if run.call is None:
-                    yield Wait(WAIT_SECONDS)
+                c = run.call
+                if c is None:
+                    yield Compute(WAIT_SECONDS, run_id)
                     continue
-                call_id, steps, answer = run.call
                 run.call = None
+                site = HostSite(self.host, r)
+                if c.name not in MOVEMENT_CALLS:  # step-locked: answered now, in its turn
+                    wait = self.pacer(r.tag, c.name) if self.pacer is not None else 0.0
+                    if wait > 0:
+                        yield Wait(wait)  # the robot's call budget: paid in simulated time
+                    self._answer(c, *self._answer_now(site, c))
+                    continue
                 try:
+                    steps = movement_steps(site, c.name, list(c.args))
                     sent = None
-                    while True:  # forwards what the host answers (a planned path) into the steps
+                    while True:  # forwards what the runtime answers (a planned path) into the steps
                         try:
                             step = steps.send(sent)
                         except StopIteration:
@@ -480,12 +608,14 @@ class TeamCode:
                         if r.driver.bump is not None:
                             raise Refused("bumped into something and stopped")
                 except Refused as e:
-                    sb.reject(call_id, str(e))
+                    self._answer(c, False, str(e))
+                except (TypeError, ValueError, IndexError) as e:
+                    self._answer(c, False, call_failed(c.name, c.args, e))
                 else:
-                    sb.resolve(call_id, answer())
+                    self._answer(c, True, list(r.driver.pose))
             if isinstance(run.outcome, TaskDone):
                 return run.outcome.result
-            raise TaskFailed(run.outcome.message)
+            raise TaskFailed(run.outcome.message, run.outcome.reason, run.outcome.line, run.outcome.traceback)
         finally:
             self.runs.pop(run_id, None)
             if run.outcome is None and self.sb is not None:
@@ -494,36 +624,103 @@ class TeamCode:
                 except RoboCompError:
                     pass
 
+    def _answer_now(self, site: HostSite, c: RpcCall) -> tuple[bool, Any]:
+        """Answer a call that takes no time at once (step-locked: the engine's answers to pictures,
+        finds and the radio come back before it returns)."""
+        box: list[tuple[bool, Any]] = []
+        try:
+            value = answer_call(site, c.name, list(c.args), lambda ok, v: box.append((ok, v)))
+        except Refused as e:
+            return False, str(e)
+        except RoboCompError as e:
+            return False, e.message
+        except (TypeError, ValueError, IndexError) as e:
+            return False, call_failed(c.name, c.args, e)
+        if value is not PENDING:
+            return True, value
+        if not box:
+            return False, f"robot.{c.name} got no answer"
+        ok, v = box[0]
+        return (True, v) if ok else (False, v if isinstance(v, str) else str((v or {}).get("message", "refused")))
+
+    def _answer(self, c: RpcCall, ok: bool, value: Any) -> None:
+        """Send team code the answer to call ``c`` (and tell ``on_answer``)."""
+        if self.on_answer is not None:
+            self.on_answer(c.tag, c.name, list(c.args), ok, value)
+        sb = self.sb
+        if sb is None:
+            return
+        try:
+            if ok:
+                sb.resolve(c.call_id, value)
+            else:
+                sb.reject(c.call_id, str(value))
+        except RoboCompError:
+            pass  # the run ended meanwhile
+
+    def wait_run(self, run_id: int, deadline: float) -> bool:
+        """Step-locked: wait (at most until ``deadline``, monotonic) until run ``run_id`` makes a
+        call or ends; what the sandbox says meanwhile is taken (other runs' calls wait for their
+        turn). False when the deadline passed first."""
+        sb = self.sb
+        run = self.runs.get(run_id)
+        while sb is not None and run is not None and run.call is None and run.outcome is None:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                return False
+            for rec in sb.poll(min(0.05, left)):
+                self._take(rec)
+        return True
+
     # ------------------------------------------------------------------ the loop
     def pump(self) -> None:
         """Handle everything the sandbox has to say, without blocking."""
         if self.sb is None:
             return
         for rec in self.sb.poll(0.0):
-            if isinstance(rec, RpcCall):
-                self._call(rec)
-            elif isinstance(rec, (TaskDone, SbFailed)):
-                run = self.runs.get(rec.run_id)
-                if run is not None:
-                    run.outcome = rec
-            elif isinstance(rec, Loaded):
-                job = self.loads.pop(rec.load_id, None)
-                if job is not None:
-                    self._answer_load(job, rec.module, None)
-            elif isinstance(rec, LoadFailed):
-                job = self.loads.pop(rec.load_id, None)
-                if job is not None:
-                    self._answer_load(job, None, rec.error)
-            elif isinstance(rec, LogLine):
-                self.host.team_log(rec.tag, rec.stream, rec.text)
-            elif isinstance(rec, SandboxStopped):
-                log.warning("team sandbox stopped (%s): %s%s", rec.reason, rec.message,
-                            "; restarted with the good modules" if rec.respawned else
-                            f"; resting {rec.cooldown:g} s" if rec.cooldown else "")
-                self.host.team_log(None, "sandbox", f"sandbox stopped: {rec.message}")
-            elif isinstance(rec, SandboxRestarted):
-                log.info("team sandbox restarted: %s", rec.message)
-                self.host.team_log(None, "sandbox", rec.message)
+            self._take(rec)
+        now = time.monotonic()
+        if not self.step_locked and self.canvas.dirty and now >= self.next_draw:  # the engine flushes at its ticks
+            self.next_draw = now + drawing.TICK
+            self.flush_drawing()
+
+    def flush_drawing(self) -> None:
+        """Send the robots' frames of debug drawing that changed to the host (``team_draw``): a
+        host does it at most once per :data:`~robo_comp.protocol.drawing.TICK` of real time, the
+        engine at each of its position samples (simulated time)."""
+        for _team, (tags, frames) in self.canvas.changed().items():
+            self.host.team_draw(tags, frames)
+
+    def _take(self, rec: Any) -> None:
+        """Act on one record of the sandbox."""
+        if isinstance(rec, RpcCall):
+            self._call(rec)
+        elif isinstance(rec, (TaskDone, SbFailed)):
+            run = self.runs.get(rec.run_id)
+            if run is not None:
+                run.outcome = rec
+        elif isinstance(rec, Loaded):
+            job = self.loads.pop(rec.load_id, None)
+            if job is not None:
+                self._answer_load(job, rec.module, None)
+        elif isinstance(rec, LoadFailed):
+            job = self.loads.pop(rec.load_id, None)
+            if job is not None:
+                self._answer_load(job, None, rec.error)
+        elif isinstance(rec, LogLine):
+            self.host.team_log(rec.tag, rec.stream, rec.text)
+        elif isinstance(rec, Drawing):
+            r = self.host.by_tag.get(rec.tag)
+            if r is not None:
+                take_drawing(HostSite(self.host, r, self.canvas), rec)
+        elif isinstance(rec, SandboxStopped):
+            log.warning("team sandbox stopped (%s): %s%s", rec.reason, rec.message,
+                        "; restarted with the good modules" if rec.respawned else
+                        f"; resting {rec.cooldown:g} s" if rec.cooldown else "")
+            self.host.team_log(None, "sandbox", f"sandbox stopped: {rec.message}")
+        elif isinstance(rec, SandboxRestarted):
+            log.info("team sandbox restarted: %s", rec.message)
+            self.host.team_log(None, "sandbox", rec.message)
 
     def _call(self, c: RpcCall) -> None:
         sb = self.sb
@@ -533,10 +730,10 @@ class TeamCode:
         try:
             if r is None or run is None:
                 raise Refused("this robot is not running that task any more")
-            site = HostSite(self.host, r)
-            if c.name in MOVEMENT_CALLS:
-                run.call = (c.call_id, movement_steps(site, c.name, list(c.args)), lambda: list(r.driver.pose))
+            if c.name in MOVEMENT_CALLS or self.step_locked:
+                run.call = c  # answered by the run's task generator, in its turn
                 return
+            site = HostSite(self.host, r)
             value = answer_call(site, c.name, list(c.args), lambda ok, v: self._settle(c.call_id, ok, v))
             if value is not PENDING:
                 sb.resolve(c.call_id, value)
@@ -561,6 +758,7 @@ class TeamCode:
             pass  # the run ended meanwhile
 
 
-__all__ = ["TeamCode", "CodeRun", "LoadJob", "Refused", "CallSite", "HostSite", "ROBOT_CALLS", "MOVEMENT_CALLS",
+__all__ = ["TeamCode", "CodeRun", "DebugCanvas", "DRAW_CALLS", "LoadJob", "Refused", "CallSite", "HostSite",
+           "ROBOT_CALLS", "MOVEMENT_CALLS", "no_settle", "take_drawing",
            "answer_call", "movement_steps", "in_bounds", "free_cell", "move_direction", "plan_path",
            "map_piece", "MAX_PIECE_RADIUS", "MAX_EVIDENCE"]

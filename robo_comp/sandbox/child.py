@@ -2,17 +2,18 @@
 
 Started by :class:`robo_comp.sandbox.parent.Sandbox` as::
 
-    python -s -P -B -c "...; from robo_comp.sandbox.child import main; main()" \
+    python -s -P -B -c "...; seal_child(); from robo_comp.sandbox.child import main; main()" \
         --fd N --limits <msgpack hex>
 
 (``-I`` but for ``-E``: the parent gives the whole environment, and ``PYTHONHASHSEED`` in it
-fixes ``hash()`` per match; a ``deterministic`` child starts itself again once with address
-randomisation off, see :func:`_without_aslr`.)
+fixes ``hash()`` per match; :func:`robo_comp.sandbox.determinism.seal_child` first takes
+memory addresses out of every default repr and hash; a replayable child also starts itself
+again once with address randomisation off, see :func:`_without_aslr`.)
 
 Order of start-up (everything that needs files or new threads happens *before* the limits):
 import all we need → die-with-parent → drop root to ``nobody`` (if root) → start the worker
-threads → rlimits (CPU, address space, no new processes, no new files, no file writes, no core)
-→ send ``ready``. Then the main thread only reads messages from the parent and dispatches
+threads → inside the OS layer, the seccomp filter that refuses new programs → rlimits (CPU,
+address space, no new processes, no new files, no file writes, no core) → send ``ready``. Then the main thread only reads messages from the parent and dispatches
 them; team code (module bodies, ``init``, tasks) runs in the worker threads, one run each.
 
 Wire format (both directions): 4-byte big-endian length + a msgpack map with key ``t``.
@@ -37,11 +38,14 @@ from typing import Any, Callable, TypeGuard
 
 import msgpack
 
-from robo_comp.sandbox import explain
+from robo_comp.protocol import drawing as _drawing
+from robo_comp.sandbox import api as _api, explain, sysfilter
 
 HEADER = struct.Struct(">I")
 EXIT_MEMORY = 75
 EXIT_PROTOCOL = 76
+#: Robot calls that move the robot: a frame of debug drawing is sent just before each.
+_MOVEMENT = frozenset({"move", "turn", "go_to"})
 EXIT_INTERNAL = 77
 MAX_TEXT = 2000
 
@@ -106,6 +110,19 @@ class FrameReader:
         return out
 
 
+
+_FACTORY: Callable[..., dict[str, Any]] | None = None
+
+
+def _robot_calls() -> Callable[..., dict[str, Any]]:
+    """The factory of a robot's remote calls, compiled once from the table (robo_comp/sandbox/api.py)."""
+    global _FACTORY
+    if _FACTORY is None:
+        scope: dict[str, Any] = {}
+        exec(compile(_api.factory_source(), "<robot api>", "exec"), scope)
+        _FACTORY = scope["_make"]
+    return _FACTORY
+
 def _trim(text: str, n: int = MAX_TEXT) -> str:
     return text if len(text) <= n else text[:n] + f"... ({len(text) - n} more characters)"
 
@@ -114,7 +131,7 @@ def _trim(text: str, n: int = MAX_TEXT) -> str:
 class _Run:
     """One run (a task or a module load) executing in a worker."""
 
-    __slots__ = ("id", "tag", "file", "output", "violation", "cancelled")
+    __slots__ = ("id", "tag", "file", "output", "violation", "cancelled", "drawing")
 
     def __init__(self, run_id: int, tag: Any, file: str) -> None:
         self.id = run_id
@@ -123,6 +140,8 @@ class _Run:
         self.output = 0
         self.violation: str | None = None
         self.cancelled = False
+        #: The shapes drawn since the last movement call (sent with it: docs/sandbox.md, "Debug drawing").
+        self.drawing: list | None = None
 
 
 class _Module:
@@ -157,7 +176,6 @@ class Child:
         self.next_call = 1
         #: Source lines of every loaded file, so that a refusal quotes the line the student wrote.
         self.sources: dict[str, list[str]] = {}
-        self.local = threading.local()
         self.policy = restricted.Policy(int(limits.get("seed", 0)), self._print_sink)
         self.workers = [_Worker(self, i) for i in range(int(limits["workers"]))]
         self.cpu_soft = -1
@@ -184,8 +202,19 @@ class Child:
                 pass
 
     # ------------------------------------------------------------------ team output
+    def current_worker(self) -> _Worker | None:
+        """The worker whose thread this is (None on the main thread). Not a threading.local: its
+        per-thread record is hashed the first time a thread uses it, which would take a serial
+        number (sandbox/determinism.py) at a moment that depends on which worker is free."""
+        ident = threading.get_ident()
+        for w in self.workers:
+            if w.ident == ident:
+                return w
+        return None
+
     def current_run(self) -> _Run | None:
-        return getattr(self.local, "run", None)
+        w = self.current_worker()
+        return None if w is None else w.current
 
     def violate(self, run: _Run, message: str) -> None:
         if run.violation is None:
@@ -222,13 +251,15 @@ class Child:
         """One robot-API call from team code: send it, block this worker until the answer."""
         R = self.restricted
         run = self.current_run()
-        worker: _Worker | None = getattr(self.local, "worker", None)
+        worker = self.current_worker()
         if run is None or worker is None:
             raise R.RobotError("the robot API is only usable while a task or init runs")
         if run.cancelled:
             raise R.TaskCancelled("the task was cancelled")
         if tag is None:
             raise R.RobotError(f"{name}: no robot is attached (init without a robot)")
+        if name in _MOVEMENT:
+            self.flush_drawing(run)
         with self.state_lock:
             call_id = self.next_call
             self.next_call += 1
@@ -251,6 +282,15 @@ class Child:
             raise R.TaskCancelled(str(reply.get("e", "cancelled")))
         raise R.RobotError(f"{name}: {_trim(str(reply.get('e', 'refused')), 500)}")
 
+    def flush_drawing(self, run: _Run, clear: bool = True) -> None:
+        """Send the shapes ``run`` drew since its last movement call: the robot's new frame (an
+        empty one clears a frame it sent before, unless not ``clear``). One message, no answer awaited."""
+        shapes = run.drawing
+        if shapes is None or run.tag is None or not (shapes or clear):
+            return
+        run.drawing = [] if shapes else None
+        self.send({"t": "draw", "r": run.id, "s": shapes})
+
     def make_robot(self, tag: Any) -> Any:
         """The ``robot`` object team functions get: read-only, plain functions only."""
         rpc = self.rpc
@@ -261,61 +301,40 @@ class Child:
                 raise TypeError(f"{what} must be a number")
             return v
 
-        def move(cells):
-            """Drive forward ``cells`` cells (negative: backwards); returns when done."""
-            return rpc(tag, "move", [_num(cells, "cells")])
-
-        def turn(degrees):
-            """Turn on the spot by ``degrees`` (positive: clockwise on the map, y pointing down)."""
-            return rpc(tag, "turn", [_num(degrees, "degrees")])
-
-        def go_to(x, y):
-            """Go to cell (x, y) along a planned path; returns when there."""
-            return rpc(tag, "go_to", [_num(x, "x"), _num(y, "y")])
-
-        def sense():
-            """The range-sensor readings (plain data)."""
-            return rpc(tag, "sense", [])
-
-        def position():
-            """The robot's believed position and heading ``[x, y, heading]``."""
-            return rpc(tag, "position", [])
-
-        def map_piece(radius):
-            """The map around the robot, ``radius`` cells each way."""
-            return rpc(tag, "map_piece", [_num(radius, "radius")])
-
-        def plan(x, y):
-            """A planned path (list of points) from here to (x, y)."""
-            return rpc(tag, "plan", [_num(x, "x"), _num(y, "y")])
-
-        def report_find(x, y, kind, evidence=None):
-            """Report a find at (x, y) of ``kind`` with plain-data ``evidence``."""
-            return rpc(tag, "report_find", [_num(x, "x"), _num(y, "y"), kind, evidence])
-
-        def take_picture():
-            """Take a picture; returns its id."""
-            return rpc(tag, "take_picture", [])
-
-        def look():
-            """Take a picture and say what it shows: ``{"picture": id, "victims": [{"x", "y", "kind"}]}``."""
-            return rpc(tag, "look", [])
-
-        def upload_picture(picture=None):
-            """Upload a picture (the last one if not given) to the environment."""
-            return rpc(tag, "upload_picture", [picture])
-
-        def radio(to, data):
-            """Send plain ``data`` to another robot of the team (tag ``to``)."""
-            return rpc(tag, "radio", [to, data])
+        remote = _robot_calls()(rpc, tag, _num)  # the table's calls (robo_comp/sandbox/api.py)
 
         def log(text):
             """Write a line to the team's log (counts against the output limit)."""
             sink(str(text) + "\n", "log")
 
-        funcs = (move, turn, go_to, sense, position, map_piece, plan, report_find, take_picture, look,
-                 upload_picture, radio, log)
-        items = {f.__name__: f for f in funcs}
+        current = self.current_run
+
+        def _draw(shape: list) -> bool:
+            run = current()
+            if run is None or tag is None:
+                return False
+            if run.drawing is None:
+                run.drawing = []
+            if len(run.drawing) >= _drawing.MAX_SHAPES:
+                return False
+            run.drawing.append(shape)
+            return True
+
+        def draw_dot(x, y, colour="yellow"):
+            """Draw a dot at cell (x, y) on your team's view (debug drawing: costs nothing; False when
+            this frame already holds the most shapes)."""
+            return _draw(_drawing.dot(x, y, colour))
+
+        def draw_line(x0, y0, x1, y1, colour="yellow"):
+            """Draw a line from cell (x0, y0) to (x1, y1) on your team's view (debug drawing)."""
+            return _draw(_drawing.line(x0, y0, x1, y1, colour))
+
+        def draw_text(x, y, text, colour="white"):
+            """Write a short text at cell (x, y) on your team's view (debug drawing; cut to 32 characters)."""
+            return _draw(_drawing.text(x, y, text, colour))
+
+        local = {f.__name__: f for f in (log, draw_dot, draw_line, draw_text)}
+        items = {c.name: remote[c.name] if not c.local else local[c.name] for c in _api.ROBOT_API}
         items["tag"] = tag
         return self.restricted.Namespace("robot", items)
 
@@ -381,6 +400,21 @@ class Child:
         self.task_index = {t: m.name for m in self.modules.values() for t in m.tasks}
 
     # ------------------------------------------------------------------ helpers for runs
+    def team_traceback(self, exc: BaseException) -> list[str]:
+        """The frames of team files an exception went through, outermost first, as
+        ``file:line in function: code`` (at most 20; call before :meth:`describe` clears them)."""
+        out = []
+        tb = exc.__traceback__
+        while tb is not None:
+            code = tb.tb_frame.f_code
+            lines = self.sources.get(code.co_filename)
+            if lines is not None:
+                n = tb.tb_lineno
+                text = lines[n - 1].strip() if 0 < n <= len(lines) else ""
+                out.append(f"{code.co_filename}:{n} in {code.co_name}: {text[:120]}")
+            tb = tb.tb_next
+        return out[-20:]
+
     def describe(self, exc: BaseException, file: str) -> tuple[str, int | None]:
         """``'file:line: Type: message'`` for an exception raised by team code."""
         line = None
@@ -440,6 +474,9 @@ class _Worker:
         self.jobs: "queue.SimpleQueue[tuple]" = queue.SimpleQueue()
         self.replies: "queue.SimpleQueue[dict]" = queue.SimpleQueue()
         self.run: _Run | None = None
+        #: The run this thread executes now (set by the thread itself; ``run`` is the main
+        #: thread's booking).
+        self.current: _Run | None = None
         self.in_team = False
         self.sent = False
         self.thread = threading.Thread(target=self.loop, name=f"team-{index}", daemon=True)
@@ -452,6 +489,11 @@ class _Worker:
         if self.sent:
             return
         self.sent = True
+        if self.run is not None and msg.get("t") in ("done", "failed"):
+            try:
+                c.flush_drawing(self.run, clear=False)  # what the task drew last stays on screen
+            except Exception:
+                pass
         try:
             c.send(msg)
         except Exception:
@@ -466,8 +508,7 @@ class _Worker:
             except BaseException:
                 continue
             self.sent = False
-            c.local.run = run
-            c.local.worker = self
+            self.current = run
             try:
                 if kind == "task":
                     self.run_task(run, msg)
@@ -497,7 +538,7 @@ class _Worker:
                                 del c.calls[k]
                         while not self.replies.empty():
                             self.replies.get_nowait()
-                        c.local.run = None
+                        self.current = None
                         break
                     except BaseException:
                         continue
@@ -532,13 +573,14 @@ class _Worker:
             why = "cancelled" if isinstance(exc, R.TaskCancelled) else "error"
             if isinstance(exc, (MemoryError, R.LimitExceeded)):
                 why = "limit"
+            trace = c.team_traceback(exc) if why == "error" else []
             text, line = c.describe(exc, module.file)
             del exc
             if run.violation:
                 why, text = "limit", run.violation
             elif run.cancelled and why == "error":
                 why = "cancelled"
-            self.finish({"t": "failed", "r": run.id, "why": why, "line": line, "m": text})
+            self.finish({"t": "failed", "r": run.id, "why": why, "line": line, "m": text, "tb": trace})
             return
         if run.violation:
             self.finish({"t": "failed", "r": run.id, "why": "limit", "line": None,
@@ -742,6 +784,20 @@ def _drop_root() -> None:
         pass
 
 
+def _no_new_programs(seccomp: list | None, debug: bool) -> None:
+    """Inside the OS layer: install the run filter (no ``execve`` from now on) on every thread
+    (sandbox/sysfilter.py). Team code never runs without it: a refusal ends the child."""
+    if seccomp is None:
+        return
+    try:
+        sysfilter.install(bytes(seccomp[0]), int(seccomp[1]))
+    except OSError:
+        if debug:
+            import traceback
+            traceback.print_exc(file=sys.__stderr__)
+        os._exit(EXIT_INTERNAL)
+
+
 def _set_limits(limits: dict, keep_fds: int) -> None:
     mib = 1024 * 1024
 
@@ -765,9 +821,9 @@ ADDR_NO_RANDOMIZE = 0x0040000
 
 
 def _without_aslr() -> None:
-    """Start this process again with address randomisation off (a replayable child: the
-    addresses that reach team code through ``repr()`` of functions and plain objects, default
-    ``hash()`` and the order of their sets then follow the code, not the kernel's dice).
+    """Start this process again with address randomisation off (a replayable child, as a spare:
+    the seal already keeps every address from team code, see
+    :mod:`robo_comp.sandbox.determinism`; ``ROBO_COMP_SANDBOX_ASLR=1`` skips this).
     Returns only when it is already off or the kernel does not let us turn it off."""
     try:
         import ctypes
@@ -785,13 +841,15 @@ def _without_aslr() -> None:
 
 
 def _plant_hole(child: "Child") -> None:
-    """Tests only: every team module's builtins get the real ``os`` and ``socket`` modules (a
-    hole in the policy, to show what the OS layer still stops)."""
+    """Tests only: every team module's builtins get the real ``os``, ``socket`` and ``ctypes``
+    modules (a hole in the policy, to show what the OS layer still stops: ``ctypes`` makes any
+    system call)."""
+    import ctypes
     make = child.policy.make_globals
 
     def holed(module_name: str) -> dict[str, Any]:
         glb = make(module_name)
-        glb["__builtins__"].update(os=os, socket=socket)
+        glb["__builtins__"].update(os=os, socket=socket, ctypes=ctypes)
         return glb
 
     child.policy.make_globals = holed  # type: ignore[method-assign]
@@ -804,7 +862,12 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--limits", required=True)
     opts = ap.parse_args(argv)
     limits = msgpack.unpackb(bytes.fromhex(opts.limits), raw=False)
-    if limits.get("deterministic") and argv is None:
+    from robo_comp.sandbox import determinism
+    if limits.get("replayable") and not determinism.sealed():
+        print(f"sandbox: cannot keep memory addresses from team code on this Python "
+              f"({determinism._seal_error}); a replayable sandbox does not run without that", file=sys.stderr)
+        os._exit(EXIT_INTERNAL)
+    if limits.get("aslr_off") and argv is None:
         _without_aslr()
     fd = opts.fd
     low = os.dup(fd)  # the lowest free descriptor: keeps RLIMIT_NOFILE small whatever the parent had open
@@ -828,6 +891,7 @@ def main(argv: list[str] | None = None) -> None:
     sys.stdout = _CappedStream(child, "stdout")
     sys.stderr = _CappedStream(child, "stderr")
     _drop_root()
+    _no_new_programs(limits.get("seccomp"), limits.get("debug", False))
     _set_limits(limits, keep_fds=fd + 1)
     child.cpu_soft = -1
     child.refresh_cpu()

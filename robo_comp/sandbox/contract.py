@@ -175,7 +175,7 @@ def read_manifest(tree: ast.Module) -> dict[str, Any]:
     """Rule ``manifest``: read ``MANIFEST`` statically (a literal) and validate it strictly.
 
     Returns the normalised manifest; tasks come back as ``{name: {"name", "description",
-    "args"}}`` (the advertised-task shape of :mod:`robo_comp.core.tasks`).
+    "args"}}`` (the advertised-task shape of :mod:`robo_comp.protocol.taskspec`).
     """
     node = _manifest_node(tree)
     line = node.lineno

@@ -43,7 +43,7 @@ from robo_comp.sandbox.child import (
 
 __all__ = [
     "PENDING", "Limits", "Sandbox", "poll_many",
-    "Record", "Ready", "RpcCall", "LogLine", "TaskDone", "TaskFailed", "Loaded", "LoadFailed",
+    "Record", "Ready", "Drawing", "RpcCall", "LogLine", "TaskDone", "TaskFailed", "Loaded", "LoadFailed",
     "Unloaded", "SandboxStopped", "SandboxRestarted",
 ]
 
@@ -103,9 +103,9 @@ class Limits:
     the team's modules; doubled each time it happens again, up to ``max_cooldown``."""
     max_cooldown: float = 600.0
     test_policy_hole: bool = False
-    """TESTS ONLY: team code finds the real ``os`` and ``socket`` modules among its builtins, a
-    planted hole in the policy through which tests check what the OS layer still stops
-    (sandbox/oswall.py)."""
+    """TESTS ONLY: team code finds the real ``os``, ``socket`` and ``ctypes`` modules among its
+    builtins, a planted hole in the policy through which tests check what the OS layer still
+    stops (sandbox/oswall.py, sandbox/sysfilter.py)."""
 
     def wire(self, seed: int) -> dict[str, Any]:
         """The subset the child needs."""
@@ -114,6 +114,12 @@ class Limits:
                 "output_bytes": self.output_bytes, "workers": self.max_runs + 1, "seed": seed,
                 "nice": self.nice, "test_policy_hole": self.test_policy_hole,
                 "debug": os.environ.get("ROBO_COMP_SANDBOX_DEBUG") == "1"}
+
+
+def keep_aslr() -> bool:
+    """True when ``ROBO_COMP_SANDBOX_ASLR=1``: a replayable child keeps address-space
+    randomisation on (tests check that a match replays without turning it off)."""
+    return os.environ.get("ROBO_COMP_SANDBOX_ASLR") == "1"
 
 
 # --------------------------------------------------------------------------- records
@@ -174,6 +180,19 @@ class TaskFailed(Record):
     message: str
     reason: str
     line: int | None = None
+    #: For ``error``: the frames of the team's files the error went through, outermost first
+    #: (``file:line in function: code``).
+    traceback: list[str] = field(default_factory=list)
+
+
+@dataclass
+class Drawing(Record):
+    """A robot's new frame of debug drawing, as the child sent it: not to be trusted; the robot
+    call table checks it (:func:`robo_comp.protocol.drawing.clean_frame`) before anyone keeps it."""
+
+    run_id: int
+    tag: int
+    shapes: list
 
 
 @dataclass
@@ -252,8 +271,9 @@ class Sandbox:
                  builtin_tasks: Iterable[str] = BUILTIN_TASKS, start: bool = True,
                  deterministic: bool = False) -> None:
         self.team = team
-        #: Replayable child (league, bench): hash seed from ``seed`` and no address randomisation
-        #: (see docs/sandbox.md, "Determinism"); the hash seed is fixed in every child.
+        #: Replayable child (league, bench): it refuses to run where this Python cannot be sealed
+        #: against memory addresses, and runs without address randomisation as well (see
+        #: docs/sandbox.md, "Determinism"); every child is sealed and has its hash seed fixed.
         self.deterministic = deterministic
         self.tags: list[int] = list(tags)
         self.handler = handler
@@ -285,6 +305,8 @@ class Sandbox:
         self.stopped_reason: str | None = None
         #: While resting after too many limit kills: when the child comes back (time.monotonic()).
         self.cooldown_until: float | None = None
+        self._cpu_spent = 0.0  # CPU seconds of the children that have ended (see cpu_seconds)
+        self._cpu_counted: subprocess.Popen | None = None  # the child whose CPU is in _cpu_spent
         self._cooldowns = 0  # cool-downs so far (each doubles the next), until reset()
         if start:
             self.start()
@@ -299,26 +321,36 @@ class Sandbox:
                "PYTHONHASHSEED": str(1 + self.seed % 4_294_967_295),
                "PATH": os.environ.get("PATH", "/usr/bin:/bin")}
         debug = os.environ.get("ROBO_COMP_SANDBOX_DEBUG") == "1"
-        import robo_comp
-        pkg_root = os.path.dirname(os.path.dirname(os.path.abspath(robo_comp.__file__)))
-        cmd = [sys.executable, "-s", "-P", "-B", "-c",  # -I without -E: isolated, but the env above is read
-               f"import sys; sys.path.insert(0, {pkg_root!r}); "
-               "from robo_comp.sandbox.child import main; main()",
-               "--fd", str(child.fileno()),
-               "--limits", msgpack.packb(dict(self.limits.wire(self.seed),
-                                              deterministic=self.deterministic)).hex()]
-        wrapped = oswall.wrap(cmd, pkg_root)  # the OS layer (bubblewrap), or a clear refusal
-        self.os_sandbox = wrapped is not cmd
-        cmd = wrapped
+        pkg_root = oswall.package_root()
+        filter_fd = None
         try:
+            wall = oswall.wall(pkg_root)  # the OS layer (bubblewrap, seccomp), or a clear refusal
+            cmd = [sys.executable, "-s", "-P", "-B", "-c",  # -I without -E: isolated, but the env above is read
+                   f"import sys; sys.path.insert(0, {pkg_root!r}); "
+                   # no address reaches team code: sealed before the modules the child needs are imported
+                   "from robo_comp.sandbox.determinism import seal_child; seal_child(); "
+                   "from robo_comp.sandbox.child import main; main()",
+                   "--fd", str(child.fileno()),
+                   "--limits", msgpack.packb(dict(
+                       self.limits.wire(self.seed), replayable=self.deterministic,
+                       aslr_off=self.deterministic and not keep_aslr(),
+                       seccomp=None if wall is None else wall.child_filter())).hex()]
+            self.os_sandbox = wall is not None
+            if wall is not None:
+                cmd, filter_fd = wall.wrap(cmd)
             self.proc = subprocess.Popen(
                 cmd, stdin=subprocess.DEVNULL,
                 stdout=None if debug else subprocess.DEVNULL,
                 stderr=None if debug else subprocess.DEVNULL,
-                pass_fds=(child.fileno(),), start_new_session=True, close_fds=True, env=env,
-                cwd="/")
+                pass_fds=(child.fileno(),) if filter_fd is None else (child.fileno(), filter_fd),
+                start_new_session=True, close_fds=True, env=env, cwd="/")
+        except BaseException:
+            parent.close()
+            raise
         finally:
             child.close()
+            if filter_fd is not None:
+                os.close(filter_fd)
         parent.setblocking(False)
         self.sock = parent
         self._reader = FrameReader(self.limits.message_bytes)
@@ -334,6 +366,31 @@ class Sandbox:
         if self.proc is None or self.proc.returncode is not None:
             return None
         return oswall.leaf_pid(self.proc.pid) if self.os_sandbox else self.proc.pid
+
+    def cpu_seconds(self) -> float:
+        """CPU time (user and system) this sandbox's processes have used, every child it has
+        started included: its team's code and the child's own work, not the time the child
+        waited or the machine spent on others (read from ``/proc``; 0 where there is none)."""
+        live = 0.0 if self._cpu_counted is self.proc else _tree_cpu(self.proc)
+        return self._cpu_spent + live
+
+    def _count_cpu(self) -> None:
+        """Keep the CPU of the child about to end (or just ended, not yet reaped)."""
+        if self.proc is not None and self._cpu_counted is not self.proc:
+            self._cpu_spent += _tree_cpu(self.proc)
+            self._cpu_counted = self.proc
+
+    def memory_mib(self) -> float:
+        """Resident memory of the running child in MiB (the Python child, below bwrap's; 0
+        where there is none or no ``/proc``)."""
+        pid = self.pid
+        if pid is None:
+            return 0.0
+        try:
+            with open(f"/proc/{pid}/statm") as f:
+                return int(f.read().split()[1]) * _PAGE / 2**20
+        except (OSError, ValueError, IndexError):
+            return 0.0
 
     @property
     def alive(self) -> bool:
@@ -708,8 +765,15 @@ class Sandbox:
                 if run.cancelled and why == "error":
                     why = "cancelled"
                 text = str(msg.get("m", ""))[:2000]
+                tb = msg.get("tb")
+                trace = [str(x)[:300] for x in tb[:20]] if type(tb) is list and why == "error" else []
                 self._out.append(TaskFailed(run.id, run.tag, run.task, text, why,
-                                            msg.get("line") if type(msg.get("line")) is int else None))
+                                            msg.get("line") if type(msg.get("line")) is int else None, trace))
+        elif t == "draw":
+            run = self._runs.get(msg.get("r", -1))
+            if run is not None and run.kind == "task":
+                shapes = msg.get("s")  # checked where it is taken: teamcode's ROBOT_CALLS["draw"] (clean_frame)
+                self._out.append(Drawing(run.id, run.tag, shapes if type(shapes) is list else []))
         elif t == "loaded":
             run = self._runs.pop(msg["r"], None)
             if run is None:
@@ -832,6 +896,7 @@ class Sandbox:
     # ------------------------------------------------------------------ death and respawn
     def _child_gone(self) -> None:
         rc = None
+        self._count_cpu()  # before it is reaped: then /proc forgets it
         if self.proc is not None:
             try:
                 rc = self.proc.wait(timeout=2.0)
@@ -877,6 +942,8 @@ class Sandbox:
         return False
 
     def _kill(self) -> None:
+        if self.proc is not None and self.proc.returncode is None:
+            self._count_cpu()
         if self.proc is not None and self.proc.poll() is None:
             if self.os_sandbox:  # the child first: bwrap's init reaps it and then bwrap ends
                 inner = self.pid
@@ -1033,6 +1100,27 @@ class Sandbox:
                     kept.append(rec)
         self._backlog.extend(kept)
         return found
+
+
+_PAGE = os.sysconf("SC_PAGE_SIZE") if hasattr(os, "sysconf") else 4096
+_TICKS = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
+
+
+def _tree_cpu(proc: subprocess.Popen | None) -> float:
+    """CPU seconds of ``proc`` and its chain of only children (bwrap → its init → the child):
+    each one's own user and system time plus that of the children it has reaped (a child that
+    ended inside bwrap counts with the one that waited for it). 0 where /proc is not there."""
+    if proc is None or proc.returncode is not None:
+        return 0.0
+    total = 0
+    for pid in oswall.chain(proc.pid):
+        try:
+            with open(f"/proc/{pid}/stat", "rb") as f:
+                fields = f.read().rsplit(b")", 1)[1].split()
+        except (OSError, IndexError):
+            continue
+        total += sum(int(x) for x in fields[11:15])  # utime stime cutime cstime
+    return total / _TICKS
 
 
 def poll_many(sandboxes: Iterable[Sandbox], timeout: float = 0.0) -> list[tuple[Sandbox, Record]]:

@@ -24,7 +24,6 @@ import math as _math
 import operator as _operator
 import random as _random
 import types as _types
-import weakref as _weakref
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -231,9 +230,6 @@ DENIED_ATTRIBUTES = frozenset(INSPECT_ATTRIBUTES) | frozenset({
 _STR_ONLY = frozenset({"format", "format_map"})
 _DENIED_RESULT_TYPES = (_types.ModuleType, _types.FrameType, _types.CodeType, _types.TracebackType)
 
-_TEAM_CLASSES: "_weakref.WeakSet[type]" = _weakref.WeakSet()
-
-
 def _team_metaclass(name: str, bases: tuple, namespace: dict, **kw: Any) -> type:
     """The ``__metaclass__`` RestrictedPython puts on every team class; records team classes."""
     if kw:
@@ -243,16 +239,13 @@ def _team_metaclass(name: str, bases: tuple, namespace: dict, **kw: Any) -> type
         if not isinstance(base, type):
             raise TypeError("classes may only derive from classes; put a class in the brackets of "
                             "`class Name(Base):`")
-    cls = _determinism.settle_class(_determinism.TeamType(name, bases, namespace))  # no addresses
-    _TEAM_CLASSES.add(cls)
-    return cls
+    return _determinism.settle_class(_determinism.TeamType(name, bases, namespace))  # no addresses
 
 
 def _is_team_class(cls: Any) -> bool:
-    try:
-        return any(c in _TEAM_CLASSES for c in type.__getattribute__(cls, "__mro__"))
-    except TypeError:
-        return False
+    """True for a class of team code or one derived from it: only team code makes classes of
+    type TeamType (3-argument ``type()`` and ``type()`` of a class are refused)."""
+    return isinstance(cls, _determinism.TeamType)
 
 
 def guarded_getattr(obj: Any, name: str, *default: Any) -> Any:

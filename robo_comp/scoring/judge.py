@@ -1,7 +1,7 @@
 """The find judge: pictures as evidence and reported finds, judged as the official match does.
 
 One judge serves a live match (the core's :class:`~robo_comp.core.competition.Competition`)
-and a bench or league match (:class:`~robo_comp.testing.bench.Bench`), so a find is judged by
+and a bench or league match (:class:`~robo_comp.engine.bench.Bench`), so a find is judged by
 the same code, against the same camera model, wherever the match is played.
 """
 from __future__ import annotations

@@ -14,10 +14,9 @@ from subprocess import Popen
 from typing import Any
 
 from robo_comp.client import Client
-from robo_comp.errors import FieldError
 from robo_comp.launch import start_core, start_robots, stop_all
+from robo_comp.world.scenario import DEFAULT_SCENARIO, resolve_scenario
 
-DEFAULT_SCENARIO = "demo_room"
 HEARTBEAT = 0.2
 
 
@@ -57,20 +56,6 @@ def next_event_where(client: Client, pred: Callable[[dict[str, Any]], bool],
         if ev is not None and pred(ev):
             return ev
     raise AssertionError(f"timed out after {timeout} s waiting for a matching event")
-
-
-def resolve_scenario(spec: str | os.PathLike[str], base: Path | None = None) -> Path:
-    """A scenario path from a path (relative to ``base``) or a bundled scenario's name."""
-    from robo_comp.world.scenario import bundled_scenario_path
-
-    p = Path(spec)
-    if not p.is_absolute() and base is not None:
-        p = base / p
-    if p.is_file():
-        return p.resolve()
-    if str(spec).endswith(".toml"):  # a file name, not a bundled scenario's name
-        raise FieldError(f"scenario file {spec!r} not found (looked in {p})")
-    return bundled_scenario_path(str(spec))
 
 
 # ---------------------------------------------------------------------- a real match

@@ -6,11 +6,15 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import pytest
 
-from robo_comp.testing.bench import Bench
-from robo_comp.testing.match import DEFAULT_SCENARIO, Match, resolve_scenario, start_match
+from robo_comp.testing.match import Match, start_match
+from robo_comp.world.scenario import DEFAULT_SCENARIO, resolve_scenario
+
+if TYPE_CHECKING:
+    from robo_comp.engine.bench import Bench
 
 
 # ---------------------------------------------------------------------- pytest hooks and fixtures
@@ -48,14 +52,14 @@ def pytest_configure(config: pytest.Config) -> None:
     try:
         oswall.check(str(Path(robo_comp.__file__).resolve().parent.parent))
     except RoboCompError as e:
-        OS_SANDBOX_OFF = e.message.split(": ", 1)[-1].split(". ", 1)[0]
+        OS_SANDBOX_OFF = str(e.details.get("why", e.message))
         os.environ[oswall.ENV] = "off"
 
 
 def pytest_report_header(config: pytest.Config) -> str:
     """Whether team code in these tests runs inside the OS sandbox."""
     if OS_SANDBOX_OFF is None:
-        return "robo_comp: team code runs inside the OS sandbox (bubblewrap)"
+        return "robo_comp: team code runs inside the OS sandbox (bubblewrap and a seccomp filter)"
     return f"robo_comp: team code runs WITHOUT the OS sandbox ({OS_SANDBOX_OFF})"
 
 
@@ -91,6 +95,8 @@ def robo_match(tmp_path: Path, robo_scenario: Path) -> Iterator[Match]:
 @pytest.fixture
 def robo_bench(robo_scenario: Path, robo_team: str) -> Iterator[Bench]:
     """A :class:`Bench` with one robot of ``robo_team`` on ``robo_scenario`` (seed 0)."""
+    from robo_comp.engine.bench import Bench  # the engine loads numpy, numba and the sandbox: on first use
+
     b = Bench(robo_scenario, robo_team)
     try:
         yield b

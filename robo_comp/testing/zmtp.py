@@ -4,6 +4,7 @@ the core's memory read from ``/proc``."""
 from __future__ import annotations
 
 import json
+import socket
 import struct
 from pathlib import Path
 from urllib.parse import urlparse
@@ -37,13 +38,35 @@ def zmtp_plain_hello(user: bytes, password: bytes) -> bytes:
 
 
 def zmtp_open(mechanism: str = "NULL", password: bytes | None = None) -> bytes:
-    """Everything a DEALER sends to complete a handshake, in one piece: the greeting, then READY
-    (NULL) or HELLO with ``password`` and INITIATE (PLAIN)."""
-    meta = {b"Socket-Type": b"DEALER"}
+    """What a DEALER sends first to open a connection, in one piece: the greeting, then READY
+    (NULL: the handshake is then complete) or HELLO with ``password`` (PLAIN: libzmq closes a
+    connection whose INITIATE comes before its WELCOME, so :func:`zmtp_initiate` follows once
+    ``WELCOME`` has arrived; :func:`zmtp_plain_handshake` does both)."""
     if mechanism == "PLAIN":
-        return (zmtp_greeting("PLAIN") + zmtp_plain_hello(b"robo_comp", password or b"")
-                + zmtp_command(b"INITIATE", meta))
-    return zmtp_greeting("NULL") + zmtp_command(b"READY", meta)
+        return zmtp_greeting("PLAIN") + zmtp_plain_hello(b"robo_comp", password or b"")
+    return zmtp_greeting("NULL") + zmtp_command(b"READY", {b"Socket-Type": b"DEALER"})
+
+
+def zmtp_initiate() -> bytes:
+    """A PLAIN client's ``INITIATE`` as a DEALER, sent after the server's ``WELCOME``."""
+    return zmtp_command(b"INITIATE", {b"Socket-Type": b"DEALER"})
+
+
+def zmtp_plain_handshake(sock: socket.socket, password: bytes) -> None:
+    """Complete a PLAIN handshake on a connected blocking ``sock`` (the core then hands this
+    peer's messages to its loop); :class:`ConnectionError` if the core closes it instead."""
+    def expect(word: bytes) -> None:
+        got = b""
+        while word not in got:
+            chunk = sock.recv(4096)
+            if not chunk:
+                raise ConnectionError(f"the core closed the connection before {word.decode()}")
+            got += chunk
+
+    sock.sendall(zmtp_open("PLAIN", password))
+    expect(b"WELCOME")
+    sock.sendall(zmtp_initiate())
+    expect(b"READY")
 
 
 def router_address(state: Path) -> tuple[str, int]:
@@ -53,14 +76,33 @@ def router_address(state: Path) -> tuple[str, int]:
     return url.hostname, url.port
 
 
-def core_rss(state: Path) -> int:
-    """Resident memory, in bytes, of the core process whose state folder is ``state`` (Linux)."""
+def _core_status(state: Path, field: str) -> int:
+    """A memory figure (``VmRSS``, ``VmHWM``) of the core process whose state folder is ``state``, in bytes (Linux)."""
     pid = json.loads((Path(state) / "core.json").read_text())["pid"]
     for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-        if line.startswith("VmRSS:"):
+        if line.startswith(field + ":"):
             return int(line.split()[1]) * 1024
-    raise RuntimeError(f"no VmRSS for process {pid}")
+    raise RuntimeError(f"no {field} for process {pid}")
 
 
-__all__ = ["core_rss", "router_address", "zmtp_command", "zmtp_frame", "zmtp_greeting", "zmtp_open",
-           "zmtp_plain_hello"]
+def core_rss(state: Path) -> int:
+    """Resident memory, in bytes, of the core process whose state folder is ``state`` (Linux)."""
+    return _core_status(state, "VmRSS")
+
+
+def reset_core_peak(state: Path) -> None:
+    """Start the core's peak resident memory (:func:`core_peak`) anew from what it holds now
+    (Linux's ``/proc/PID/clear_refs``, the same user's process)."""
+    pid = json.loads((Path(state) / "core.json").read_text())["pid"]
+    Path(f"/proc/{pid}/clear_refs").write_text("5")
+
+
+def core_peak(state: Path) -> int:
+    """The most resident memory, in bytes, the core process whose state folder is ``state`` held
+    since it started or since :func:`reset_core_peak` (``VmHWM``): a bound that held only between
+    two samples still shows."""
+    return _core_status(state, "VmHWM")
+
+
+__all__ = ["core_peak", "core_rss", "reset_core_peak", "router_address", "zmtp_command", "zmtp_frame", "zmtp_greeting",
+           "zmtp_initiate", "zmtp_open", "zmtp_plain_handshake", "zmtp_plain_hello"]

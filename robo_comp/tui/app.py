@@ -1,6 +1,6 @@
 """What the team console and the referee console share: the link, the model, STOP, toasts.
 
-:class:`ConsoleApp` owns a :class:`~robo_comp.tui.connection.CoreLink` (or any object with
+:class:`ConsoleApp` owns a :class:`~robo_comp.link.CoreLink` (or any object with
 the same few methods: the snapshot tests pass a canned one) and a
 :class:`~robo_comp.tui.model.ConsoleModel`. The link posts :class:`CoreEvent` and
 :class:`LinkChanged` messages; the app folds events into the model, raises toasts for what
@@ -23,9 +23,9 @@ from textual.css.query import NoMatches
 from textual.screen import Screen
 
 from robo_comp.errors import RoboCompError
-from robo_comp.tui.connection import CoreLink, EventSink, LinkState, StateSink
+from robo_comp.link import CoreLink, EventSink, LinkState, StateSink
 from robo_comp.tui.messages import CoreEvent, LinkChanged
-from robo_comp.tui.model import ConsoleModel, LogEntry
+from robo_comp.tui.model import OUTAGE_WORDS, ConsoleModel, LogEntry
 
 #: Notification titles by error code (the message itself comes from the core).
 ERROR_TITLES = {
@@ -54,10 +54,13 @@ def log_place() -> str:
 class Link(Protocol):
     """What a console needs from its link to the core (:class:`CoreLink` or a stand-in)."""
 
-    info: dict[str, Any]
     state: LinkState
     on_event: EventSink  # the console sets both to its own sinks
     on_state: StateSink
+
+    @property
+    def info(self) -> dict[str, Any]:
+        """The core's hello reply."""
 
     def start(self) -> None: ...
     async def close(self) -> None: ...
@@ -322,6 +325,9 @@ class ConsoleApp(App[None]):
         elif t == "robot.stopped":
             self.notify(f"halted in {d.get('ms', 0):.0f} ms; {len(d.get('cancelled') or [])} task(s) cancelled",
                         title=f"Robot {d.get('tag')} stopped", severity="warning")
+        elif t == "match.phase" and d.get("action") == "outage":
+            self.notify(f"a core outage now {OUTAGE_WORDS.get(str(d.get('outage')), '?')} (by {d.get('by', 'the referee')})",
+                        title="Outage rule")
         elif t == "match.phase":
             self.notify(f"by {d.get('by', 'the referee')}", title=f"Match {str(d.get('phase', '?')).upper()}",
                         severity="warning" if d.get("phase") != "running" else "information")

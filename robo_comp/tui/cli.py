@@ -10,7 +10,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from robo_comp.ctl import add_connection_args
+from robo_comp.client import add_connection_args
 
 
 def _check(args: argparse.Namespace, role: str) -> tuple[str, str]:

@@ -5,7 +5,7 @@ from typing import Any
 
 from textual.message import Message
 
-from robo_comp.tui.connection import LinkState
+from robo_comp.link import LinkState
 
 
 class CoreEvent(Message):

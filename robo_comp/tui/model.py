@@ -15,7 +15,8 @@ from typing import Any
 import numpy as np
 
 from robo_comp.protocol import unpack_walls
-from robo_comp.scoring.match import HeardClock
+from robo_comp.protocol.clock import HeardClock
+from robo_comp.protocol.topics import readable
 
 #: Events kept for the log pane and the monitor's "recent events".
 MAX_EVENTS = 2000
@@ -59,6 +60,14 @@ class ConsoleModel:
     pending_uploads: dict[Any, dict[str, Any]] = field(default_factory=dict)
     broadcasts: list[str] = field(default_factory=list)
     queued_ids: dict[int, set[Any]] = field(default_factory=dict)
+    #: What a core outage does to the match clock (``pause``/``count``; None: the core did not say).
+    outage: str | None = None
+    #: What the core recovered from its event log when it started (the ``recovered`` part of
+    #: ``stats``, or a ``core.recovered`` event): None for a core that started on an empty folder
+    #: (or before the referee console asked).
+    recovered: dict[str, Any] | None = None
+    #: True once the core said what it recovered (``stats`` answered, or ``core.recovered`` came).
+    recovery_known: bool = False
     clock: Callable[[], float] = time.monotonic
     wall_clock: Callable[[], float] = time.time
     version: int = 0
@@ -93,6 +102,8 @@ class ConsoleModel:
 
     def set_match(self, m: dict[str, Any]) -> None:
         """Take a phase/clock report (``match`` reply, ``match.phase`` or ``score`` event)."""
+        if m.get("outage") in ("pause", "count"):
+            self.outage = m["outage"]
         if "phase" not in m:
             return
         self.match = HeardClock(m.get("phase", "?"), float(m.get("elapsed") or 0.0),
@@ -102,6 +113,12 @@ class ConsoleModel:
     def set_scores(self, rows: list[dict[str, Any]]) -> None:
         """Take a score table."""
         self.scores = sorted((dict(r) for r in rows), key=lambda r: r.get("rank", 0))
+        self.touch()
+
+    def set_recovery(self, recovered: dict[str, Any] | None) -> None:
+        """Take what the core recovered from its log (None: it started on an empty folder)."""
+        self.recovered = dict(recovered) if recovered else None
+        self.recovery_known = True
         self.touch()
 
     def set_detail(self, tag: int, monitor: dict[str, Any]) -> None:
@@ -125,7 +142,10 @@ class ConsoleModel:
 
     # ------------------------------------------------------------------ events
     def apply(self, topic: str, team: str | None, data: dict[str, Any]) -> LogEntry | None:
-        """Fold one pushed event into the model; return the log entry (None for quiet topics)."""
+        """Fold one pushed event into the model; return the log entry (None for quiet topics, and
+        for an event that lacks what protocol/topics.py's table says it carries: not folded)."""
+        if not readable(topic, data):
+            return None
         tag = data.get("tag")
         if topic in ("robot.registered", "robot.returned"):
             if isinstance(tag, int):  # what the core sends; an event without one names no robot
@@ -161,6 +181,8 @@ class ConsoleModel:
             self.pending_uploads.pop(data.get("upload_id"), None)
         elif topic == "broadcast":
             self.broadcasts.append(str(data.get("message", "")))
+        elif topic == "core.recovered":
+            self.set_recovery(data)
         # keep the monitor detail in step
         if isinstance(tag, int) and tag in self.details and topic.startswith("task."):
             self._detail_task(tag, topic, data)
@@ -218,6 +240,20 @@ class ConsoleModel:
             del done[:-50]
 
 
+#: What each outage rule does to the match clock, in words (the referee console's line).
+OUTAGE_WORDS = {"pause": "pauses the clock", "count": "counts as match time"}
+
+
+def lost_events(recovered: dict[str, Any] | None) -> list[tuple[int, str | None]]:
+    """``(seq, topic or None)`` of every event a recovery report says was lost, in order."""
+    out: list[tuple[int, str | None]] = []
+    for d in (recovered or {}).get("damages") or []:
+        out += [(int(x["seq"]), x.get("topic")) for x in d.get("lost") or [] if isinstance(x, dict) and "seq" in x]
+    seen = {s for s, _ in out}
+    out += [(int(s), None) for s in (recovered or {}).get("lost") or [] if isinstance(s, int) and s not in seen]
+    return sorted(out)
+
+
 def fmt_clock(seconds: float | None) -> str:
     """``mm:ss`` (or ``h:mm:ss``); ``--:--`` for no limit."""
     if seconds is None:
@@ -266,8 +302,11 @@ def describe_event(e: LogEntry) -> str:
     if t == "task.started":
         return f"{who} started {task_label(d)}"
     if t == "task.done":
-        verdict = "done" if d.get("ok") else d.get("state", "failed")
+        # ok or not is told in words, not only by the line's colour
+        verdict = "done" if d.get("ok") else "FAILED" if d.get("state", "done") == "done" else d.get("state")
         return f"{who} {d.get('name')} #{d.get('task_id')} {verdict}: {d.get('status', '')}"
+    if t == "match.phase" and d.get("action") == "outage":
+        return f"a core outage now {OUTAGE_WORDS.get(str(d.get('outage')), '?')} (rule {d.get('outage')!r}, by {d.get('by', '?')})"
     if t == "match.phase":
         return f"match {d.get('phase', '?').upper()} ({d.get('action', '')} by {d.get('by', '?')})"
     if t == "score":
@@ -297,7 +336,7 @@ def describe_event(e: LogEntry) -> str:
         return (f"STORAGE FAULT: {d.get('message', '')}" if not d.get("ok") else
                 f"storage OK again: {d.get('message', '')}")
     if t == "core.recovered":
-        return (f"core RECOVERED {d.get('events', 0)} events: LOG DAMAGED: {d['damage']}" if d.get("damage") else
+        return (f"core RECOVERED {d.get('events', 0)} events: ⚠ LOG DAMAGED: {d['damage']}" if d.get("damage") else
                 f"core recovered {d.get('events', 0)} events in {d.get('seconds', 0):.2f} s")
     if t == "sandbox.reset":
         return f"the referee restarted the sandbox of robot(s) {', '.join(map(str, d.get('tags') or []))}"
@@ -307,4 +346,4 @@ def describe_event(e: LogEntry) -> str:
     return f"{who} {rest}"
 
 
-__all__ = ["ConsoleModel", "LogEntry", "describe_event", "fmt_clock", "task_label"]
+__all__ = ["ConsoleModel", "LogEntry", "OUTAGE_WORDS", "describe_event", "fmt_clock", "lost_events", "task_label"]

@@ -19,8 +19,11 @@ from robo_comp.errors import RoboCompError
 from robo_comp.tui.app import ConsoleApp
 from robo_comp.tui.screens.confirm import ConfirmScreen
 from robo_comp.tui.screens.forms import Field, FormScreen
+from robo_comp.tui.model import LogEntry
 from robo_comp.tui.screens.leaderboard import LeaderboardScreen
+from robo_comp.tui.screens.recovery import RecoveryScreen
 from robo_comp.tui.screens.referee import RefereeScreen
+from robo_comp.tui.widgets.core_line import lost_summary
 from robo_comp.tui.widgets.score import ScoreTable
 
 PHASE_QUESTIONS = {
@@ -45,6 +48,7 @@ class RefereeApp(ConsoleApp):
         """As :class:`ConsoleApp`; ``league`` is a league folder whose leaderboard ``l`` shows."""
         super().__init__(*args, **kwargs)
         self.league = Path(league) if league is not None else None
+        self._told_recovery = ""
 
     def main_screen(self) -> Screen[Any]:
         return RefereeScreen(self.model)
@@ -102,6 +106,55 @@ class RefereeApp(ConsoleApp):
         if reply is not None:
             self.model.set_match(reply)
         return reply
+
+    # ------------------------------------------------------------------ the core: outage rule, recovery
+    def action_outage(self) -> None:
+        """Choose what a core outage (a crash, a restart) does to the match clock."""
+        self.push_screen(FormScreen("What a core outage does to the match clock", [
+            Field("rule", "While no core runs (a crash, a restart), the match clock…", "select",
+                  [("pause: stands still (the outage is not match time)", "pause"),
+                   ("count: runs on (the outage is match time)", "count")], value=self.model.outage or "pause")],
+            "Set the rule"), self._outage_done)
+
+    def _outage_done(self, values: dict[str, Any] | None) -> None:
+        if values:
+            self.spawn(self.set_outage(str(values["rule"])), group="match")
+
+    async def set_outage(self, rule: str) -> dict[str, Any] | None:
+        """The ``match`` request with action ``outage`` (as ``ctl match outage --rule``)."""
+        reply = await self.call("match", title="Cannot change the outage rule", action="outage", rule=rule)
+        if reply is not None:
+            self.model.set_match(reply)
+        return reply
+
+    def action_recovery(self) -> None:
+        """Show what the core recovered from its event log when it started."""
+        self.push_screen(RecoveryScreen(self.model.recovered, self.model.recovery_known, self.model.outage))
+
+    async def reload(self) -> None:
+        """Everything after (re)connecting, and what this core recovered from its log (``stats``)."""
+        await super().reload()
+        stats = await self.call("stats", quiet=True)
+        if stats is not None:
+            self.model.set_recovery(stats.get("recovered"))
+            self.tell_recovery()
+            self._redraw(force=True)
+
+    def tell_recovery(self) -> None:
+        """A toast that stays a while when the core's log lost events (once per report)."""
+        rec = self.model.recovered
+        lost = lost_summary(rec, named=8)
+        key = repr(sorted((rec or {}).items()))
+        if not lost or key == self._told_recovery:
+            return
+        self._told_recovery = key
+        self.notify(f"{lost}. Press r for the report.", title="⚠ The core's event log was damaged",
+                    severity="error", timeout=60)
+
+    def toast(self, e: LogEntry) -> None:
+        super().toast(e)
+        if e.topic == "core.recovered":
+            self.tell_recovery()
 
     def action_extend(self) -> None:
         self.push_screen(FormScreen("Extend the match", [Field("seconds", "Seconds to add", "number", value=60)],
@@ -197,7 +250,7 @@ class RefereeApp(ConsoleApp):
         return reply
 
     def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
-        needs = {"match": "match", "pause_resume": "match", "extend": "match", "penalty": "penalty",
+        needs = {"match": "match", "pause_resume": "match", "extend": "match", "outage": "match", "penalty": "penalty",
                  "disqualify": "disqualify", "broadcast": "broadcast", "approve": "approve"}
         if action in needs:
             return self.feature(needs[action])
@@ -218,6 +271,8 @@ class RefereeApp(ConsoleApp):
         yield "Pause or resume the match", "(p)", self.action_pause_resume
         yield "Finish the match", "results are frozen (f)", partial(self.action_match, "finish")
         yield "Extend the match", "add seconds (e)", self.action_extend
+        yield "Outage rule", "what a core outage does to the match clock: pause or count (o)", self.action_outage
+        yield "Recovery report", "what the core recovered from its log: damage, lost events (r)", self.action_recovery
         yield "Give a penalty", "points and a reason (n)", self.action_penalty
         yield "Disqualify", "a robot or a team (d)", self.action_disqualify
         yield "Broadcast", "a message to every console (b)", self.action_broadcast

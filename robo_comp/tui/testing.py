@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from robo_comp.errors import UnknownTypeError, error_from_code
-from robo_comp.tui.connection import EventSink, LinkState, StateSink
+from robo_comp.link import EventSink, LinkState, StateSink
 
 GO_TO = {"name": "goTo", "description": "drive to a cell along a planned path",
          "args": [{"name": "x", "type": "int", "description": "target column"},
@@ -64,7 +64,7 @@ def demo_data(role: str = "team", team: str | None = "red") -> dict[str, Any]:
                          "state": "done", "status": "blocked by a wall at (2, 2)"}])
     scores = [{"team": "red", "score": 30.0, "victims": 1, "penalties": 10.0, "rank": 1, "disqualified": False},
               {"team": "blue", "score": 20.0, "victims": 1, "penalties": 0.0, "rank": 2, "disqualified": False}]
-    match = {"phase": "paused", "elapsed": 154.0, "remaining": 446.0, "duration": 600.0}
+    match = {"phase": "paused", "elapsed": 154.0, "remaining": 446.0, "duration": 600.0, "outage": "pause"}
     return {
         "hello": {"role": role, "team": team, "protocol": 2, "session": "0" * 32, "heartbeat": 1.0, "teams": ["red", "blue"],
                   "match": match},
@@ -75,6 +75,9 @@ def demo_data(role: str = "team", team: str | None = "red") -> dict[str, Any]:
                                 "verdict": {"valid": True}}]},
         "score": dict(match, teams=scores),
         "monitor": {101: detail},
+        "stats": {"recovered": {"events": 1234, "seq": 1234, "seconds": 0.05, "damage": None, "damaged_copy": None,
+                                "damages": [], "lost": [], "legacy_records": 0,
+                                "clock": "the clock is match time as recorded: 154.0 s"}},
         "robots": robots,
         "events": [
             ("robot.registered", "red", {"tag": 101, "team": "red", "robot_id": "red-1", "x": 1.0, "y": 1.0}),
@@ -125,6 +128,8 @@ class CannedLink:
                 return d["monitor"][body["tag"]]
             row = next(r for r in d["robots"] if r["tag"] == body.get("tag"))
             return dict(row, advertised=[GO_TO, FOLLOW, EXAMINE], sensors={}, queued=[], done=[])
+        if type_ == "stats" and self.info.get("role") == "referee":
+            return d["stats"]
         if type_ == "tasks":
             return {"tag": body.get("tag"), "advertised": [GO_TO, FOLLOW, EXAMINE]}
         if type_ in ("match", "penalty", "disqualify", "broadcast", "stop", "give"):

@@ -22,7 +22,7 @@ from robo_comp.client import Client, recv_event
 from robo_comp import protocol as P
 from robo_comp.errors import AuthError, FieldError, RoboCompError
 from robo_comp.wall.interact import Command, Interaction
-from robo_comp.wall.model import WallModel
+from robo_comp.view.model import MatchView
 from robo_comp.wall.render import Overlay, Renderer
 from robo_comp.wall.replay import ReplaySource
 from robo_comp.wall.view import TileSpec, ViewState
@@ -46,7 +46,7 @@ class LiveSource:
         self.client = Client(core, token, client="wall", timeout=timeout, curve_cert=curve_cert, core_key=core_key)
         self.sub = self.client.subscribe()
 
-    def start(self, model: WallModel) -> None:
+    def start(self, model: MatchView) -> None:
         """Subscribe first, then take the snapshot, so no event after it is missed."""
         self.sub.poll(200)  # let the subscription reach the PUB socket (ZeroMQ's slow joiner)
         while self.sub.poll(0):
@@ -64,7 +64,7 @@ class LiveSource:
                 return f
         return None
 
-    def drain(self, model: WallModel, budget: int = DRAIN_BUDGET) -> int:
+    def drain(self, model: MatchView, budget: int = DRAIN_BUDGET) -> int:
         """Apply every waiting event (at most ``budget``); return how many."""
         n = 0
         while n < budget:
@@ -104,7 +104,7 @@ def recv_event_nowait(sub: zmq.Socket) -> tuple[str, dict[str, Any]]:
 class WallApp:
     """One wall process: a tile of the canvas, a model, a source (live or replay) and the window."""
 
-    def __init__(self, model: WallModel, tile: TileSpec, view: ViewState | None = None, *,
+    def __init__(self, model: MatchView, tile: TileSpec, view: ViewState | None = None, *,
                  source: LiveSource | ReplaySource | None = None, fps: float = 30.0, trails: bool = True,
                  double_click: float = 0.4, path_wait: float = 1.0, view_pub: str | None = None,
                  view_sub: str | None = None, clock: Callable[[], float] = time.monotonic) -> None:
@@ -236,7 +236,7 @@ class WallApp:
                 self.running = False
             elif ev.key in _KEYS:
                 cmds = self.interaction.key(_KEYS[ev.key], now)
-            elif getattr(ev, "unicode", "") in ("+", "-"):
+            elif getattr(ev, "unicode", "") in ("+", "-", "d", "D"):
                 cmds = self.interaction.key(ev.unicode, now)
         for cmd in cmds:
             self.execute(cmd)

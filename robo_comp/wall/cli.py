@@ -21,7 +21,7 @@ from robo_comp.wall.view import TileSpec, ViewState, parse_pair
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """The wall's options (shared by ``robo-comp wall`` and ``python -m robo_comp.wall.cli``)."""
-    from robo_comp.ctl import add_connection_args
+    from robo_comp.client import add_connection_args
 
     add_connection_args(p, required=False)  # --replay plays without a core
     p.add_argument("--size", default="1280x800", help="window (or tile) size WxH in pixels (default 1280x800)")
@@ -78,13 +78,13 @@ def run(args: argparse.Namespace) -> int:
 
     from robo_comp.client import read_token
     from robo_comp.wall.app import LiveSource, WallApp
-    from robo_comp.wall.model import WallModel
+    from robo_comp.view.model import MatchView
     from robo_comp.wall.replay import ReplaySource
 
     tile = _tile(args)
     pan = parse_pair(args.pan, ",", "--pan", float)
     view = ViewState(args.zoom, pan[0], pan[1], monitors=list(args.monitor or []))
-    model = WallModel()
+    model = MatchView()
     source: Any
     if args.replay:
         source = ReplaySource(args.replay, args.speed)

@@ -17,7 +17,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from robo_comp.wall.model import WallModel
+from robo_comp.view.model import MatchView
 from robo_comp.wall.view import Layout, MapGeometry, Rect, ViewState, rnd
 
 #: Seconds between two clicks on one robot that make a double click.
@@ -56,7 +56,7 @@ def _inside(r: Rect, x: float, y: float) -> bool:
 class Interaction:
     """The click state machine of one wall process."""
 
-    def __init__(self, model: WallModel, view: ViewState, layout: Layout,
+    def __init__(self, model: MatchView, view: ViewState, layout: Layout,
                  geometry: Callable[[], MapGeometry | None], boxes: Callable[[], dict[Any, Rect]],
                  radius: Callable[[MapGeometry], int], *, double_click: float = DOUBLE_CLICK,
                  path_wait: float = PATH_WAIT) -> None:
@@ -137,9 +137,14 @@ class Interaction:
         return []
 
     def key(self, name: str, now: float) -> list[Command]:
-        """A key by name: ``enter``, ``escape``, ``+``, ``-``, ``0``, ``left``/``right``/``up``/``down``."""
+        """A key by name: ``enter``, ``escape``, ``+``, ``-``, ``0``, ``left``/``right``/``up``/``down``,
+        ``d`` (debug drawing: the selected robot's on/off, or all of it with no robot selected) and
+        ``D`` (the selected robot's team's debug drawing on/off)."""
         if name == "enter":
             return self.finish()
+        if name in ("d", "D"):
+            self.toggle_debug(name == "D")
+            return []
         if name == "escape":
             self.cancel()
         elif name in ("+", "-"):
@@ -155,6 +160,20 @@ class Interaction:
                 self.view.pan_x += dx
                 self.view.pan_y += dy
         return []
+
+    def toggle_debug(self, team: bool) -> None:
+        """Switch debug drawing: of the selected robot (or its team), or all of it when none is selected."""
+        v = self.view
+        r = self.model.robots.get(self.selected) if self.selected is not None else None
+        if r is None:
+            v.debug = not v.debug
+        elif team:
+            name = str(r.team)
+            v.debug_off_teams = [t for t in v.debug_off_teams if t != name] if name in v.debug_off_teams \
+                else [*v.debug_off_teams, name]
+        else:
+            v.debug_off_robots = [t for t in v.debug_off_robots if t != r.tag] if r.tag in v.debug_off_robots \
+                else [*v.debug_off_robots, r.tag]
 
     def zoom(self, factor: float) -> None:
         """Multiply the zoom (kept between 0.1 and 64)."""

@@ -19,28 +19,18 @@ from typing import Any
 import numpy as np
 import pygame
 
-from robo_comp.wall.model import Arena, Message, Robot, Thing, WallModel
+from robo_comp.view.colours import (
+    DISCOVERY, FIND_COLOURS, FLOOR, LOST_MARK, RGB, cell_colours, hex_rgb,
+)
+from robo_comp.view.model import Message, Robot, Thing, MatchView
 from robo_comp.wall.view import Layout, MapGeometry, Rect, TileSpec, ViewState, rnd
 
-RGB = tuple[int, int, int]
-
 BACKGROUND: RGB = (12, 12, 16)
-FLOOR: RGB = (236, 234, 226)
-WALL: RGB = (44, 44, 52)
-NEAR_WALL: RGB = (214, 206, 190)  # cost shading: cells next to walls cost more to cross
 GRID_SHADE = 0.92
-ZONE_COLOURS: dict[str, RGB] = {"rubble": (176, 142, 98), "water": (110, 160, 220), "stairs": (160, 160, 170),
-                                "drop": (96, 96, 110), "hole": (96, 96, 110), "edge": (96, 96, 110),
-                                "sand": (222, 200, 130), "grass": (120, 190, 110)}
-ZONE_DEFAULT: RGB = (200, 160, 200)
-LOST_MARK: RGB = (255, 210, 0)
 DQ_MARK: RGB = (20, 20, 20)
 OUTLINE: RGB = (20, 20, 24)
 SELECT: RGB = (255, 255, 255)
 PATH: RGB = (255, 120, 0)
-FIND_COLOURS: dict[str, RGB] = {"reported": (250, 200, 40), "confirmed": (40, 190, 70),
-                                "rejected": (220, 40, 40), "duplicate": (150, 150, 150)}
-DISCOVERY: RGB = (255, 140, 0)
 OBJECT: RGB = (120, 84, 50)
 PANEL_BG: RGB = (30, 32, 40)
 BOX_BG: RGB = (46, 48, 60)
@@ -52,15 +42,6 @@ TEXT_CACHE_MAX = 8192
 
 #: Position uncertainty (σ, cells) above which the wall rings a robot with where it may be.
 SIGMA_SHOWN = 0.5
-
-
-def hex_rgb(colour: str) -> RGB:
-    """``#rrggbb`` to an RGB tuple (grey when malformed)."""
-    try:
-        c = colour.lstrip("#")
-        return int(c[0:2], 16), int(c[2:4], 16), int(c[4:6], 16)
-    except (ValueError, AttributeError, IndexError):
-        return (128, 128, 128)
 
 
 def mix(a: RGB, b: RGB, t: float) -> RGB:
@@ -128,43 +109,6 @@ class Overlay:
     hint: str = ""
 
 
-def cell_colours(arena: Arena) -> np.ndarray:
-    """RGB per cell ``[y, x, 3]``: floor, cost shading near walls, zones, start zones, walls."""
-    h, w = arena.height, arena.width
-    img = np.empty((h, w, 3), np.float32)
-    img[:] = FLOOR
-    walls = arena.walls
-    near = np.zeros_like(walls)
-    near[1:, :] |= walls[:-1, :]
-    near[:-1, :] |= walls[1:, :]
-    near[:, 1:] |= walls[:, :-1]
-    near[:, :-1] |= walls[:, 1:]
-    near[1:, 1:] |= walls[:-1, :-1]
-    near[:-1, :-1] |= walls[1:, 1:]
-    near[1:, :-1] |= walls[:-1, 1:]
-    near[:-1, 1:] |= walls[1:, :-1]
-    if arena.costs is not None:  # the map service's costs: shade by cost, darkest at the highest
-        c = np.maximum(arena.costs.astype(np.float32), 1.0)
-        top = float(c[~walls].max()) if (~walls).any() else 1.0
-        if top > 1.0:
-            t = (np.log(c) / np.log(top))[..., None]
-            img[:] = img * (1 - t) + np.array(NEAR_WALL, np.float32) * t
-    else:  # no cost grid (replays): cells next to walls are the expensive ones (thesis app. A)
-        img[near] = NEAR_WALL
-    for z in arena.zones:
-        col = np.array(ZONE_COLOURS.get(str(z.get("kind")), ZONE_DEFAULT), np.float32)
-        x, y, zw, zh = int(z["x"]), int(z["y"]), int(z["w"]), int(z["h"])
-        img[max(0, y):y + zh, max(0, x):x + zw] = img[max(0, y):y + zh, max(0, x):x + zw] * 0.45 + col * 0.55
-    for t in arena.teams:
-        s = t.get("start")
-        if s:
-            col = np.array(hex_rgb(t.get("colour", "")), np.float32)
-            x, y, sw, sh = int(s["x"]), int(s["y"]), int(s["w"]), int(s["h"])
-            img[max(0, y):y + sh, max(0, x):x + sw] = img[max(0, y):y + sh, max(0, x):x + sw] * 0.8 + col * 0.2
-    img[walls] = WALL
-    return np.floor(img + 0.5).astype(np.uint8)
-
-
 def map_pixels(cells: np.ndarray, geom: MapGeometry, origin: tuple[int, int], size: tuple[int, int],
                fmt: pygame.Surface) -> np.ndarray:
     """The static map for the canvas window ``origin``/``size`` as mapped pixels ``[x, y]`` of ``fmt``'s format.
@@ -205,9 +149,9 @@ def map_pixels(cells: np.ndarray, geom: MapGeometry, origin: tuple[int, int], si
 
 
 class Renderer:
-    """Draws a :class:`WallModel` for one tile of the canvas."""
+    """Draws a :class:`MatchView` for one tile of the canvas."""
 
-    def __init__(self, model: WallModel, tile: TileSpec, view: ViewState, *, trails: bool = True) -> None:
+    def __init__(self, model: MatchView, tile: TileSpec, view: ViewState, *, trails: bool = True) -> None:
         if not pygame.font.get_init():
             pygame.font.init()
         self.model = model
@@ -307,6 +251,8 @@ class Renderer:
             if self.trails:
                 self._draw_trails(surf, geom)
             self._draw_robots(surf, geom)
+            if self.view.debug and self.model.debug:
+                self._draw_debug(surf, geom)
             self._draw_overlay(surf, geom, overlay)
             surf.set_clip(None)
         self._draw_panel(surf, now, overlay)
@@ -438,6 +384,42 @@ class Renderer:
                 self._mark(surf, r, cx, cy, rad)
             if label:
                 surf.blit(self.text(str(r.tag), size, OUTLINE), (cx + rad // 2 + 2, cy - rad - size + 2))
+
+    def _draw_debug(self, surf: pygame.Surface, geom: MapGeometry) -> None:
+        """Team code's debug drawing (robot.draw_dot/line/text): each shown robot's newest frame,
+        unless the view switched its team or the robot off (keys d and D)."""
+        ox, oy = self.tile.origin
+        s, gx, gy = geom.scale, geom.off_x + 0.5 * geom.scale - ox, geom.off_y + 0.5 * geom.scale - oy
+        rad = max(2, rnd(s * 0.18))
+        lw = max(1, rnd(s * 0.08))
+        size = max(12, min(18, rnd(s * 0.6)))
+        dirty = self._dirty.append
+        off_teams, off_robots = set(self.view.debug_off_teams), set(self.view.debug_off_robots)
+        for tag, frame in self.model.debug.items():
+            r = self.model.robots.get(tag)
+            if tag in off_robots or (r is not None and r.team in off_teams):
+                continue
+            for shape in frame:
+                try:
+                    colour = hex_rgb(str(shape[-1]))
+                    x, y = rnd(gx + float(shape[1]) * s), rnd(gy + float(shape[2]) * s)
+                    if shape[0] == "d":
+                        pygame.draw.circle(surf, colour, (x, y), rad)
+                        dirty((x - rad - 1, y - rad - 1, 2 * rad + 3, 2 * rad + 3))
+                    elif shape[0] == "l":
+                        x1, y1 = rnd(gx + float(shape[3]) * s), rnd(gy + float(shape[4]) * s)
+                        draw_lines(surf, colour, [(x, y), (x1, y1)], lw)
+                        dirty((min(x, x1) - lw - 1, min(y, y1) - lw - 1, abs(x1 - x) + 2 * lw + 3,
+                               abs(y1 - y) + 2 * lw + 3))
+                    elif shape[0] == "t":
+                        img = self.text(str(shape[3])[:32], size, colour)
+                        pos = (x, y - img.get_height() // 2)
+                        back = pygame.Rect(pos[0] - 2, pos[1], img.get_width() + 4, img.get_height())
+                        surf.fill(BACKGROUND, back)
+                        surf.blit(img, pos)
+                        dirty((back.x, back.y, back.w, back.h))
+                except (TypeError, ValueError, IndexError):
+                    continue  # a shape the model should not have had: never a reason to stop drawing
 
     def _mark(self, surf: pygame.Surface, r: Robot, cx: int, cy: int, rad: int) -> None:
         """The lost marker (a yellow cross) or the disqualified marker (a black cross)."""

@@ -68,11 +68,15 @@ class ViewState:
     pan_y: float = 0.0
     monitors: list[int] = field(default_factory=list)
     info: str | None = None
+    #: Team code's debug drawing: shown at all (key d), and the teams and robots switched off (D, d on a robot).
+    debug: bool = True
+    debug_off_teams: list[str] = field(default_factory=list)
+    debug_off_robots: list[int] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data (sent by a master tile)."""
         return {"zoom": self.zoom, "pan": [self.pan_x, self.pan_y], "monitors": list(self.monitors),
-                "info": self.info}
+                "info": self.info, "debug": [self.debug, list(self.debug_off_teams), list(self.debug_off_robots)]}
 
     def update(self, d: dict[str, Any]) -> None:
         """Take over a master tile's state."""
@@ -81,6 +85,11 @@ class ViewState:
         self.pan_x, self.pan_y = float(pan[0]), float(pan[1])
         self.monitors = [int(t) for t in d.get("monitors") or []]
         self.info = d.get("info")
+        debug = d.get("debug")
+        if isinstance(debug, list) and len(debug) == 3:
+            self.debug = bool(debug[0])
+            self.debug_off_teams = [str(t) for t in debug[1] or []]
+            self.debug_off_robots = [int(t) for t in debug[2] or []]
 
 
 @dataclass(frozen=True)

@@ -19,7 +19,7 @@ from robo_comp.errors import FieldError, RoboCompError
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """The gateway's options."""
-    from robo_comp.ctl import add_connection_args
+    from robo_comp.client import add_connection_args
 
     add_connection_args(p, required=False)
     p.add_argument("--replay", metavar="LOG", help="serve a recorded match (a core's STATE/events.log) instead")

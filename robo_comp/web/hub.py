@@ -14,7 +14,7 @@
 Every browser of a view gets the same bytes for an event: each batch the core's feed has ready
 is serialised and framed once (a :class:`Frame`) and written to every browser's socket in one
 pass, without a task or a queue per browser (:mod:`robo_comp.web.wire`); then it is applied to the
-hub's :class:`WallModel` (for browsers that join later). A browser that cannot keep up is never
+hub's :class:`MatchView` (for browsers that join later). A browser that cannot keep up is never
 waited for: while its socket is full its frames wait, and a waiting frame of poses is dropped
 once later ones place all its robots (conflation: it gets the newest poses, not every step); one
 that stays behind past :data:`HELD_FRAMES` frames or :data:`HELD_BYTES` gets a fresh ``state``
@@ -39,8 +39,8 @@ from robo_comp.client import pub_url
 from robo_comp import protocol as P
 from robo_comp.protocol.curve import client_keys, secure_client
 from robo_comp.errors import FieldError, RoboCompError
-from robo_comp.tui.connection import CoreLink, LinkState
-from robo_comp.wall.model import WallModel
+from robo_comp.link import CoreLink, LinkState
+from robo_comp.view.model import MatchView
 from robo_comp.web.state import TaskNames, jsonable, map_png, public_snapshot, state_json
 from robo_comp.web.story import Story
 from robo_comp.web.wire import Wire, frame_text
@@ -212,7 +212,7 @@ class Hub:
 
     def __init__(self, name: str) -> None:
         self.name = name
-        self.model = WallModel()
+        self.model = MatchView()
         self.tasks = TaskNames()
         self.subs: set[Subscriber] = set()
         self.ready = asyncio.Event()
@@ -337,7 +337,7 @@ class Hub:
 
     def load(self, snap: dict[str, Any], costs: Any = None) -> None:
         """Start the model from a snapshot (and the map service's cell costs, when given)."""
-        model = WallModel()
+        model = MatchView()
         model.load_snapshot(snap)
         if costs is not None:
             model.set_costs(costs)

@@ -23,8 +23,8 @@ from typing import Any
 from robo_comp import protocol as P
 from robo_comp.errors import AuthError, FieldError
 from robo_comp.protocol.logfile import read_recording
-from robo_comp.wall.model import WallModel
-from robo_comp.wall.replay import ScoreFold
+from robo_comp.view.model import MatchView
+from robo_comp.view.score import ScoreFold
 from robo_comp.web.state import TaskNames, jsonable, map_png, state_json
 from robo_comp.web.story import Story
 
@@ -83,6 +83,9 @@ class Recording:
         self.t0 = self.records[0].t if self.records else 0.0
         self.duration = self.records[-1].t - self.t0 if self.records else 0.0
         self.tokens = _tokens_beside(self.path)
+        #: Who the match let see its debug drawing in replays (its ``core.started`` says; see protocol.topics).
+        self.debug_replay = next((str(r.data.get("debug_replay") or "team") for r in self.records
+                                  if r.topic == "core.started"), "team")
         self.start = self._start()
         self._views: dict[str, RecordingView] = {}
         self._lock = asyncio.Lock()
@@ -123,12 +126,12 @@ class Recording:
         kind = "public" if name == "public" else "private"
         v = RecordingView(name, kind)
         now = [0.0]
-        model = WallModel(clock=lambda: now[0])
+        model = MatchView(clock=lambda: now[0])
         model.replay = True
         tasks = TaskNames()
         fold = ScoreFold()  # the scores, read as the wall's replay reads them
         story = Story(limit=None)
-        team_of: dict[int, str | None] = {}
+        see = P.EventView(name)  # the one visibility table (protocol/topics.py)
         maps: dict[int, str] = {}
         next_key = 0.0
         for rec in self.records:
@@ -136,14 +139,10 @@ class Recording:
             while t > next_key and model.arena is not None:
                 self._keyframe(v, model, tasks, maps, next_key, now)
                 next_key += KEYFRAME_EVERY
-            if rec.topic == "robot.registered":
-                tag = rec.data.get("tag")
-                if isinstance(tag, int):  # what the core logs; a record without one names no robot
-                    team_of[tag] = rec.data.get("team")
             if rec.topic == "picture" and isinstance(rec.data.get("id"), int):
                 v.pictures[rec.data["id"]] = rec.data.get("team") or rec.team
             table = fold.feed(rec.topic, rec.data)  # every view: the core publishes its table to everyone
-            data = self._filter(name, rec.topic, rec.team, rec.data, team_of)
+            data = see(rec.topic, rec.team, rec.data)
             now[0] = t
             if data is not None:
                 model.apply(rec.topic, data)
@@ -167,7 +166,7 @@ class Recording:
                                   if model.match.phase else None))
         return v
 
-    def _keyframe(self, v: RecordingView, model: WallModel, tasks: TaskNames, maps: dict[int, str],
+    def _keyframe(self, v: RecordingView, model: MatchView, tasks: TaskNames, maps: dict[int, str],
                   at: float, now: list[float]) -> None:
         if model.arena_version not in maps:
             maps[model.arena_version] = map_png(model)
@@ -177,20 +176,6 @@ class Recording:
         v.key_index.append(len(v.frags))
         v.key_json.append(_dump(state_json(model, at, map_url=maps[model.arena_version], tasks=tasks.names)))
         now[0] = keep
-
-    @staticmethod
-    def _filter(view: str, topic: str, team: str | None, data: dict[str, Any],
-                team_of: dict[int, str | None]) -> dict[str, Any] | None:
-        if view == "public":
-            return P.public_event(topic, data)  # the one table, as the core's PUB feed
-        if view == "referee" or topic == "core.started":
-            return data
-        if topic == "robot.positions" and team is None:  # the log's batch holds every team's robots
-            keep = [i for i, tag in enumerate(data.get("tags") or []) if team_of.get(tag) == view]
-            if not keep:
-                return None
-            return {k: ([v[i] for i in keep] if isinstance(v, list) else v) for k, v in data.items()}
-        return data if team in (view, P.EVERYONE) else None
 
     def picture(self, view: RecordingView, pid: int) -> str:
         """Picture ``pid`` as a data URL, if the view may see it and it is beside the log."""

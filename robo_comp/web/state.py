@@ -1,6 +1,6 @@
 """What a page is sent: the match as JSON-ready data, and the public view of logged events.
 
-The gateway keeps one :class:`robo_comp.wall.model.WallModel` per view (the same model the
+The gateway keeps one :class:`robo_comp.view.model.MatchView` per view (the same model the
 display wall draws from) and turns it into the page's ``state`` message with :func:`state_json`;
 after that the page applies the events itself (``static/model.js`` mirrors the model's
 handlers). The map is sent once, as a PNG with one pixel per cell coloured like the wall's
@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from robo_comp.wall.model import WallModel, find_state
+from robo_comp.view.model import MatchView, find_state
 
 # The map is drawn in the wall's colours, from its pygame module: without pygame's greeting on stdout.
 os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
@@ -41,10 +41,10 @@ def public_snapshot(snap: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def legend(model: WallModel) -> dict[str, Any]:
+def legend(model: MatchView) -> dict[str, Any]:
     """What the page's legend explains, in the colours the map and the wall use: the find
     states, the zone kinds on this map, start zones, walls and costly cells."""
-    from robo_comp.wall import render as R  # imports pygame: only where a map is drawn
+    from robo_comp.view import colours as R
 
     hexa = lambda c: "#%02x%02x%02x" % tuple(int(v) for v in c)  # noqa: E731
     zones = sorted({str(z.get("kind")) for z in (model.arena.zones if model.arena else [])})
@@ -88,15 +88,15 @@ def png_rgb(img: np.ndarray) -> bytes:
             + chunk(b"IDAT", zlib.compress(raw, 6)) + chunk(b"IEND", b""))
 
 
-def map_png(model: WallModel) -> str:
+def map_png(model: MatchView) -> str:
     """The map as a ``data:`` URL: one pixel per cell, coloured as the display wall colours it."""
-    from robo_comp.wall.render import cell_colours  # imports pygame: only where a map is drawn
+    from robo_comp.view.colours import cell_colours
 
     assert model.arena is not None
     return "data:image/png;base64," + base64.b64encode(png_rgb(cell_colours(model.arena))).decode()
 
 
-def state_json(model: WallModel, now: float, *, map_url: str | None = None,
+def state_json(model: MatchView, now: float, *, map_url: str | None = None,
                tasks: dict[int, str] | None = None) -> dict[str, Any]:
     """The page's ``state`` message body: arena (with the map image), robots, things, score,
     the match clock as of ``now`` (the model's clock) and the message bar."""
@@ -116,6 +116,7 @@ def state_json(model: WallModel, now: float, *, map_url: str | None = None,
     return jsonable({"arena": arena, "robots": robots, "things": things, "score": model.score,
                      "legend": legend(model) if a is not None else None,
                      "match": {"phase": m.phase, "elapsed": elapsed, "remaining": remaining},
+                     "debug": [[tag, frame] for tag, frame in sorted(model.debug.items())],
                      "messages": [{"text": x.text, "level": x.level} for x in model.visible_messages(now)]})
 
 

@@ -85,7 +85,7 @@ def run_copy(args: argparse.Namespace) -> int:
 
 def run_check(args: argparse.Namespace) -> int:
     """Load the scenario and check that each start zone reaches each victim; print a summary."""
-    from robo_comp.testing.match import resolve_scenario
+    from robo_comp.world.scenario import resolve_scenario
     from robo_comp.world.planner import Planner
     from robo_comp.world.scenario import load_scenario
 

@@ -67,7 +67,7 @@ def _run(args: argparse.Namespace) -> int:
     from robo_comp.world.maps import GridMap, load_map
 
     if str(args.map).endswith(".toml") or "/" not in str(args.map) and "." not in str(args.map):
-        from robo_comp.testing.match import resolve_scenario
+        from robo_comp.world.scenario import resolve_scenario
         from robo_comp.world.scenario import load_scenario
 
         sc = load_scenario(resolve_scenario(args.map))  # the scenario's walls (its map, extra walls)

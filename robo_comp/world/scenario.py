@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import difflib
 import math
+import os
 import re
 import tomllib
 from dataclasses import dataclass, field
@@ -788,6 +789,24 @@ def bundled_scenario_path(name: str) -> Path:
     if not p.is_file():
         raise ScenarioError(f"no bundled scenario called {name!r} (have: {', '.join(bundled_scenarios())})")
     return p
+
+
+#: The scenario tests and the bench play when none is named.
+DEFAULT_SCENARIO = "demo_room"
+
+
+def resolve_scenario(spec: str | os.PathLike[str], base: Path | None = None) -> Path:
+    """A scenario path from a path (relative to ``base``) or a bundled scenario's name."""
+    p = Path(spec)
+    if not p.is_absolute() and base is not None:
+        p = base / p
+    if p.is_file():
+        return p.resolve()
+    if str(spec).endswith(".toml"):  # a file name, not a bundled scenario's name
+        from robo_comp.errors import FieldError
+
+        raise FieldError(f"scenario file {spec!r} not found (looked in {p})")
+    return bundled_scenario_path(str(spec))
 
 
 def bundled_scenarios() -> list[str]:

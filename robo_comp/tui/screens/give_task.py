@@ -11,6 +11,7 @@ from textual.containers import Horizontal, Vertical, VerticalScroll
 from textual.screen import ModalScreen
 from textual.widgets import Button, Input, Label, RadioButton, RadioSet, Select, Static
 
+from robo_comp.tui.widgets.choices import Choice
 from robo_comp.tui.widgets.task_form import ArgField, signature
 
 
@@ -38,8 +39,8 @@ class GiveTaskScreen(ModalScreen[dict[str, Any] | None]):
             yield Static("", id="task-help", classes="help")
             yield VerticalScroll(id="args")
             with RadioSet(id="mode", compact=True):
-                yield RadioButton("now: interrupt the current task", value=True, id="now")
-                yield RadioButton("queue: after the current and queued ones", id="queue")
+                yield Choice("now: interrupt the current task", value=True, id="now")
+                yield Choice("queue: after the current and queued ones", id="queue")
             yield Label("", id="form-error", classes="error")
             with Horizontal(classes="buttons"):
                 yield Button("Give ^g", variant="primary", id="give", compact=True)

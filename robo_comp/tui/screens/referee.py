@@ -9,6 +9,7 @@ from textual.widgets import Footer, Input, Select
 
 from robo_comp.tui.model import ConsoleModel
 from robo_comp.tui.screens.team import ConsoleScreen
+from robo_comp.tui.widgets.core_line import CoreLine
 from robo_comp.tui.widgets.event_log import EventLog
 from robo_comp.tui.widgets.map_view import MapView
 from robo_comp.tui.widgets.monitor import MonitorPanel
@@ -17,7 +18,8 @@ from robo_comp.tui.widgets.score import MatchBar, ScoreTable
 
 
 class RefereeScreen(ConsoleScreen):
-    """Scores, all robots, monitor and map, and the filtered event log."""
+    """Scores, the core's line (outage rule, recovery), all robots, monitor and map, and the
+    filtered event log."""
 
     BINDINGS = [
         Binding("g", "app.match('start')", "Start"),
@@ -29,6 +31,8 @@ class RefereeScreen(ConsoleScreen):
         Binding("b", "app.broadcast", "Broadcast"),
         Binding("a", "app.approve", "Approve", show=False),
         Binding("l", "app.leaderboard", "League", show=False, tooltip="The league's leaderboard (--league)"),
+        Binding("o", "app.outage", "Outage", show=False, tooltip="What a core outage does to the match clock"),
+        Binding("r", "app.recovery", "Recovery", show=False, tooltip="What the core recovered from its log"),
         Binding("slash", "filter", "Filter", show=False),
         Binding("v", "view", "View", show=False),
     ]
@@ -45,6 +49,7 @@ class RefereeScreen(ConsoleScreen):
                 scores = ScoreTable(id="scores")
                 scores.border_title = "Scores"
                 yield scores
+                yield CoreLine(self.model, id="core-line")
                 robots = RobotsTable(show_team=True, id="robots")
                 robots.border_title = "Robots"
                 yield robots
@@ -60,6 +65,7 @@ class RefereeScreen(ConsoleScreen):
     def refresh_views(self) -> None:
         super().refresh_views()
         self.query_one(ScoreTable).update_from(self.model)
+        self.query_one(CoreLine).update_from(self.model)
         if self.model.teams != self._filter_teams:
             self._filter_teams = list(self.model.teams)
             self.query_one("#team-filter", Select).set_options([(t, t) for t in self._filter_teams])

@@ -85,7 +85,7 @@ class ConsoleScreen(Screen[None]):
         self.query_one(MonitorPanel).show(self.model, tag)
         m = self.query_one(MapView)
         m.selected = tag
-        m.refresh()
+        m.update_map()
         table = self.query_one(RobotsTable)
         if tag is not None and table.selected_tag != tag:
             table.select_tag(tag)
@@ -94,7 +94,7 @@ class ConsoleScreen(Screen[None]):
         """Redraw everything from the model."""
         self.query_one(RobotsTable).update_from(self.model)
         self.query_one(MonitorPanel).show(self.model, self.console_app.selected)
-        self.query_one(MapView).refresh()
+        self.query_one(MapView).update_map()
         self.query_one(MatchBar).refresh()
 
     def log_entry(self, entry: LogEntry) -> None:

@@ -14,6 +14,7 @@ from textual.widgets import Button, Checkbox, DirectoryTree, Input, RadioButton,
 
 from robo_comp.errors import RoboCompError
 from robo_comp.sandbox.contract import MAX_SOURCE_BYTES as MAX_UPLOAD  # what the robots accept
+from robo_comp.tui.widgets.choices import Choice, Tick
 from robo_comp.tui.widgets.upload import PythonTree, UploadResult
 
 Sender = Callable[[dict[str, Any]], Awaitable[dict[str, Any]]]
@@ -26,7 +27,9 @@ class UploadScreen(ModalScreen[None]):
     the request runs in a worker and STOP keeps working meanwhile.
     """
 
-    BINDINGS = [Binding("escape", "close", "Close"), Binding("ctrl+u", "send", "Send", show=True)]
+    # ctrl+u has priority: in the path field it would otherwise be the field's own "delete to the
+    # start of the line", and the typed path was wiped instead of sent
+    BINDINGS = [Binding("escape", "close", "Close"), Binding("ctrl+u", "send", "Send", show=True, priority=True)]
 
     def __init__(self, send: Sender, tag: int | None, all_tags: list[int], start: Path,
                  available: bool = True) -> None:
@@ -44,11 +47,11 @@ class UploadScreen(ModalScreen[None]):
             yield Input(placeholder="path of a .py file (or pick one above)", id="path", compact=True)
             with Horizontal(id="upload-options"):
                 with RadioSet(id="kind", compact=True):
-                    yield RadioButton("extension (adds tasks)", value=True, id="extension")
-                    yield RadioButton("code (replaces behaviour)", id="code")
+                    yield Choice("extension (adds tasks)", value=True, id="extension")
+                    yield Choice("code (replaces behaviour)", id="code")
                 with Vertical(id="upload-flags"):
-                    yield Checkbox("run it now (code)", id="run", compact=True)
-                    yield Checkbox(f"all my robots ({len(self.all_tags)})", value=self.tag is None,
+                    yield Tick("run it now (code)", id="run", compact=True)
+                    yield Tick(f"all my robots ({len(self.all_tags)})", value=self.tag is None,
                                    id="all", compact=True)
             yield UploadResult("", id="upload-result")
             with Horizontal(classes="buttons"):
@@ -87,7 +90,7 @@ class UploadScreen(ModalScreen[None]):
         raw = self.query_one("#path", Input).value.strip()
         if not raw:
             raise ValueError("pick a .py file first")
-        path = Path(raw).expanduser()
+        path = self.resolve(raw)
         if not path.is_file():
             raise ValueError(f"{path} is not a file")
         if path.stat().st_size > MAX_UPLOAD:
@@ -102,6 +105,15 @@ class UploadScreen(ModalScreen[None]):
         kind = "code" if self.query_one("#code", RadioButton).value else "extension"
         return {"tags": list(tags), "filename": path.name, "source": source, "kind": kind,
                 "run": bool(self.query_one("#run", Checkbox).value) and kind == "code"}
+
+    def resolve(self, raw: str) -> Path:
+        """The file a typed path names: ``~`` expanded; a relative path is taken in the folder the
+        picker shows (``--upload-dir``), else in the current folder."""
+        path = Path(raw).expanduser()
+        if path.is_absolute():
+            return path
+        here = self.start / path
+        return here if here.exists() or not path.exists() else path
 
     def action_send(self) -> None:
         if not self.available:

@@ -1,4 +1,7 @@
-"""The robots table: every robot of the team (all robots for the referee) at a glance, live."""
+"""The robots table: every robot of the team (all robots for the referee) at a glance, live.
+
+The highlighted robot is the selected one (monitor, map, STOP): its tag carries a ``▸``, so the
+choice is seen without the cursor's colour."""
 from __future__ import annotations
 
 from typing import Any
@@ -31,9 +34,11 @@ class RobotsTable(DataTable[Any]):
         super().__init__(id=id, cursor_type="row", zebra_stripes=True)
         self.show_team = show_team
         self._rows: dict[int, tuple[Any, ...]] = {}
+        #: The robot whose tag carries the ``▸`` (the highlighted row).
+        self.marked: int | None = None
 
     def on_mount(self) -> None:
-        self.add_column("tag", key="tag", width=4)
+        self.add_column("tag", key="tag", width=5)
         if self.show_team:
             self.add_column("team", key="team", width=6)
         self.add_column("status", key="status", width=12)
@@ -58,8 +63,11 @@ class RobotsTable(DataTable[Any]):
         if tag in self._rows:
             self.move_cursor(row=self.get_row_index(str(tag)))
 
+    def _tag_cell(self, tag: int) -> Text:
+        return Text(f"{'▸' if tag == self.marked else ' '}{tag}", style="bold")
+
     def _cells(self, r: dict[str, Any]) -> tuple[Any, ...]:
-        cells: list[Any] = [Text(str(r["tag"]), style="bold")]
+        cells: list[Any] = [self._tag_cell(r["tag"])]
         if self.show_team:
             cells.append(r.get("team", ""))
         cells += [status_text(r.get("status", "?"), bool(r.get("moving"))),
@@ -90,4 +98,10 @@ class RobotsTable(DataTable[Any]):
     def on_data_table_row_highlighted(self, event: DataTable.RowHighlighted) -> None:
         event.stop()
         key = event.row_key.value if event.row_key is not None else None
-        self.post_message(RobotSelected(int(key) if key is not None else None))
+        tag = int(key) if key is not None else None
+        old, self.marked = self.marked, tag
+        for t in (old, tag):
+            if t is not None and t in self._rows:
+                self._rows[t] = (self._tag_cell(t), *self._rows[t][1:])
+                self.update_cell(str(t), "tag", self._rows[t][0])
+        self.post_message(RobotSelected(tag))

@@ -84,9 +84,12 @@ class ScoreTable(DataTable[object]):
     def __init__(self, id: str | None = None) -> None:
         super().__init__(id=id, cursor_type="row", zebra_stripes=True)
         self._last: list[tuple[object, ...]] = []
+        #: The highlighted team (the penalty form's first choice): its rank carries a ``▸``, so the
+        #: choice is seen without the cursor's colour.
+        self.marked: str | None = None
 
     def on_mount(self) -> None:
-        for name, key, w in (("#", "rank", 2), ("team", "team", 10), ("score", "score", 7),
+        for name, key, w in (("#", "rank", 3), ("team", "team", 10), ("score", "score", 7),
                              ("victims", "victims", 7), ("penalties", "penalties", 9),
                              ("robots", "robots", 6), ("", "dq", 4)):
             self.add_column(name, key=key, width=w)
@@ -107,7 +110,7 @@ class ScoreTable(DataTable[object]):
         rows = model.scores or [{"team": t, "rank": i + 1, "score": 0, "victims": 0, "penalties": 0}
                                 for i, t in enumerate(model.teams)]
         new: list[tuple[object, ...]] = [
-            (r.get("rank", "?"), r.get("team", "?"), f"{r.get('score', 0):g}", r.get("victims", 0),
+            (self._rank(r.get("rank", "?"), r.get("team", "?")), r.get("team", "?"), f"{r.get('score', 0):g}", r.get("victims", 0),
              f"{r.get('penalties', 0):g}", counts.get(r.get("team", ""), 0),
              Text("DQ", style="bold magenta") if r.get("disqualified") else "") for r in rows]
         if new == self._last:
@@ -119,3 +122,15 @@ class ScoreTable(DataTable[object]):
         self._last = new
         if self.row_count:
             self.move_cursor(row=min(cursor, self.row_count - 1))
+
+    def _rank(self, rank: object, team: object) -> str:
+        return f"{'▸' if team == self.marked else ' '}{rank}"
+
+    def on_data_table_row_highlighted(self, event: DataTable.RowHighlighted) -> None:
+        """Move the ``▸`` to the highlighted team."""
+        old, self.marked = self.marked, str(event.row_key.value) if event.row_key.value is not None else None
+        for i, row in enumerate(self._last):
+            if row[1] in (old, self.marked):
+                rank = str(row[0]).lstrip("▸ ")
+                self._last[i] = (self._rank(rank, row[1]), *row[1:])
+                self.update_cell(str(row[1]), "rank", self._last[i][0])

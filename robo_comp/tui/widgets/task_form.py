@@ -18,6 +18,7 @@ from textual.validation import ValidationResult, Validator
 from textual.widgets import Checkbox, Input, Label
 
 from robo_comp.protocol.taskspec import signature  # the core's own wording of a task
+from robo_comp.tui.widgets.choices import Tick
 
 #: What to type, by argument type (placeholder text).
 HINTS = {
@@ -122,7 +123,7 @@ class ArgField(Vertical):
         s = self.spec
         desc = f" — {s['description']}" if s.get("description") else ""
         if s.get("type") == "bool":
-            yield Checkbox(f"{s['name']}{desc}", id=f"arg-{self.index}", compact=True)
+            yield Tick(f"{s['name']}{desc}", id=f"arg-{self.index}", compact=True)
             return
         yield Label(f"[b]{s['name']}[/b]: {s['type']}{desc}", markup=True)
         yield Input(placeholder=HINTS.get(s.get("type", "str"), ""), id=f"arg-{self.index}",

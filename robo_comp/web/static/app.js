@@ -17,7 +17,7 @@ const S = {
   stats: { frames: 0, drawn: 0, drawMs: 0, since: perf(), states: 0, evs: 0, lastState: 0, gaps: [], draws: [], last: 0 },
 };
 // for tests and the bench: the page's model, renderer and counters
-window.robo = { model, renderer, S };
+window.robo = { model, renderer, S, showInfo: sel => showInfo(sel) };  // for tests and the console
 
 // ------------------------------------------------------------------ clock
 function matchNow() {
@@ -175,6 +175,7 @@ function hud(force = false) {
   S.hudVersion = model.version;
   banner();
   legend();
+  debugPanel();
   const rows = (model.score.length ? model.score : (model.arena ? model.arena.teams.map(x => ({ team: x.name, score: 0, victims: 0 })) : []));
   $("score-table").tBodies[0].innerHTML = rows.map((r, i) => {
     const c = model.colour(r.team);
@@ -321,6 +322,36 @@ function legend() {
   paint($("legend-list"));
 }
 
+// The debug drawing toggles: all, and one per team whose robots drew something (team views,
+// and a replay whose match shows it to everyone). A robot's own switch is in its info box.
+function debugPanel() {
+  const D = renderer.debug, teams = new Set();
+  for (const tag of model.debug.keys()) { const r = model.robots.get(tag); teams.add(r ? r.team : null); }
+  const names = [...teams].filter(t => t != null).sort();
+  const key = JSON.stringify([names, D.on, [...D.offTeams].sort(), D.offRobots.size]);
+  if (key === S.debugKey) return;
+  S.debugKey = key;
+  $("debug-panel").classList.toggle("hidden", !names.length && !S.debugSeen);
+  if (names.length) S.debugSeen = true;
+  const box = (id, on, text, colour) => `<label class="debug-row"><input type="checkbox" data-debug="${esc(id)}" ${on ? "checked" : ""}>` +
+    (colour ? `<span class="swatch" data-colour="${esc(colour)}"></span>` : "") + `${esc(text)}</label>`;
+  const off = D.offRobots.size ? ` (${D.offRobots.size} robot${D.offRobots.size > 1 ? "s" : ""} hidden)` : "";
+  $("debug-list").innerHTML = box("*", D.on, `all${off}`) + names.map(t => box(t, !D.offTeams.has(t), t, model.colour(t))).join("");
+  paint($("debug-list"));
+  for (const el of $("debug-list").querySelectorAll("input")) el.onchange = () => {
+    const id = el.dataset.debug;
+    if (id === "*") { D.on = el.checked; if (D.on) D.offRobots.clear(); }
+    else if (el.checked) D.offTeams.delete(id); else D.offTeams.add(id);
+    D.version++; debugPanel();
+  };
+}
+function toggleRobotDebug(tag) {
+  const D = renderer.debug;
+  if (D.offRobots.has(tag)) D.offRobots.delete(tag); else D.offRobots.add(tag);
+  D.version++; debugPanel();
+  $("btn-debug").textContent = D.offRobots.has(tag) ? "Show its drawing" : "Hide its drawing";
+}
+
 // Colours from data-colour attributes (a ring or a cross takes it as its border).
 function paint(root) {
   for (const el of root.querySelectorAll("[data-colour]")) {
@@ -359,6 +390,8 @@ async function robotInfo(tag, fresh) {
   $("info-title").textContent = `Robot ${tag}`;
   $("btn-follow").classList.remove("hidden");
   $("btn-follow").textContent = S.follow === tag ? "Stop following" : "Follow";
+  $("btn-debug").classList.toggle("hidden", !model.debug.has(tag) && !renderer.debug.offRobots.has(tag));
+  $("btn-debug").textContent = renderer.debug.offRobots.has(tag) ? "Show its drawing" : "Hide its drawing";
   if (fresh) $("info-pictures").innerHTML = "";
   const base = r ? { team: r.team, status: r.status, x: r.x.toFixed(2), y: r.y.toFixed(2), heading: `${Math.round(r.h)}°`,
                      moving: r.moving ? "yes" : "no", task: r.task || "–" } : {};
@@ -376,6 +409,7 @@ async function robotInfo(tag, fresh) {
 async function thingInfo(key, fresh) {
   const th = model.things.get(key);
   $("btn-follow").classList.add("hidden");
+  $("btn-debug").classList.add("hidden");
   if (!th) { $("info-title").textContent = "gone"; fields({}); return; }
   $("info-title").textContent = `${th.kind[0].toUpperCase()}${th.kind.slice(1)} ${th.id}`;
   const info = { ...th.info };
@@ -398,6 +432,7 @@ async function thingInfo(key, fresh) {
   }
 }
 $("info-close").onclick = () => showInfo(null);
+$("btn-debug").onclick = () => { if (S.info && S.info.robot != null) toggleRobotDebug(S.info.robot); };
 $("btn-follow").onclick = () => {
   const tag = S.info && S.info.robot;
   S.follow = S.follow === tag ? null : tag;
@@ -452,6 +487,7 @@ window.addEventListener("keydown", e => {
   else if (e.key === "+" || e.key === "=") renderer.camera.zoomAt(renderer.w / 2, renderer.h / 2, 1.25);
   else if (e.key === "-") renderer.camera.zoomAt(renderer.w / 2, renderer.h / 2, 0.8);
   else if (e.key === "Escape") showInfo(null);
+  else if (e.key === "d" || e.key === "D") { const D = renderer.debug; D.on = !D.on; D.version++; debugPanel(); }
   else if (e.key === " " && S.mode === "replay") { e.preventDefault(); togglePlay(); }
 });
 $("btn-fit").onclick = () => { renderer.fit(); S.follow = null; };

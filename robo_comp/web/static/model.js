@@ -66,6 +66,7 @@ export class Model {
     this.events = 0;
     this.animUntil = 0;  // robots glide until then (the page draws every frame until then)
     this.legend = null;
+    this.debug = new Map();  // tag -> the robot's newest frame of debug drawing (team views; robo_comp/protocol/drawing.py)
     if (!this.story) this.setStory(null);
   }
 
@@ -119,6 +120,7 @@ export class Model {
       r.status = status; r.moving = !!moving; r.task = task || null;
     }
     for (const th of s.things || []) this.things.set(`${th.kind}:${th.id}`, th);
+    for (const [tag, frame] of s.debug || []) this.debug.set(tag, frame);
     this.score = s.score || [];
     const m = s.match || {};
     this.match = { phase: m.phase || "", elapsed: m.elapsed || 0, remaining: m.remaining ?? null, heard: t };
@@ -222,4 +224,11 @@ const HANDLERS = {
   "penalty": (m, d, t) => m.note(`penalty ${d.team}: ${d.points} (${d.reason || ""})`, "error", t),
   "task.started": (m, d) => { if (d.tag != null) m.robot(d.tag, d.team).task = d.name || null; },
   "task.done": (m, d) => { const r = m.robots.get(d.tag); if (r) r.task = null; },
+  // team code's debug drawing: each robot's new frame replaces its last (an empty one clears it)
+  "debug.draw": (m, d) => {
+    const tags = d.tags || [], frames = d.frames || [];
+    for (let i = 0; i < tags.length; i++) {
+      if (frames[i] && frames[i].length) m.debug.set(tags[i], frames[i]); else m.debug.delete(tags[i]);
+    }
+  },
 };

@@ -34,6 +34,8 @@ export class Renderer {
     this.selected = null;     // robot tag
     this.selectedThing = null; // thing key
     this.trails = true;
+    // debug drawing: on for all, and the teams and robots switched off (the page's toggles)
+    this.debug = { on: true, offTeams: new Set(), offRobots: new Set(), version: 0 };
     this.w = 0; this.h = 0; this.dpr = 1;
     this.dirty = true;   // something not in the model changed (the map image came, a selection)
     this.drawnKey = "";
@@ -43,7 +45,7 @@ export class Renderer {
   // camera moved, a selection changed or robots are still gliding. An idle page draws nothing.
   needsDraw(t) {
     const c = this.camera;
-    const key = `${this.model.version}|${c.scale}|${c.ox}|${c.oy}|${this.w}|${this.h}|${this.selected}|${this.selectedThing}`;
+    const key = `${this.model.version}|${c.scale}|${c.ox}|${c.oy}|${this.w}|${this.h}|${this.selected}|${this.selectedThing}|${this.debug.version}`;
     if (this.dirty || key !== this.drawnKey || t <= this.model.animUntil + 0.05) {
       this.dirty = false; this.drawnKey = key;
       return true;
@@ -102,6 +104,36 @@ export class Renderer {
     this.drawThings();
     if (m.match.phase === "finished" && m.story.victims.length) this.drawVictims(m.story.victims);
     this.drawRobots(robots, t);
+    if (this.debug.on && m.debug.size) this.drawDebug();
+  }
+
+  // Team code's debug drawing (robot.draw_dot/line/text): each shown robot's newest frame, over
+  // everything else, thin so the match stays readable. Shapes are map cells; a dot sits in its cell's centre.
+  drawDebug() {
+    const ctx = this.ctx, cam = this.camera, s = cam.scale, m = this.model, D = this.debug;
+    const X = x => cam.ox + (x + 0.5) * s, Y = y => cam.oy + (y + 0.5) * s;
+    const r = Math.max(2.5, s * 0.18);
+    ctx.lineWidth = Math.max(1.5, s * 0.08);
+    ctx.font = `600 ${Math.round(Math.max(10, Math.min(14, s * 0.6)))}px system-ui, sans-serif`;
+    ctx.textAlign = "left"; ctx.textBaseline = "middle";
+    this.debugShown = 0;
+    for (const [tag, frame] of m.debug) {
+      const rb = m.robots.get(tag);
+      if (D.offRobots.has(tag) || (rb && D.offTeams.has(rb.team))) continue;
+      for (const sh of frame) {
+        const col = sh[sh.length - 1];
+        if (sh[0] === "d") {
+          ctx.fillStyle = col; ctx.beginPath(); ctx.arc(X(+sh[1]), Y(+sh[2]), r, 0, Math.PI * 2); ctx.fill();
+        } else if (sh[0] === "l") {
+          ctx.strokeStyle = col; ctx.beginPath(); ctx.moveTo(X(+sh[1]), Y(+sh[2])); ctx.lineTo(X(+sh[3]), Y(+sh[4])); ctx.stroke();
+        } else if (sh[0] === "t") {
+          const text = String(sh[3]), x = X(+sh[1]), y = Y(+sh[2]);
+          ctx.fillStyle = "rgba(12,12,16,0.7)"; ctx.fillRect(x - 2, y - 8, ctx.measureText(text).width + 4, 16);
+          ctx.fillStyle = col; ctx.fillText(text, x, y);
+        }
+        this.debugShown++;
+      }
+    }
   }
 
   // The hidden victims, revealed when the match is over: a ring and a cross, green when a team

@@ -3,7 +3,8 @@
 A robot has at most one *running* task, at most one *pending* task (given "now" while another
 runs: it waits for the running task's next movement boundary, where the host interrupts it), a
 FIFO of *queued* tasks, and its kept finished ones. Every transition goes through
-:class:`TaskMachine`, which the core drives from requests and recovery drives from the log.
+:class:`TaskMachine`, which the match (:class:`robo_comp.match.model.Match`) drives from commands,
+live and on the engine, and its restore drives from the log.
 What a robot may advertise and how calls are checked is the protocol's
 (:mod:`robo_comp.protocol.taskspec`).
 
@@ -14,29 +15,14 @@ States::
 """
 from __future__ import annotations
 
-import enum
 import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
+from robo_comp.protocol.states import TaskMode, TaskState
 
-class TaskState(enum.StrEnum):
-    """Where a task stands (its value is the word on the wire and in the log)."""
-
-    QUEUED = "queued"
-    PENDING = "pending"
-    RUNNING = "running"
-    DONE = "done"
-    CANCELLED = "cancelled"
-
-
-class TaskMode(enum.StrEnum):
-    """How a task was given: interrupting the current one, or behind the queue."""
-
-    NOW = "now"
-    QUEUE = "queue"
 
 
 @dataclass(slots=True)
@@ -70,7 +56,7 @@ class TaskRecord:
 
 
 class TaskHolder(Protocol):
-    """A robot as the task machine sees it (the core's :class:`~robo_comp.core.registry.RobotRecord`)."""
+    """A robot as the task machine sees it (a :class:`~robo_comp.match.registry.RobotRecord`)."""
 
     tag: int
     current: TaskRecord | None
@@ -87,9 +73,12 @@ class TaskMachine:
     """
 
     def __init__(self, on_start: Callable[[Any, TaskRecord], None] | None = None,
-                 on_finish: Callable[[Any, TaskRecord], None] | None = None) -> None:
+                 on_finish: Callable[[Any, TaskRecord], None] | None = None,
+                 now: Callable[[], float] = time.time) -> None:
         self.on_start = on_start
         self.on_finish = on_finish
+        #: The clock transitions are stamped with (wall-clock seconds live, simulated on the engine).
+        self.now = now
 
     # ------------------------------------------------------------------ transitions
     def start(self, r: TaskHolder, t: TaskRecord, at: float | None = None) -> TaskRecord:
@@ -99,7 +88,7 @@ class TaskMachine:
         elif t in r.queue:
             r.queue.remove(t)
         t.state = TaskState.RUNNING
-        t.started_at = time.time() if at is None else at
+        t.started_at = self.now() if at is None else at
         r.current = t
         if self.on_start is not None:
             self.on_start(r, t)
@@ -112,7 +101,7 @@ class TaskMachine:
         t.ok = ok
         t.status = status
         t.result = result
-        t.finished_at = time.time() if at is None else at
+        t.finished_at = self.now() if at is None else at
         if r.current is t:
             r.current = None
         elif r.pending is t:

@@ -30,6 +30,7 @@ from robo_comp.client import open_dealer, resolve_core
 from robo_comp import protocol as P
 from robo_comp.protocol.curve import HANDSHAKE_EVENTS, client_keys, handshake_error
 from robo_comp.protocol.replies import reply_body, reply_error
+from robo_comp.protocol.session import ClientSession
 from robo_comp.errors import (
     ConnectionLostError,
     RoboCompError,
@@ -85,22 +86,26 @@ class CoreLink:
         self.ctx = ctx or zmq.asyncio.Context.instance()
         self.sock: zmq.asyncio.Socket | None = None
         self.url = ""
-        self.info: dict[str, Any] = {}
-        #: The session secret of the current connection (from the hello reply).
-        self.session: str | None = None
+        #: The session with the core (protocol/session.py): hello, the secret, heartbeats.
+        self.s = ClientSession(token, client)
         self.state = LinkState.CLOSED
         self.reconnects = 0
-        self._next_id = 1
         self._pending: dict[int, asyncio.Future[dict[str, Any]]] = {}
         self._task: asyncio.Task[None] | None = None
-        self._last_rx = 0.0
-        self._last_tx = 0.0
         self._lost = asyncio.Event()
         self._closing = False
-        #: Kept across reconnects: the core ends the old session when the console says hello again.
-        self.instance = P.new_instance_id()
 
     # ------------------------------------------------------------------ public
+    @property
+    def info(self) -> dict[str, Any]:
+        """The core's hello reply (role, team, heartbeat, the match, ...)."""
+        return self.s.info
+
+    @property
+    def session(self) -> str | None:
+        """The session secret of the current connection (from the hello reply)."""
+        return self.s.secret
+
     @property
     def connected(self) -> bool:
         """True while a session with the core is up."""
@@ -119,7 +124,7 @@ class CoreLink:
     @property
     def heartbeat(self) -> float:
         """The core's heartbeat interval in seconds."""
-        return float(self.info.get("heartbeat", 1.0))
+        return self.s.heartbeat
 
     def start(self) -> None:
         """Start connecting in the background (call from inside the running event loop)."""
@@ -131,7 +136,7 @@ class CoreLink:
         self._closing = True
         if self.sock is not None and self.connected:
             with contextlib.suppress(zmq.ZMQError):
-                await self.sock.send(P.request("bye", self._id(), {}, self.session), zmq.NOBLOCK)
+                await self.sock.send(self.s.bye(), zmq.NOBLOCK)
         if self._task is not None:
             self._task.cancel()
             with contextlib.suppress(asyncio.CancelledError, Exception):
@@ -147,12 +152,11 @@ class CoreLink:
         """
         if self.sock is None or not self.connected:
             raise ConnectionLostError("not connected to the core; the console is reconnecting")
-        rid = self._id()
+        rid, frame = self.s.frame(type_, body, time.monotonic())
         fut: asyncio.Future[dict[str, Any]] = asyncio.get_running_loop().create_future()
         self._pending[rid] = fut
         try:
-            await self.sock.send(P.request(type_, rid, body, self.session))
-            self._last_tx = time.monotonic()
+            await self.sock.send(frame)
             return await asyncio.wait_for(fut, timeout)
         except asyncio.TimeoutError:
             raise TimeoutError_(
@@ -177,11 +181,6 @@ class CoreLink:
         return True
 
     # ------------------------------------------------------------------ internals
-    def _id(self) -> int:
-        i = self._next_id
-        self._next_id += 1
-        return i
-
     def _set_state(self, state: LinkState, detail: str) -> None:
         if state is self.state and state is not LinkState.CONNECTED:
             return
@@ -205,13 +204,11 @@ class CoreLink:
         self._drop_socket(ConnectionLostError("the connection to the core was replaced"))
         self.url = resolve_core(self.core)
         keys = client_keys(self.core, self.token, self.curve_cert, self.core_key)
-        self.session = None  # a new connection opens a new session
         sock = open_dealer(self.ctx, self.url, keys, self.token, connect=False)
         self.sock = sock
         await self._handshake(sock, keys is not None)
-        rid = self._id()
-        await sock.send(P.request("hello", rid, {"token": self.token, "client": self.client_name,
-                                              "instance": self.instance}))
+        rid, frame = self.s.hello(time.monotonic())  # a new connection opens a new session
+        await sock.send(frame)
         t_end = time.monotonic() + HELLO_TIMEOUT
         while True:
             left = t_end - time.monotonic()
@@ -220,7 +217,7 @@ class CoreLink:
             msg = P.unpack(await sock.recv())
             if msg.get("type") == "reply" and msg.get("id") in (rid, 0):
                 body = reply_body(msg)
-                self.session = body.get("session")
+                self.s.opened(body)
                 return body
 
     async def _handshake(self, sock: zmq.asyncio.Socket, curve: bool) -> None:
@@ -249,7 +246,7 @@ class CoreLink:
             self._set_state(LinkState.CONNECTING if first else LinkState.RECONNECTING,
                             "connecting to the core…" if first else "reconnecting to the core…")
             try:
-                self.info = await self._hello()
+                await self._hello()
             except (RoboCompError, zmq.ZMQError, OSError) as e:
                 msg = e.message if isinstance(e, RoboCompError) else str(e)
                 if isinstance(e, RoboCompError) and e.code in ("E_AUTH", "E_FORBIDDEN"):
@@ -261,7 +258,6 @@ class CoreLink:
                 delay = min(delay * 1.5, 2.0)
                 continue
             delay = 0.2
-            self._last_rx = self._last_tx = time.monotonic()
             self._lost.clear()
             reader = asyncio.get_running_loop().create_task(self._read(), name="core-link-reader")
             self.state = LinkState.CONNECTING  # so that CONNECTED is always reported
@@ -293,13 +289,12 @@ class CoreLink:
             if self._lost.is_set():
                 return
             now = time.monotonic()
-            if now - self._last_rx > max(SILENT_BEATS * hb, MIN_SILENCE):
-                log.info("the core is silent for %.1f s", now - self._last_rx)
+            if self.s.silent(now, MIN_SILENCE, SILENT_BEATS):
+                log.info("the core is silent for %.1f s", now - self.s.last_rx)
                 return
-            if now - self._last_tx >= hb and self.sock is not None:
+            if self.s.beat_due(now) and self.sock is not None:
                 try:
-                    await self.sock.send(P.request("heartbeat", 0, {}, self.session), zmq.NOBLOCK)
-                    self._last_tx = now
+                    await self.sock.send(self.s.frame("heartbeat", {}, now, rid=0)[1], zmq.NOBLOCK)
                 except zmq.ZMQError:
                     return
 
@@ -313,13 +308,14 @@ class CoreLink:
             except zmq.ZMQError:
                 self._lost.set()
                 return
-            self._last_rx = time.monotonic()
             try:
                 msg = P.unpack(frame)
             except Exception:
                 continue
             if not isinstance(msg, dict):
                 continue
+            if self.s.heard(msg, time.monotonic()) is not None:  # the core forgot us or restarted
+                self._lost.set()
             kind = msg.get("type")
             if kind == "reply":
                 self._on_reply(msg)
@@ -344,8 +340,6 @@ class CoreLink:
             return
         if fut is not None and not fut.done():
             fut.set_exception(exc)
-        if exc.code == "E_AUTH":  # the core forgot us (it restarted): hello again
-            self._lost.set()
 
 
 __all__ = ["CoreLink", "LinkState"]

@@ -1,7 +1,7 @@
 """The wall's picture of the match as plain data: fed by a snapshot, then by events.
 
 No pygame here: the same model serves the live wall, replays, tests and the benchmark.
-Every topic the core publishes (or will publish) is applied by :meth:`WallModel.apply`;
+Every topic the core publishes (or will publish) is applied by :meth:`MatchView.apply`;
 unknown topics are ignored, so the wall keeps working when the core learns new events.
 """
 from __future__ import annotations
@@ -14,7 +14,8 @@ from typing import Any
 import numpy as np
 
 from robo_comp.protocol import unpack_walls
-from robo_comp.scoring.match import HeardClock
+from robo_comp.protocol.clock import HeardClock
+from robo_comp.protocol.topics import readable
 
 #: Trail points kept per robot (the last N positions at least ``TRAIL_STEP`` cells apart).
 TRAIL_LEN = 48
@@ -121,7 +122,7 @@ class Message:
     t: float
 
 
-class WallModel:
+class MatchView:
     """Everything the wall draws. ``version`` changes whenever something visible changes."""
 
     def __init__(self, clock: Any = time.monotonic) -> None:
@@ -136,9 +137,14 @@ class WallModel:
         self.version = 0
         self.panel_version = 0  # changes with everything but positions (the panel redraws on it)
         self.events = 0
+        #: Events not folded: they lacked what the topic table says they carry.
+        self.skipped = 0
         self.replay = False  # set by a replay source: the clock line then shows the recording's time
         #: The core's storage fault while it lasts (its event log cannot be written), else None.
         self.storage: str | None = None
+        #: Team code's debug drawing: each robot's newest frame (robo_comp/protocol/drawing.py),
+        #: only in views that may see it (the team's own; a replay as the match chose).
+        self.debug: dict[int, list[list[Any]]] = {}
 
     # ------------------------------------------------------------------ feeding
     def set_arena(self, payload: dict[str, Any]) -> None:
@@ -185,8 +191,12 @@ class WallModel:
         self.panel_version += 1
 
     def apply(self, topic: str, d: dict[str, Any]) -> None:
-        """Apply one event (public or full view); unknown topics are ignored."""
+        """Apply one event (public or full view); unknown topics are ignored, and so is an event
+        that lacks what protocol/topics.py's table says it carries (counted in ``skipped``)."""
         self.events += 1
+        if not readable(topic, d):
+            self.skipped += 1
+            return
         handler = _HANDLERS.get(topic)
         if handler is not None:
             handler(self, d)
@@ -237,7 +247,7 @@ class WallModel:
         self.things[t.key] = t
 
 
-def _on_positions(m: WallModel, d: dict[str, Any]) -> None:
+def _on_positions(m: MatchView, d: dict[str, Any]) -> None:
     """A batch of poses (the live feed's per team, or a log's for all teams). It moves robots
     but does not change their status: ``robot.returned`` says when a lost robot is back."""
     team = d.get("team")
@@ -251,7 +261,7 @@ def _on_positions(m: WallModel, d: dict[str, Any]) -> None:
         r.sigma = float(sigma[i])
 
 
-def _on_registered(m: WallModel, d: dict[str, Any]) -> None:
+def _on_registered(m: MatchView, d: dict[str, Any]) -> None:
     r = m._robot(d["tag"], d.get("team"))
     r.status = "connected"
     r.robot_id = d.get("robot_id", r.robot_id)
@@ -259,7 +269,7 @@ def _on_registered(m: WallModel, d: dict[str, Any]) -> None:
 
 
 def _status(status: str) -> Any:
-    def apply(m: WallModel, d: dict[str, Any]) -> None:
+    def apply(m: MatchView, d: dict[str, Any]) -> None:
         r = m._robot(d["tag"], d.get("team"))
         r.status = status
         r.moving = False
@@ -268,48 +278,48 @@ def _status(status: str) -> Any:
     return apply
 
 
-def _on_disqualified(m: WallModel, d: dict[str, Any]) -> None:
+def _on_disqualified(m: MatchView, d: dict[str, Any]) -> None:
     for tag in d.get("tags") or []:
         m._robot(tag).status = "disqualified"
     who = d.get("team") or ", ".join(str(t) for t in d.get("tags") or [])
     m.note(f"disqualified {who}: {d.get('reason', '')}", "error")
 
 
-def _on_stopped(m: WallModel, d: dict[str, Any]) -> None:
+def _on_stopped(m: MatchView, d: dict[str, Any]) -> None:
     r = m._robot(d["tag"], d.get("team"))
     r.moving = False
     if "x" in d and "y" in d:
         r.move(float(d["x"]), float(d["y"]), r.heading)
 
 
-def _on_core_started(m: WallModel, d: dict[str, Any]) -> None:
+def _on_core_started(m: MatchView, d: dict[str, Any]) -> None:
     if d.get("arena"):
         m.set_arena(d["arena"])
 
 
-def _on_score(m: WallModel, d: dict[str, Any]) -> None:
+def _on_score(m: MatchView, d: dict[str, Any]) -> None:
     if d.get("teams") is not None:
         m.score = list(d["teams"])
     if d.get("phase"):
         m._match(d)
 
 
-def _on_discovery(m: WallModel, d: dict[str, Any]) -> None:
+def _on_discovery(m: MatchView, d: dict[str, Any]) -> None:
     t = Thing("discovery", d.get("id"), float(d.get("x", 0)), float(d.get("y", 0)), d.get("team"),
               str(d.get("state", "discovered")), dict(d))
     m.things[t.key] = t
 
 
-def _on_picture(m: WallModel, d: dict[str, Any]) -> None:
+def _on_picture(m: MatchView, d: dict[str, Any]) -> None:
     t = Thing("picture", d.get("id"), float(d.get("x", 0)), float(d.get("y", 0)), d.get("team"), "", dict(d))
     m.things[t.key] = t
 
 
-def _on_broadcast(m: WallModel, d: dict[str, Any]) -> None:
+def _on_broadcast(m: MatchView, d: dict[str, Any]) -> None:
     m.note(str(d.get("message") or ""), "broadcast")
 
 
-def _on_storage(m: WallModel, d: dict[str, Any]) -> None:
+def _on_storage(m: MatchView, d: dict[str, Any]) -> None:
     """The core cannot write its event log (kept on the bar until it can), or can again."""
     if d.get("ok"):
         m.storage = None
@@ -319,7 +329,18 @@ def _on_storage(m: WallModel, d: dict[str, Any]) -> None:
         m.note(m.storage, "error")
 
 
-def _on_penalty(m: WallModel, d: dict[str, Any]) -> None:
+def _on_debug(m: MatchView, d: dict[str, Any]) -> None:
+    """Robots' new frames of debug drawing (an empty frame clears the robot's drawing)."""
+    for tag, frame in zip(d.get("tags") or [], d.get("frames") or []):
+        if not isinstance(tag, int):
+            continue
+        if frame:
+            m.debug[tag] = list(frame)
+        else:
+            m.debug.pop(tag, None)
+
+
+def _on_penalty(m: MatchView, d: dict[str, Any]) -> None:
     m.note(f"penalty {d.get('team')}: {d.get('points')} ({d.get('reason', '')})", "error")
 
 
@@ -340,4 +361,5 @@ _HANDLERS: dict[str, Any] = {
     "broadcast": _on_broadcast,
     "penalty": _on_penalty,
     "core.storage": _on_storage,
+    "debug.draw": _on_debug,
 }

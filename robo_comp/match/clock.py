@@ -1,9 +1,9 @@
-"""Match phases and the match clock: setup → running ⇄ paused → finished.
+"""The match clock and its phases (:class:`~robo_comp.protocol.states.Phase`): setup → running ⇄ paused → finished.
 
 Only the referee changes phases. The clock counts only while running; ``extend`` adds time.
-The core asks :meth:`MatchClock.expired` every heartbeat and finishes the match at zero.
+The match asks :meth:`MatchClock.expired` every heartbeat and finishes the match at zero.
 
-The clock is match time, kept by the core on its monotonic clock and recorded in the event log
+The clock is match time, kept on the driver's monotonic clock (the core's, or the engine's simulated one) and recorded in the event log
 (with every phase change and every :data:`CLOCK_PERIOD` while running), never computed from
 wall-clock stamps: a step of the machine's clock changes nothing. What an outage of the core
 does to a running clock is the referee's :data:`OUTAGE_RULES` choice (default ``pause``).
@@ -16,8 +16,9 @@ from dataclasses import dataclass
 from typing import Any
 
 from robo_comp.errors import FieldError, PhaseError
+from robo_comp.protocol.states import Phase
 
-PHASES = ("setup", "running", "paused", "finished")
+PHASES = tuple(Phase)
 #: What a core outage (a crash, a restart) does to a running match clock: ``pause`` (the clock
 #: stands still while no core runs: the default) or ``count`` (the outage is match time).
 OUTAGE_RULES = ("pause", "count")
@@ -26,12 +27,12 @@ OUTAGE_RULES = ("pause", "count")
 CLOCK_PERIOD = 0.25
 ACTIONS = ("start", "pause", "resume", "finish", "extend")
 # action -> (phases it is allowed from, phase it leads to)
-_TRANSITIONS: dict[str, tuple[tuple[str, ...], str | None]] = {
-    "start": (("setup",), "running"),
-    "pause": (("running",), "paused"),
-    "resume": (("paused",), "running"),
-    "finish": (("setup", "running", "paused"), "finished"),
-    "extend": (("setup", "running", "paused"), None),
+_TRANSITIONS: dict[str, tuple[tuple[Phase, ...], Phase | None]] = {
+    "start": ((Phase.SETUP,), Phase.RUNNING),
+    "pause": ((Phase.RUNNING,), Phase.PAUSED),
+    "resume": ((Phase.PAUSED,), Phase.RUNNING),
+    "finish": ((Phase.SETUP, Phase.RUNNING, Phase.PAUSED), Phase.FINISHED),
+    "extend": ((Phase.SETUP, Phase.RUNNING, Phase.PAUSED), None),
 }
 
 
@@ -66,7 +67,7 @@ class MatchClock:
     """The phase and the running time of one match; times are ``time.monotonic()`` seconds."""
 
     duration: float = math.inf
-    phase: str = "setup"
+    phase: Phase = Phase.SETUP
     elapsed_before: float = 0.0
     running_since: float | None = None
     #: One of :data:`OUTAGE_RULES`.
@@ -82,16 +83,16 @@ class MatchClock:
 
     def expired(self, now: float) -> bool:
         """True when a running match has used up its time."""
-        return self.phase == "running" and self.remaining(now) <= 0.0
+        return self.phase is Phase.RUNNING and self.remaining(now) <= 0.0
 
-    def apply(self, action: str, now: float, seconds: float | None = None) -> str:
+    def apply(self, action: str, now: float, seconds: float | None = None) -> Phase:
         """Carry out a referee action; return the new phase or raise :class:`PhaseError`."""
         if action not in _TRANSITIONS:
             raise FieldError(f"unknown match action {action!r}; use one of {', '.join(ACTIONS)}")
         allowed, to = _TRANSITIONS[action]
         if self.phase not in allowed:
             raise PhaseError(f"cannot {action} the match while it is {self.phase}"
-                             + (" (it is over; results are frozen)" if self.phase == "finished" else ""))
+                             + (" (it is over; results are frozen)" if self.phase is Phase.FINISHED else ""))
         if action == "extend":
             if seconds is None or not (0 < seconds <= 24 * 3600):
                 raise FieldError("extend needs 'seconds' between 0 and 86400")
@@ -100,7 +101,7 @@ class MatchClock:
         if self.running_since is not None:  # leaving "running"
             self.elapsed_before = self.elapsed(now)
             self.running_since = None
-        if to == "running":
+        if to is Phase.RUNNING:
             self.running_since = now
         assert to is not None
         self.phase = to
@@ -122,27 +123,7 @@ class MatchClock:
 
     def restore(self, phase: str, elapsed: float, duration: float | None, now: float) -> None:
         """Set the clock from a logged state (recovery): a running match keeps running."""
-        self.phase = phase
+        self.phase = Phase(phase)
         self.elapsed_before = elapsed
         self.duration = math.inf if duration is None else duration
-        self.running_since = now if phase == "running" else None
-
-
-@dataclass
-class HeardClock:
-    """The match clock as a console or a wall last heard it (``match.phase``, ``score``), with
-    the local monotonic time it was heard: :meth:`now` runs it on while the match runs."""
-
-    phase: str = ""
-    elapsed: float = 0.0
-    remaining: float | None = None
-    heard_at: float | None = None
-
-    def now(self, at: float | None) -> tuple[float, float | None]:
-        """``(elapsed, remaining)`` extrapolated to local time ``at`` while running (``at`` None:
-        as heard)."""
-        if at is None or self.heard_at is None or self.phase != "running":
-            return self.elapsed, self.remaining
-        d = max(0.0, at - self.heard_at)
-        return self.elapsed + d, None if self.remaining is None else max(0.0, self.remaining - d)
-
+        self.running_since = now if self.phase is Phase.RUNNING else None

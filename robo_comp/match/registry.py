@@ -1,26 +1,19 @@
-"""The registry: every robot the core knows, with its tag, team, status and tasks."""
+"""The registry: every robot of the match, with its tag, team, status and tasks."""
 from __future__ import annotations
 
-import enum
 import time
 from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
-from robo_comp.core.tasks import TaskRecord
+from robo_comp.match.tasks import TaskRecord
 from robo_comp.match.plausibility import Track
 from robo_comp.errors import NoSuchRobotError
+from robo_comp.protocol.states import RobotStatus
 
 FIRST_TAG = 101
 
 
-class RobotStatus(enum.StrEnum):
-    """Where a robot stands with the core (its value is the word on the wire and in the log)."""
-
-    CONNECTED = "connected"  # its host reports and takes tasks
-    LOST = "lost"  # its host went silent; it comes back when the host speaks again
-    LEFT = "left"  # its host took it out of the arena
-    DISQUALIFIED = "disqualified"  # the referee took it out of the match
 #: Finished tasks kept per robot for ``tasks`` and ``monitor`` (the event log keeps them all).
 MAX_DONE_KEPT = 20
 #: Finished tasks kept in all: with 1,000 robots the core's memory stays flat however long
