@@ -42,6 +42,7 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 from robo_comp.errors import FieldError, RoboCompError
 from robo_comp.web.hub import JOIN_TIMEOUT, Hub, PublicHub, Subscriber, TeamHub, dumps, whole
 from robo_comp.web.replay import Playback, Recording
+from robo_comp.web.wire import AsgiWire, wire_of
 
 log = logging.getLogger("robo_comp.web")
 STATIC = Path(__file__).parent / "static"
@@ -263,7 +264,9 @@ class Connection:
         self.gw = gw
         self.ws = ws
         self.origins = origins or OriginCheck()
-        self.sub = Subscriber(self._send)
+        # a live view's frames go straight to the socket where the server offers it (uvicorn with
+        # robo_comp.web.wire.WireProtocol), else one at a time through ASGI
+        self.sub = Subscriber(wire_of(ws.scope) or AsgiWire(self._send))
         self.playback: Playback | None = None
         self._send_lock = asyncio.Lock()
 
@@ -280,7 +283,6 @@ class Connection:
             return
         await self.ws.accept()
         await self._send(dumps({"type": "hello", **self.gw.info()}))
-        self.sub.task = asyncio.get_running_loop().create_task(self.sub.run())
         try:
             while True:
                 try:
@@ -300,7 +302,7 @@ class Connection:
         except WebSocketDisconnect:
             pass
         finally:
-            self.sub.task.cancel()
+            self.sub.close()
             if self.sub.hub is not None:
                 self.sub.hub.detach(self.sub)
             if self.playback is not None:
