@@ -246,7 +246,7 @@ def stop_latency(state: Path, robots: int, samples: int) -> list[float]:
     host = start_robots(state, "blue", robots, "--report-hz", "10", "--speed", "0.5")
     try:
         c = Client(str(state), (state / "teams/blue.token").read_text().strip(), timeout=10)
-        t_end = time.monotonic() + 30
+        t_end = time.monotonic() + 120  # a host of hundreds of robots starts slowly on a loaded machine
         while len([r for r in c.robots() if r["status"] == "connected"]) < robots:
             assert time.monotonic() < t_end, "robots did not register"
             time.sleep(0.2)
@@ -470,7 +470,10 @@ def handle_ns(n: int = 100_000, repeats: int = 7) -> float:
         core = Core(Path(tmp), default_scenario(), ["red", "blue"])
         # no transport here: nothing proved a credential at connect time (PLAIN/CURVE), so the
         # hello's check of it is left out, in both trees alike
-        core._check_key = lambda who: None  # type: ignore[method-assign]
+        if hasattr(core, "access"):  # the session desk checks the key (issue 27's broker split)
+            core.access.check_key = lambda who: None  # type: ignore[method-assign]
+        else:
+            core._check_key = lambda who: None  # type: ignore[attr-defined]
         ident = bytes(range(1, 17))
         tok = core.tokens.token_of("red", "host") if FAIR_PLAY else core.tokens.token_of("red")
         core._handle(ident, _frame("hello", 1, {"token": tok}, None))

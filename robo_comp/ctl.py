@@ -63,6 +63,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     m.add_argument("action", choices=("start", "pause", "resume", "finish", "extend", "outage"))
     m.add_argument("--seconds", type=float, help="for extend: seconds to add")
     m.add_argument("--rule", choices=("pause", "count"), help="for outage: the rule")
+    tw = cmds.add_parser("teamwork", help="a lost robot's tasks to its teammates: on, off, or show the setting",
+                         description="When one of your robots is lost (its host went silent) or leaves, its running "
+                                     "and queued tasks are offered to your team (the task.offered event). With "
+                                     "'teamwork on' each of them moves at once to the nearest idle teammate that "
+                                     "advertises the task (none idle: the one with the least work). The referee "
+                                     "names the team with --team.")
+    tw.add_argument("setting", nargs="?", choices=("on", "off"), help="turn reallocation on or off (none: show it)")
+    tw.add_argument("--team", help="referee: the team")
     cmds.add_parser("score", help="the scoreboard, phase and clock")
     cmds.add_parser("recovery", help="referee: what the core recovered from its event log when it started "
                                      "(events, damage and the events it cost, how the clock was set)")
@@ -274,6 +282,15 @@ def _run(c: Client, args: argparse.Namespace) -> int:
         out = c.match(args.action, args.seconds, rule=args.rule)
         if not args.json:
             print(_clock(out))
+    elif args.cmd == "teamwork":
+        body: dict[str, Any] = {} if args.setting is None else {"reallocate": args.setting == "on"}
+        if args.team:
+            body["team"] = args.team
+        out = c.request("teamwork", **body)
+        if not args.json:
+            state = "on" if out["reallocate"] else "off"
+            moved = f"; moved now: tasks {', '.join(map(str, out['moved']))}" if out.get("moved") else ""
+            print(f"team {out['team']}: reallocation of a lost robot's tasks is {state}{moved}")
     elif args.cmd == "score":
         out = c.score()
         if not args.json:

@@ -7,6 +7,7 @@ import pytest
 
 from conftest import next_event_where, wait_for, wait_robots
 from robo_comp.errors import BadTaskError
+from robo_comp.robots.builtin_tasks import END_TOLERANCE
 
 
 def _far_cell(row, walls_free):
@@ -45,7 +46,8 @@ def test_goto_moves_cell_by_cell_and_reports_done(one_robot):
             break
         time.sleep(0.05)
     d = done_event(red, tid)
-    assert d["ok"] and d["state"] == "done" and d["result"] == {"reached": list(target)}
+    assert d["ok"] and d["state"] == "done" and d["result"]["reached"] == list(target)
+    assert d["result"]["end_error"] <= END_TOLERANCE  # where the robot believes it ended
     m = red.monitor(tag)
     # teams see the positioning system's estimate (noise σ 0.25 cells), not the truth
     assert abs(m["x"] - target[0]) < 1.0 and abs(m["y"] - target[1]) < 1.0
@@ -130,7 +132,7 @@ def test_examine_area_and_follow_path(one_robot):
     near = sorted(free, key=lambda c: abs(c[0] - here[0]) + abs(c[1] - here[1]))[1:3]
     tid = red.give(tag, "followPath", [[list(near[0]), list(near[1])]])["task_id"]
     d = done_event(red, tid)
-    assert d["ok"] and d["result"] == {"visited": 2}
+    assert d["ok"] and d["result"]["visited"] == 2 and d["result"]["end_error"] <= END_TOLERANCE
     tid = red.give(tag, "examineArea", list(near[0]))["task_id"]
     d = done_event(red, tid)
     assert d["ok"] and d["result"]["examined"] == list(near[0])

@@ -3,6 +3,10 @@ pyzmq, below every friendly client.
 
 - A peer without a credential sends the parts of one multipart message and never the last: the
   core buffers nothing of it (its memory stays within 50 MiB of where it was).
+- A peer *with* a valid token does the same: the core cuts the connection once it holds more than
+  one whole frame of a message it does not finish (its peak memory stays within 50 MiB), and cuts
+  the biggest holders when connections together hold more than 16 MiB; whole frames, even sent
+  slowly, are not cut.
 - Such a peer gets no reply to anything; its refused handshakes are logged in bulk.
 - Frames that msgpack would be slow to decode are refused before decoding gets far.
 - A client that says hello again (same principal, same ``instance``) ends its old session.
@@ -26,12 +30,15 @@ from typing import Any
 
 import pytest
 import zmq
+from zmq.auth.thread import ThreadAuthenticator
 
 from conftest import CoreHandle, wait_for, wait_robots
 from test_hostile_clients import Peer, code, router
 from robo_comp import protocol as P
+from robo_comp.core.guard import HOLD_MAX, HOLD_TOTAL, HOLD_UNFINISHED, ConnectionGuard, GuardLimits, _the_kernel
 from robo_comp.testing.zmtp import (
-    core_rss, router_address, zmtp_command, zmtp_frame, zmtp_greeting, zmtp_initiate, zmtp_open,
+    core_peak, core_rss, reset_core_peak, router_address, zmtp_command, zmtp_frame, zmtp_greeting, zmtp_initiate,
+    zmtp_open, zmtp_plain_handshake,
 )
 
 MiB = 1 << 20
@@ -131,6 +138,236 @@ def test_an_unfinished_message_to_the_public_feed_holds_no_memory(core: CoreHand
     wait_for(lambda: (ref.request("broadcast", message="still here"), sub.poll(200))[1], 10.0,
              "an event on the public feed")
     sub.close(0)
+
+
+# ------------------------------------------------------------------ what a peer with a token may hold
+def _cuts(core: CoreHandle, words: str) -> list[dict[str, Any]]:
+    """The core's bulk records of connections it cut for a reason that says ``words``."""
+    return [e for e in core.logged_events("refused")
+            if e["data"].get("type") == "connect" and words in e["data"]["message"]]
+
+
+def _was_cut(s: socket.socket) -> bool:
+    """Whether the core reset this raw connection (it sends nothing else to a peer that never
+    finished a message)."""
+    s.setblocking(False)
+    try:
+        return s.recv(1) == b""
+    except BlockingIOError:
+        return False
+    except OSError:
+        return True
+
+
+@pytest.mark.parametrize("part", [512 << 10, MiB], ids=["512KiB", "1MiB"])
+def test_an_unfinished_message_from_a_peer_with_a_token_is_cut(core: CoreHandle, part: int) -> None:
+    """Defence: the guard weighs what libzmq read off each connection (the kernel's TCP_INFO less
+    FIONREAD) against what the core was handed of it (ZMQ_SRCFD, frames counted as on the wire),
+    and cuts a connection that holds more than HOLD_UNFINISHED (one whole frame and 128 KiB) while
+    nothing complete waits for the core; it looks every 50 ms and at once when the core's memory
+    grew 8 MiB. A raw peer completes PLAIN with red's valid token and sends parts of one message
+    under ZMQ_MAXMSGSIZE (MORE on every one), 256 MiB in all: it is cut, the core's peak memory
+    stays within 50 MiB of where it was, the cut is logged, and other clients are served. Before,
+    all 256 MiB went in and the core grew by as much."""
+    blue = core.client("blue")
+    assert blue.robots() == []
+    baseline = core_rss(core.state)
+    reset_core_peak(core.state)
+    s = _raw_connect(core)
+    zmtp_plain_handshake(s, core.token("red").encode())
+    sent = _push_unfinished(s, 256 * MiB, part=part)
+    time.sleep(0.5)  # let the core's I/O thread take in whatever reached it
+    grown = core_peak(core.state) - baseline
+    s.close()
+    assert sent < 256 * MiB, "the core never cut a connection holding 256 MiB of one unfinished message"
+    assert grown < 50 * MiB, f"the core grew by {grown / MiB:.0f} MiB for one unfinished message"
+    found = wait_for(lambda: _cuts(core, "did not finish"), 5.0, "the cut in the log")
+    assert found[0]["data"]["code"] == "E_RATE" and found[0]["data"]["address"] == "127.0.0.1"
+    assert blue.robots() == []  # still serving
+    assert core.referee().request("stats")["connections_cut"] == 1
+
+
+def test_whole_frames_from_a_peer_with_a_token_are_not_cut(core: CoreHandle) -> None:
+    """The bound leaves whole messages alone, however large and however slowly they come: a peer
+    with red's token sends 24 frames of the largest size libzmq lets through (1 MiB + 64 KiB, each
+    refused E_TOO_LARGE) as fast as it can, and a raw one sends such a frame in 64 KiB pieces over
+    about a second, so that looks find it unfinished: every one is answered and no connection is
+    cut."""
+    burst = peer(core, core.token("red"))
+    big = b"\x01" * P.SOCKET_MAX_FRAME
+    for _ in range(24):
+        burst.sock.send(big)
+    assert [code(burst.reply(0)) for _ in range(24)] == ["E_TOO_LARGE"] * 24
+    s = _raw_connect(core)
+    zmtp_plain_handshake(s, core.token("red").encode())
+    whole = zmtp_frame(big)
+    for k in range(0, len(whole), 64 << 10):
+        s.sendall(whole[k:k + (64 << 10)])
+        time.sleep(0.06)  # spread over about 18 looks of the guard
+    got = b""
+    while b"E_TOO_LARGE" not in got:
+        chunk = s.recv(4096)
+        assert chunk, "the core closed the connection of a peer sending a whole frame slowly"
+        got += chunk
+    s.close()
+    assert burst.own("hello", {"token": core.token("red")})["ok"]
+    burst.close()
+    assert core.referee().request("stats")["connections_cut"] == 0
+
+
+def test_connections_holding_more_than_the_total_together_are_cut(core: CoreHandle) -> None:
+    """Defence: HOLD_TOTAL. 20 raw connections with red's token each hold 1 MiB of an unfinished
+    message, under the bound of one connection (HOLD_UNFINISHED) but 20 MiB together, over 16 MiB:
+    the biggest holders are cut until the rest hold 16 MiB at most, the others are left, the core
+    stays within 50 MiB of where it was, and a console is served."""
+    blue = core.client("blue")
+    baseline = core_rss(core.state)
+    reset_core_peak(core.state)
+    socks = []
+    for _ in range(20):
+        s = _raw_connect(core)
+        zmtp_plain_handshake(s, core.token("red").encode())
+        socks.append(s)
+    assert HOLD_UNFINISHED > MiB + 64 and 20 * MiB > HOLD_TOTAL
+    for s in socks:
+        s.sendall(zmtp_frame(b"\x01" * (MiB // 2), more=True) * 2)
+    wait_for(lambda: _cuts(core, "together"), 5.0, "the cut in the log")
+    grown = core_peak(core.state) - baseline
+    cut = sum(_was_cut(s) for s in socks)
+    for s in socks:
+        s.close()
+    assert 20 - HOLD_TOTAL // MiB <= cut < 20, f"{cut} of 20 connections cut"
+    assert grown < 50 * MiB, f"the core grew by {grown / MiB:.0f} MiB"
+    assert blue.robots() == []
+
+
+def test_a_backlog_the_core_does_not_take_is_cut() -> None:
+    """Defence: the same look on complete messages (real ROUTER, real TCP peer, the guard a core
+    uses; the core's loop played by this test). A peer with a NULL handshake sends 1 MiB messages
+    whole, two a turn of the loop. Taken as they come, 40 MiB of them cut nothing; when the loop
+    takes one a turn (a backlog growing while the core takes some), the connection is cut once it
+    holds more than HOLD_MAX; when the loop takes none, at the second look that finds it over
+    HOLD_UNFINISHED with nothing handed in between. The loop's clock brings a look every turn."""
+    ctx = zmq.Context()
+    router = ctx.socket(zmq.ROUTER)
+    router.setsockopt(zmq.LINGER, 0)
+    router.setsockopt(zmq.RCVHWM, 100_000)
+    port = router.bind_to_random_port("tcp://127.0.0.1")
+    guard = ConnectionGuard.watch(router, port, GuardLimits(64), hold=True)
+    message = zmtp_frame(b"\x01" * MiB)
+    # the loop's clock moves past the next look at every turn, so the guard looks once a turn
+    # however slowly a loaded machine runs the turns (at most 2 MiB more between two looks)
+    clock = [time.monotonic()]
+
+    def attack(take: int | None, total: int) -> tuple[int, str]:
+        """Send ``total`` bytes of whole messages, two a turn, the loop taking ``take`` a turn (None:
+        all) and sweeping; return what was sent and why the guard cut it ('' if it did not)."""
+        s = socket.create_connection(("127.0.0.1", port), timeout=5.0)
+        s.sendall(zmtp_greeting("NULL") + zmtp_command(b"READY", {b"Socket-Type": b"DEALER"}))
+        sent, cut, t_end = 0, "", time.monotonic() + 30.0
+        while not cut and time.monotonic() < t_end:
+            if sent < total:
+                with contextlib.suppress(OSError):  # cut: the reason comes from the guard
+                    s.sendall(message * 2)
+                    sent += 2 * len(message)
+                if sent >= total:
+                    t_end = min(t_end, time.monotonic() + 0.5)  # looks after the last message
+            time.sleep(0.002)
+            guard.serve()
+            for _ in range(100_000 if take is None else take):
+                try:
+                    first = router.recv(zmq.NOBLOCK, copy=False)
+                except zmq.Again:
+                    break
+                guard.took(first, [first.bytes, *router.recv_multipart()])
+            clock[0] += 10.0  # (a look that took up to 0.2 s still leaves the next one due)
+            guard.sweep(clock[0])
+            if guard.cuts_waiting:
+                cut = next(iter(guard.take_cut().values())).reason
+        s.close()
+        while router.poll(100):  # what is left of it
+            router.recv_multipart()
+        return sent, cut
+
+    try:
+        sent, cut = attack(None, 40 * MiB)
+        assert cut == "" and sent >= 40 * MiB
+        sent, cut = attack(1, 64 * MiB)  # one taken a turn, two come: a backlog of a MiB more each turn
+        assert f"over {HOLD_MAX >> 20} MiB" in cut and sent < 64 * MiB, cut
+        sent, cut = attack(0, 64 * MiB)
+        assert "at two looks" in cut and sent < 32 * MiB, cut
+    finally:
+        guard.close()
+        router.close(0)
+        ctx.term()
+
+
+@pytest.mark.parametrize("mechanism", ["PLAIN", "CURVE"])
+def test_what_the_core_was_handed_is_counted_as_it_crossed_the_wire(mechanism: str) -> None:
+    """The count the bound rests on (real ROUTER and DEALER, the guard a core uses, the core's
+    receive loop played by this test): after 3,000 messages of 10 to 300 bytes (ZMTP headers short
+    and long, on both sides of 255; under CurveZMQ a MESSAGE command around each), what the kernel
+    says libzmq read off the connection, less what ``took`` counted, grew by the peer's answers to
+    the ROUTER's pings only (7 bytes each, 40 under CurveZMQ): a whole number of them, no more than
+    the pings sent. A count one byte too high a frame would let a peer bank room to hold memory
+    later; one too low would cut an honest client in the end."""
+    SIZES = (10, 222, 223, 255, 256, 300)  # under CurveZMQ 222 and 223 bytes become 255 and 256
+    ctx = zmq.Context()
+    router, dealer = ctx.socket(zmq.ROUTER), ctx.socket(zmq.DEALER)
+    router.setsockopt(zmq.HEARTBEAT_IVL, 50)
+    if mechanism == "CURVE":
+        server_public, server_secret = zmq.curve_keypair()
+        client_public, client_secret = zmq.curve_keypair()
+        router.curve_server, router.curve_secretkey = True, server_secret
+        dealer.curve_serverkey, dealer.curve_publickey, dealer.curve_secretkey = (server_public, client_public,
+                                                                                  client_secret)
+    else:  # PLAIN needs a ZAP handler to let anyone in: pyzmq's own, in a thread
+        auth = ThreadAuthenticator(ctx)
+        auth.start()
+        auth.configure_plain(domain="*", passwords={"robo_comp": "a-token"})
+        router.plain_server = True
+        dealer.plain_username, dealer.plain_password = b"robo_comp", b"a-token"
+    port = router.bind_to_random_port("tcp://127.0.0.1")
+    guard = ConnectionGuard.watch(router, port, GuardLimits(64), hold=True)
+    dealer.connect(f"tcp://127.0.0.1:{port}")
+    kernel = _the_kernel()
+
+    def take(n: int) -> int:
+        fd = -1
+        for _ in range(n):
+            assert router.poll(5000)
+            first = router.recv(copy=False)
+            guard.took(first, [first.bytes, *router.recv_multipart()])
+            fd = first.get(zmq.SRCFD)
+        return fd
+
+    def unhanded(fd: int) -> int:
+        received = kernel.received(fd)
+        assert received is not None
+        return received - kernel.unread(fd) - guard.handed[fd]
+
+    try:
+        dealer.send(b"hello")
+        fd = take(1)
+        guard.serve()
+        t0, before = time.monotonic(), unhanded(fd)  # the handshake and the answers to pings so far
+        for k in range(3000):
+            dealer.send(b"x" * SIZES[k % len(SIZES)])
+            if k % 100 == 99:
+                take(100)
+                time.sleep(0.01)
+        time.sleep(0.3)
+        pongs = unhanded(fd) - before
+        pings = (time.monotonic() - t0) / 0.05 + 2
+        assert pongs % guard.pong_bytes == 0 and 0 <= pongs <= pings * guard.pong_bytes, (pongs, guard.pong_bytes)
+        assert guard.pong_bytes == (40 if mechanism == "CURVE" else 7)
+    finally:
+        guard.close()
+        dealer.close(0)
+        router.close(0)
+        if mechanism == "PLAIN":
+            auth.stop()
+        ctx.term()
 
 
 def test_a_huge_handshake_command_is_cut_off(core: CoreHandle) -> None:

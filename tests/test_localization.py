@@ -152,3 +152,25 @@ def test_localization_tracks_arena_robots() -> None:
     a.remove_robot("b")
     loc.update()
     assert set(loc.estimates()) == {"r"}
+
+
+def test_position_fixes_correct_a_wrong_heading_through_their_track():
+    """A robot that believes it faces 30 degrees off drives straight east: the HX5's fixes measure
+    positions only, yet the way they move says where the robot faces (issue 33)."""
+    from robo_comp.world.arena import Arena
+    from robo_comp.world.localization import Localization
+    from robo_comp.world.scenario import parse_scenario
+
+    sc = parse_scenario("map = { width = 40, height = 9 }\nseed = 2\n[robot]\ndrive = \"free\"\n", "m.toml")
+    arena = Arena(sc, seed=2)
+    arena.add_robot("r1", "red", 2.0, 4.0, 0.0)
+    loc = Localization(arena)
+    loc.update()
+    loc.reckoners["r1"].heading = 30.0  # wrong by 30 degrees
+    arena.command("r1", "forward", 30.0)
+    while arena.is_moving("r1"):
+        arena.step(0.1)
+        loc.update()
+    x, y, h = loc.estimate("r1")
+    assert abs((h - 0.0 + 180) % 360 - 180) < 5, h
+    assert abs(x - 32.0) < 1.0 and abs(y - 4.0) < 1.0, (x, y)

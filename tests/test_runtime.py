@@ -5,12 +5,20 @@ the engine. (On the engine team code computes without a driver step, so nothing 
 clears a bump there: a first engine on the shared runtime kept it, and team code's next
 ``go_to``, which plans before it moves, was refused at once with "bumped into something and
 stopped"; a league entry started again after a bump skipped every waypoint it had left.)
+
+The bump is into a robot that arrives in the cell the robot is driving into: a robot waits for a
+cell a teammate holds, or another robot is in or driving into, before it starts a move (issue 33:
+robo_comp/robots/traffic.py, the driver's sensors).
 """
 from __future__ import annotations
 
+import threading
+import time
 from typing import Any
 
+from robo_comp.client import resolve_core
 from robo_comp.engine import Bench
+from robo_comp.robots.host import RobotHost
 from robo_comp.testing import next_event_where, start_match, wait_robots
 
 GO = ('MANIFEST = {"name": "go", "version": "1", "kind": "extension", "tasks": {"go": {"args": ['
@@ -20,33 +28,53 @@ GO = ('MANIFEST = {"name": "go", "version": "1", "kind": "extension", "tasks": {
 
 def test_after_a_bump_the_next_task_of_team_code_drives_live(tmp_path):
     with start_match(tmp_path / "state", "demo_room") as m:
-        m.robots("red", 2, speed=6.0)
-        red = m.client("red", timeout=30)
-        rows = {r["tag"]: r for r in wait_robots(red, 2)}
-        assert red.upload([101, 102], "go.py", GO)["ok"]
-        red.watch(True)
+        # a robot host in this process, against the real core: the body of another host's robot goes
+        # into its arena as an overhead camera puts it there (Arena.place), into the cell the robot
+        # is driving into (a robot its sensors saw there before the move would have been waited for)
+        host = RobotHost(resolve_core(str(m.state)), m.host_token("red"), 1)
+        th = threading.Thread(target=host.run, kwargs={"duration": 60}, daemon=True)
+        th.start()
+        try:
+            red = m.client("red", timeout=30)
+            me = wait_robots(red, 1)[0]
+            assert red.upload([me["tag"]], "go.py", GO)["ok"]
+            red.watch(True)
 
-        def run(tag: int, task: str, args: list[Any]) -> dict[str, Any]:
-            tid = red.give(tag, task, args)["task_id"]
-            return next_event_where(red, lambda e: e["topic"] == "task.done" and e["data"]["task_id"] == tid,
-                                    timeout=30)["data"]
+            def done(tid: int) -> dict[str, Any]:
+                return next_event_where(red, lambda e: e["topic"] == "task.done" and e["data"]["task_id"] == tid,
+                                        timeout=30)["data"]
 
-        other = rows[101]
-        home = (round(rows[102]["x"]), round(rows[102]["y"]))
-        bumped = run(102, "go", [round(other["x"]), round(other["y"])])  # team code's go_to drives into 101
-        assert not bumped["ok"] and "bumped into robot 101" in bumped["status"], bumped
-        assert bumped["result"]["reason"] == "bumped"
-        back = run(102, "go", list(home))
-        assert back["ok"], back  # the old host: "bumped into something and stopped", at once
+            home = (round(me["x"]), round(me["y"]))
+            tid = red.give(me["tag"], "go", [home[0] + 6, home[1]])["task_id"]  # team code's go_to
+            robot = next(iter(host.robots.values()))
+            t_end = time.monotonic() + 20
+            while (robot.task is None or robot.task.to is None) and time.monotonic() < t_end:
+                time.sleep(0.005)
+            to = robot.task.to if robot.task is not None else None
+            assert to is not None and host.world is not None
+            host.world.place("blue-1", "blue", float(to[0]), float(to[1]), 0.0)
+            bumped = done(tid)
+            assert not bumped["ok"] and "bumped into robot" in bumped["status"], bumped
+            assert bumped["result"]["reason"] == "bumped"
+            host.world.remove_robot("blue-1")
+            back = done(red.give(me["tag"], "go", list(home))["task_id"])
+            assert back["ok"], back  # the old host: "bumped into something and stopped", at once
+        finally:
+            host.stop()
+            th.join(10)
 
 
 def test_after_a_bump_the_next_task_of_team_code_drives_on_the_engine():
-    with Bench("demo_room", "red", robots=2, speed=6.0) as bench:
+    with Bench("demo_room", "red", robots=1) as bench:
         bench.load("go.py", GO)
-        a, b = bench.tags
-        target = bench.true_cell(a)
-        home = bench.true_cell(b)
-        out = bench.run_match({b: [("go", list(target)), ("go", list(home))]}, seconds=60)
-        first, second = out.outcomes[b]
-        assert not first["ok"] and f"bumped into robot {a}" in first["status"] and first["result"]["reason"] == "bumped"
+        (a,) = bench.tags
+        r = bench.by_tag[a]
+        home = bench.true_cell(a)
+        bench.run_match({a: [("go", [home[0] + 6, home[1]])]}, seconds=1.0)
+        assert r.task is not None and r.task.to is not None  # on its way, in the middle of a move
+        bench.arena.place("ghost", "blue", float(r.task.to[0]), float(r.task.to[1]), 0.0)
+        first = bench.run_match({}, seconds=30).outcomes[a][0]
+        assert not first["ok"] and "bumped into robot" in first["status"] and first["result"]["reason"] == "bumped"
+        bench.arena.remove_robot("ghost")
+        second = bench.run_match({a: [("go", list(home))]}, seconds=60).outcomes[a][0]
         assert second["ok"], second

@@ -686,11 +686,13 @@ def test_real_team_code_runs_under_the_policy():
 
 
 def test_cpu_limit_kill_is_named():
-    limits = Limits(cpu_seconds=1, wall_seconds=5.0, memory_mib=192)
+    # the wall limit far above the CPU limit: on a loaded machine the child gets a small share of a
+    # core, and 1 s of CPU took more than 5 s of real time (the wall limit then fired first)
+    limits = Limits(cpu_seconds=1, wall_seconds=60.0, memory_mib=192)
     src = module("burn", "def work(robot):\n    n = 0\n    while True:\n        n = n + 1")
     with Sandbox("red", [1], Host(), limits) as box:
         box.load("burn.py", src)
-        rec = box.run_task(1, "work", timeout=10)
+        rec = box.run_task(1, "work", timeout=90)
         assert isinstance(rec, TaskFailed) and rec.reason == "limit"
         assert rec.message.startswith("CPU time limit (1 s) exceeded") and "robot calls between them" in rec.message
         stops = [r for r in box.poll(0.05) if isinstance(r, SandboxStopped)]

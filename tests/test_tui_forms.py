@@ -113,7 +113,8 @@ def test_referee_approves_a_pending_upload_and_disqualifies_with_confirmation() 
         app = RefereeApp(link=link, **FIXED)  # type: ignore[arg-type]
         async with app.run_test(size=(120, 40)) as pilot:
             await until(pilot, lambda: app.core_features.get("approve"), 15, "feature detection")
-            link.on_event("upload.pending", "red", {"upload_id": 4, "team": "red", "filename": "square.py"})
+            link.on_event("upload.pending", "red", {"upload_id": 4, "team": "red", "tags": [101], "filename": "square.py",
+                                                   "sha256": "ab12", "by": "red"})
             await until(pilot, lambda: any("press a to approve" in n for n in notifications(app)), 15, "the toast")
             await pilot.press("a")
             await until(pilot, lambda: isinstance(app.screen, FormScreen), 15, "the approve form")

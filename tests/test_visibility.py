@@ -74,6 +74,12 @@ def every_topic() -> list[tuple[str, str | None, dict[str, Any]]]:
         "integrity": (None, {"kind": "pose", "tag": 101, "team": "red", "count": 1, "x": 2, "y": 8,
                              "message": SECRET}),
         "robot.handover": ("red", {"tag": 101, "by": "referee", "from": SECRET}),
+        "task.offered": ("red", {"tag": 101, "team": "red", "reallocate": True, "message": SECRET,
+                                 "tasks": [{"task_id": 1, "name": "goTo", "args": [SECRET], "to": 102}]}),
+        "teamwork": ("red", {"team": "red", "reallocate": True, "by": SECRET}),
+        "map.obstacle": ("red", {"tag": 101, "team": "red", "x": SECRET, "y": SECRET}),
+        "video": ("red", {"id": 1, "tag": 101, "team": "red", "x": 4, "y": 8, "heading": 0, "t": T0, "seconds": 5.0,
+                          "frames": SECRET, "label": SECRET, "sha256": SECRET}),
         # team code's debug drawing: the team's own (this match's debug_replay is the default, "team")
         "debug.draw": ("red", {"team": "red", "tags": [101], "frames": [[["t", 2.0, 8.0, SECRET, "#ffffff"]]]}),
     }
@@ -230,3 +236,27 @@ def test_a_public_mcap_export_carries_nothing_private(tmp_path: Path) -> None:
     blue = mcap_messages(tmp_path / "blue.mcap")
     assert {json.loads(text)["team"] for t, text in blue if t == "/events"} <= {"blue", P.EVERYONE, None}
     assert "/pictures" not in {t for t, _ in blue}  # red's picture
+
+
+def test_the_viewers_fold_only_what_the_table_describes() -> None:
+    """The wall's and web's fold (view.MatchView) and the consoles' model take parsing from the
+    topic table: an event lacking what its topic always carries is skipped, not folded (and does
+    not crash the viewer); a public view of an event (its private fields left out) is folded."""
+    from robo_comp.tui.model import ConsoleModel
+    from robo_comp.view.model import MatchView
+
+    full = {"tag": 101, "team": "red", "robot_id": "red-1", "x": 2.0, "y": 8.0, "heading": 0.0, "tasks": []}
+    public = P.public_event("robot.registered", full)
+    broken = {"team": "red", "x": 2.0}  # no tag: a damaged record, or a hostile log
+    assert P.readable("robot.registered", full) and P.readable("robot.registered", public)
+    assert not P.readable("robot.registered", broken) and not P.readable("robot.registered", [1])
+    view = MatchView()
+    view.apply("robot.registered", broken)
+    view.apply("robot.lost", {"x": 1})
+    assert view.robots == {} and view.skipped == 2
+    view.apply("robot.registered", public)
+    assert list(view.robots) == [101]
+    console = ConsoleModel()
+    assert console.apply("robot.registered", "red", broken) is None and console.robots == {}
+    console.apply("robot.registered", "red", full)
+    assert list(console.robots) == [101]

@@ -324,3 +324,40 @@ def test_a_storage_fault_stays_on_the_message_bar_while_it_lasts():
     assert m.storage is None
     m.messages.clear()
     assert not bar_has_error_text()
+
+
+def test_a_video_plays_in_the_info_box_of_a_replay(tmp_path: Path):
+    """examineArea's video (issue 33), beside a recorded match as the core keeps it: the wall reads
+    its frames back and plays them in the info box, frame after frame."""
+    from robo_comp.wall.app import WallApp
+    from robo_comp.wall.interact import Command
+    from robo_comp.world.video import FPS, encode_webm
+
+    colours = [(250, 20, 20), (20, 250, 20), (20, 20, 250), (250, 250, 20)]
+    frames = [np.full((64, 96, 3), c, np.uint8) for c in colours]
+    log = EventLog(tmp_path / "events.log")
+    t0 = 1000.0
+    log.append("core.started", None, {"router": "tcp://x", "teams": ["red", "blue"], "arena": arena_payload()}, t=t0)
+    log.append("video", "red", {"id": 1, "tag": 101, "team": "red", "x": 6.0, "y": 6.0, "heading": 0.0, "t": t0 + 1,
+                                "seconds": 0.5, "frames": 4, "label": "examine-6-6"}, t=t0 + 1)
+    log.close()
+    (tmp_path / "videos").mkdir()
+    (tmp_path / "videos" / "1.webm").write_bytes(encode_webm(frames))
+    fake = [0.0]
+    src = ReplaySource(tmp_path / "events.log", speed=100.0, clock=lambda: fake[0])
+    m = MatchView()
+    src.attach(m)
+    src.advance(m)
+    fake[0] = 1.0  # 100 s of the match at 100x
+    src.advance(m)
+    assert "video:1" in m.things
+    app = WallApp(m, TileSpec(width=1000, height=640), source=src)
+    app.execute(Command("info", key="video:1"))
+    assert isinstance(app.videos[1], list) and len(app.videos[1]) == 4
+    seen = []
+    for k in range(4):  # the frame shown follows the clock
+        surf = pygame.Surface((1000, 640), 0, 32)
+        app.renderer.draw(surf, (k + 0.5) / FPS, app.overlay())
+        pix = pygame.surfarray.array3d(surf)
+        seen.append([c for c in colours if (np.abs(pix.astype(int) - c).sum(axis=2) < 40).sum() > 2000])
+    assert [s[0] for s in seen if len(s) == 1] == colours, seen

@@ -1,7 +1,9 @@
 """The map service behind the protocol: whole map, pieces around robots, pushed deltas.
 
 Robot positions reach the map when it is read (the robots that reported since the last
-read, with their newest poses), discoveries when a team reports a find. Every heartbeat each robot host gets a
+read, with their newest poses), discoveries when a team reports a find, the obstacles a team's
+robots report (kept by the match: :class:`robo_comp.match.teamwork.TeamWork`) before each read
+and each push. Every heartbeat each robot host gets a
 ``map.delta`` push with what changed since the version it has, as its team may see it, but
 robot positions; a host that is new, or whose version the service no longer knows, gets a
 full snapshot (``type: "full"``).
@@ -31,6 +33,7 @@ class MapDesk:
         self.service = MapService.from_scenario(scenario)
         self.pushed: dict[bytes, int] = {}  # host routing id -> map version it has
         self._synced = 0.0  # when robot positions last went onto the map (see _sync_robots)
+        self._obstacles = 0  # how many of the match's obstacles are on the map (see _sync_obstacles)
 
     def handlers(self) -> dict[str, Callable[[bytes, P.Message], dict[str, Any] | None]]:
         """Request handlers this module adds to the core."""
@@ -43,6 +46,7 @@ class MapDesk:
     def _on_map(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
         team = self._team(ident)
         self._sync_robots()
+        self._sync_obstacles()
         tag = msg.body.get("tag")
         if tag is None:
             return self.service.snapshot(team)
@@ -56,6 +60,7 @@ class MapDesk:
 
     def _on_delta(self, ident: bytes, msg: P.Message) -> dict[str, Any]:
         self._sync_robots()
+        self._sync_obstacles()
         return self.service.delta_since(msg.body["since"], self._team(ident))
 
     def _sync_robots(self) -> None:
@@ -70,6 +75,17 @@ class MapDesk:
             if r.last_report >= since and r.status == RobotStatus.CONNECTED:
                 self.service.report_position(str(r.tag), r.team, r.x, r.y, r.heading, r.last_report)
 
+    def _sync_obstacles(self) -> None:
+        """Put the obstacles the match took since the last sync on the map (also those a recovery
+        rebuilt from the log): each on its team's map."""
+        work = self.access.match.teamwork
+        total = sum(len(k) for k in work.obstacles.values())
+        if total == self._obstacles:
+            return
+        self._obstacles = total
+        for team, (x, y) in work.cells(None):
+            self.service.add_obstacle(team, x, y)
+
     def discovery(self, tag: int, team: str, x: float, y: float, kind: str, evidence: list[int]) -> dict[str, Any]:
         """Record a reported find on the map (the team's, unless the scenario shares finds)."""
         return self.service.add_discovery(str(tag), team, x, y, time.time(), kind=kind or "victim",
@@ -78,6 +94,7 @@ class MapDesk:
     def push(self) -> None:
         """Send every robot host the changes since the version it has, but robot positions
         (a host knows where its robots are; ``map`` and ``map.delta`` requests have them all)."""
+        self._sync_obstacles()
         frames: dict[tuple[int, str | None], tuple[int, bytes]] = {}  # hosts at one version share a delta
         for ident in self.access.host_sessions():
             sess = self.access.session(ident)

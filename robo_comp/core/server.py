@@ -35,6 +35,8 @@ from robo_comp import protocol as P
 from robo_comp.core.competition import Competition
 from robo_comp.protocol.curve import ServerKeys, ZapHandler, load_server_keys
 from robo_comp.core.mapdesk import MapDesk
+from robo_comp.core.teamdesk import TeamDesk
+from robo_comp.core.videodesk import VideoDesk
 from robo_comp.core.uploads import UploadDesk
 from robo_comp.core.eventlog import EventLog
 from robo_comp.core.guard import (
@@ -43,6 +45,7 @@ from robo_comp.core.guard import (
     SWEEP_SECONDS,
     ConnectionGuard,
     GuardLimits,
+    copy_received,
     raise_fd_limit,
 )
 from robo_comp.private_files import private_dir
@@ -122,6 +125,7 @@ class Core:
         self.next_core_req = 1
         # The core owns its context: the ZAP endpoint (the transport's credential check) is one per context.
         self.ctx = zmq.Context()
+        copy_received(self.ctx)  # a received frame holds its own size, not a shared 8 KiB buffer (see guard.py)
         # Connections are file descriptors: take all the process may have, and bound them (see bind)
         nofile = raise_fd_limit()
         self.ctx.set(zmq.MAX_SOCKETS, max(1024, min(nofile, 65_535)))
@@ -155,7 +159,9 @@ class Core:
         self.competition = Competition(self.access, self, self.match, self.state_dir, lambda: self.events)
         self.uploads = UploadDesk(self.access, self, self.state_dir, approve_uploads or scenario.approve_uploads)
         self.robots = RobotDesk(self, self.access, self.uploads.host_reply)
-        for desk in (self.access, self.robots, self.competition, self.maps, self.uploads):
+        self.teamdesk = TeamDesk(self.access, self)
+        self.videodesk = VideoDesk(self.access, self, self.state_dir)
+        for desk in (self.access, self.robots, self.competition, self.maps, self.uploads, self.teamdesk, self.videodesk):
             self._handlers.update(desk.handlers())
         self.recovered: RecoveryReport | None = None
         if log_path.exists() and log_path.stat().st_size > 0:
@@ -178,7 +184,7 @@ class Core:
                               self.tokens.lookup)
         _seed_routing_ids()
         self.router, self.port = open_router(self.ctx, self.host, self.port, self.curve, self.heartbeat)
-        self.guard = ConnectionGuard.watch(self.router, self.port, self.limits)
+        self.guard = ConnectionGuard.watch(self.router, self.port, self.limits, hold=True)
         self.zap.admit = self.access.admit
         self.pub, self.pub_port = open_pub(self.ctx, self.host, self.pub_port, self.curve)
         self.pub_guard = ConnectionGuard.watch(self.pub, self.pub_port, self.limits, PUB_INBOUND)
@@ -272,7 +278,8 @@ class Core:
                 if self._slices:  # background work left: look at the socket, then do the next slice
                     timeout = 0.0
                 pub_guard = self.pub_guard
-                if pub_guard is not None and pub_guard.sweeping:  # what PUB's subscribers sent, looked at often
+                # what each connection sent (PUB's subscribers) or holds (the ROUTER's), looked at often
+                if (pub_guard is not None and pub_guard.sweeping) or (self.guard is not None and self.guard.sweeping):
                     timeout = min(timeout, SWEEP_SECONDS)
                 if poller.poll(math.ceil(timeout * 1000)):
                     if self.guard is not None:  # connections counted before their handshakes are judged
@@ -287,6 +294,8 @@ class Core:
                 now = time.monotonic()
                 if pub_guard is not None:
                     pub_guard.sweep(now)
+                if self.guard is not None:
+                    self.guard.sweep(now)
                 if self.robots.pending_stops:
                     self.robots.expire_stops(now)
                 if self.uploads.busy:
@@ -335,6 +344,8 @@ class Core:
             self.key_owner = owner if isinstance(owner, str) else None
             # the rest of the message as bytes (cheaper than a Frame per part)
             frames = [first.bytes, *router.recv_multipart()] if first.more else [first.bytes]
+            if self.guard is not None:  # what this connection was handed, against what it sent (guard.py)
+                self.guard.took(first, frames)
             self.stats["received"] += 1
             ident = frames[0]
             if len(frames) != 2:

@@ -11,6 +11,7 @@ replay``, the wall, the web page and the consoles show like any recorded match.
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
@@ -33,6 +34,7 @@ from robo_comp.robots.steps import Compute, Plan, TaskSpec
 from robo_comp.robots.teamcode import Reply, TeamCode
 from robo_comp.sandbox.parent import LogLine, Sandbox
 from robo_comp.world.scenario import DEFAULT_SCENARIO, resolve_scenario
+from robo_comp.world.video import FPS, encode_webm
 
 if TYPE_CHECKING:
     from robo_comp.sandbox.contract import ModuleInfo
@@ -110,7 +112,9 @@ class TeamSide:
         self.seed = bench.seed
         self.pm = bench.pm
         self.world = bench.arena
-        self.walls = bench.arena.walls
+        self.walls = bench.walls
+        #: What the team's planners avoid: the map's walls and the obstacles its robots reported.
+        self.blocked = bench.walls.copy()
         self.foreign = None  # one arena: every robot of the match is in it already
         #: The team's robots by robot id (what its robots see of their host: the runtime's RobotWorld).
         self.robots: dict[str, SimRobot] = {}
@@ -145,6 +149,8 @@ class TeamSide:
                 on_reply(True, {"id": record["id"], "state": state, "message": record["verdict"]["reason"]})
             elif type_ == "radio":
                 on_reply(True, {"delivered": bench.match.radio(r, body.get("to"), body.get("data"))})
+            elif type_ == "obstacle":
+                on_reply(True, {"new": bench.reported(r, body.get("x"), body.get("y"))})
             else:
                 raise UnavailableError(f"the engine does not serve {type_!r}")
         except RoboCompError as e:
@@ -225,7 +231,7 @@ class Bench:
         if speed:
             self.arena.speed = float(speed)
         self.loc = Localization(self.arena)
-        self.walls = self.arena.walls
+        self.walls = sc.walls  # the map's (the arena's debris is for the robots' sensors to find)
         self.dt = dt
         self.max_sim_seconds = max_sim_seconds
         self.pose_sample = pose_sample
@@ -246,6 +252,10 @@ class Bench:
         #: Set when an entrant went over a match limit; the match then ends (see :class:`Budget`).
         self.forfeit: Forfeit | None = None
         self._directives: deque[tuple[SimRobot, str, dict[str, Any]]] = deque()
+        #: Robots whose host failed (:meth:`lose`): they hold still, report nothing, get nothing.
+        self.down: set[int] = set()
+        #: The videos filmed (WebM bytes by id; the match has their records).
+        self.videos: dict[int, bytes] = {}
         self._plans: dict[int, deque[TaskStep]] = {}
         self._outcomes: dict[int, list[dict[str, Any]]] = {}
         self._on_done: Callable[[int, dict[str, Any]], Iterable[TaskStep] | None] | None = None
@@ -424,6 +434,16 @@ class Bench:
                         wall_seconds=time.monotonic() - t0, events=self.events[first_event:],
                         finds=self.finds[first_find:], outcomes=self._outcomes, scores=self.scores())
 
+    def lose(self, tag: int, why: str = "its host stopped") -> None:
+        """Robot ``tag``'s host fails (as a host killed mid-task): the robot stops where it is and
+        says nothing more, and the match declares it lost, as a core does after three silent
+        heartbeats (its work is offered to its team: :mod:`robo_comp.match.teamwork`)."""
+        r = self.by_tag[tag]
+        self.runtime.halt(r)
+        self.down.add(tag)
+        self.match.lost(self.match.registry.get(tag), why)
+        self._carry_out()
+
     def log_text(self) -> str:
         """Everything the team code printed or logged, in order."""
         return "".join(line.text for line in self.logs)
@@ -490,9 +510,10 @@ class Bench:
         self._charge(team, ev)
 
     def to_host(self, rec: Any, type_: str, body: dict[str, Any]) -> None:
-        """A directive to robot ``rec``: carried out by the bench's loop, in order."""
+        """A directive to robot ``rec``: carried out by the bench's loop, in order (a robot whose
+        host failed gets nothing)."""
         r = self.by_tag.get(rec.tag)
-        if r is not None:
+        if r is not None and rec.tag not in self.down:
             self._directives.append((r, type_, body))
 
     def to_hosts(self, type_: str, body: dict[str, Any]) -> None:
@@ -514,14 +535,45 @@ class Bench:
         return side.code.task_spec(r.tag, name) or self.builtin.get(name)
 
     def plan(self, r: SimRobot, step: Plan) -> Any:
-        """A path at once (no simulated time passes while the engine plans)."""
+        """A path at once (no simulated time passes while the engine plans), on the team's map."""
         occupied = r.others_cells() if step.avoid_robots else set()
-        return plan_around(self.walls, r.free_cell(), step.goal, occupied)
+        return plan_around(self.sides[self.team_of[r.tag]].blocked, r.free_cell(), step.goal, occupied)
+
+    def obstacle(self, r: SimRobot, cell: tuple[int, int]) -> None:
+        """A cell robot ``r``'s sensors saw blocked: the match keeps it for the team's map (the
+        robot's own map has it even if the match refused it, as a host marks it before it asks)."""
+        rec = self.match.registry.get(r.tag)
+        try:
+            self.reported(rec, *cell)
+        except RoboCompError:
+            self.sides[rec.team].blocked[cell[1], cell[0]] = True
+
+    def reported(self, rec: Any, x: Any, y: Any) -> bool:
+        """Robot ``rec`` reports an obstacle (its sensors, or its team code): taken by the match (a
+        refusal raises), then on its team's map at once (the engine is the team's one host)."""
+        new = self.match.obstacle(rec, x, y)
+        self.sides[rec.team].blocked[y, x] = True
+        return new
 
     def capture(self, r: SimRobot, t: RunningTask, label: str) -> None:
         """A picture for a built-in task's evidence."""
         pid, _ = self.picture(r, label)
         t.pictures.append(pid)
+
+    def frame(self, r: SimRobot) -> Any:
+        """A frame of ``r``'s camera at its true pose."""
+        return self.arena.camera_image(r.robot_id)
+
+    def video(self, r: SimRobot, t: RunningTask, frames: list[Any], label: str) -> None:
+        """The video written at once (no simulated time passes), kept in :attr:`videos`, recorded by
+        the match where it tracks the robot (as the core records a host's video)."""
+        data = encode_webm(frames)
+        x, y, h = r.driver.truth()
+        rec = self.match.video(self.match.registry.get(r.tag), {"x": float(x), "y": float(y), "heading": float(h)},
+                               seconds=round(len(frames) / FPS, 3), frames=len(frames), label=label,
+                               sha256=hashlib.sha256(data).hexdigest()[:16])
+        self.videos[rec["id"]] = data
+        t.videos.append(rec["id"])
 
     def compute(self, r: SimRobot, step: Compute) -> bool:
         """Wait for robot ``r``'s team code, with the simulated clock stopped (step-locked)."""
@@ -609,6 +661,8 @@ class Bench:
                                                                "x": ev.data["x"], "y": ev.data["y"]})
         self.loc.update()
         self._report()
+        if self.runtime.filming:
+            self.runtime.film(dt)
         for tag in self.tags:
             r = self.by_tag[tag]
             if r.driver.step is not None and r.driver.update(dt):
@@ -645,7 +699,7 @@ class Bench:
         for tag in self.tags:
             q = self._plans.get(tag)
             rec = self.match.registry.get(tag)
-            while q and rec.current is None and not self.holding:
+            while q and rec.current is None and not self.holding and tag not in self.down:
                 name, args = q.popleft()
                 try:
                     self.match.give(rec, name, list(args), queue=False, by="bench")
@@ -657,7 +711,8 @@ class Bench:
     def _idle(self) -> bool:
         """Nothing left to do: no robot runs a task, plans one or has one in its list."""
         return (not self._directives and not self.runtime.planning and all(
-            self.match.registry.get(t).current is None and not self._plans.get(t) for t in self.tags))
+            self.match.registry.get(t).current is None and not self._plans.get(t) for t in self.tags
+            if t not in self.down))
 
     def _task_done(self, ev: dict[str, Any]) -> None:
         tag = ev["tag"]
@@ -682,7 +737,7 @@ class Bench:
             return
         self._next_report = now + REPORT_PERIOD
         for name in self.teams:
-            rows = [self.by_tag[t] for t in self.tags_of[name]]
+            rows = [self.by_tag[t] for t in self.tags_of[name] if t not in self.down]
             due = [r for r in rows if r.driver.moving or now - r.last_report >= IDLE_REPORT - 1e-9]
             if not due:
                 continue

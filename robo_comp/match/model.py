@@ -32,6 +32,8 @@ from robo_comp.match.output import MatchOutput
 from robo_comp.match.plausibility import MAX_NOISE, MAX_SIGMA, PoseGate
 from robo_comp.match.registry import Registry, RobotRecord
 from robo_comp.match.tasks import TaskMachine, TaskRecord
+from robo_comp.match.teamwork import TeamWork
+from robo_comp.match.videos import Videos
 from robo_comp.protocol import wire
 from robo_comp.protocol.messages import MAX_RADIO, RADIO_RATE
 from robo_comp.protocol.states import RobotStatus, TaskMode, TaskState
@@ -71,6 +73,11 @@ class Match:
         self.lifecycle = Lifecycle(out, self.contest.feed, self.contest.disqualified_robots.__contains__)
         self.tasks = TaskMachine(self._task_started, self._task_finished, now=wall)
         self.next_task_id = 1
+        #: A lost robot's work offered and moved to teammates; the obstacles each team reported.
+        self.teamwork = TeamWork(self.registry, self.tasks, out, pm, self._give_moved,
+                                 self.contest.disqualified_robots.__contains__)
+        #: The videos robots filmed (examineArea's turn on the spot).
+        self.videos = Videos(out, wall)
         self.robots_per_team = robots_per_team
         fastest_zone = max([1.0, *(z.speed_factor for z in scenario.zones)])
         #: The fastest a robot may drive (cells/s): a host's declared speed is cut to it.
@@ -186,13 +193,34 @@ class Match:
             self.lifecycle.returned(r)
 
     def lost(self, r: RobotRecord, why: str) -> None:
-        """Robot ``r``'s host went silent or let it go."""
-        self.lifecycle.lost(r, why)
+        """Robot ``r``'s host went silent or let it go: its tasks are offered to its team
+        (:class:`~robo_comp.match.teamwork.TeamWork`)."""
+        if self.lifecycle.lost(r, why):
+            self.teamwork.robot_gone(r, f"was lost ({why})")
 
     def leave(self, r: RobotRecord) -> None:
-        """Robot ``r``'s host takes it out of the arena."""
+        """Robot ``r``'s host takes it out of the arena: its tasks are offered to its team."""
+        was = r.status
         self.lifecycle.left(r)
         r.session = None
+        if was is not RobotStatus.LEFT and r.status is RobotStatus.LEFT:
+            self.teamwork.robot_gone(r, "left the arena")
+
+    def set_reallocate(self, team: str, on: bool, by: str) -> dict[str, Any]:
+        """Turn ``team``'s built-in reallocation of a lost robot's tasks on or off."""
+        return self.teamwork.set_reallocate(self.contest.team_arg(team), on, by)
+
+    def video(self, r: RobotRecord, claim: dict[str, Any], **meta: Any) -> dict[str, Any]:
+        """Robot ``r`` filmed a video (``claim``: where its host says; judged like a picture's
+        place); recorded and announced with the next id."""
+        x, y, heading = self.judged_pose(r, claim, "video")
+        return self.videos.record(r.team, r.tag, x, y, heading, **meta)
+
+    def obstacle(self, r: RobotRecord, x: Any, y: Any) -> bool:
+        """Robot ``r`` reports cell ``(x, y)`` blocked where the map shows it free: on its team's map
+        from now on (False: the team knew it already)."""
+        self.contest.check_robot(r.tag)
+        return self.teamwork.obstacle(r, x, y, self.scenario.walls)
 
     def halt_and_remove(self, tag: int, reason: str) -> None:
         """Halt robot ``tag`` (no answer awaited), cancel its tasks, take it out of the match."""
@@ -235,9 +263,16 @@ class Match:
         self.out.emit("task.done", r.team, {"tag": r.tag, "task_id": t.id, "name": t.name, "ok": t.ok,
                                             "state": t.state, "status": t.status, "result": t.result})
 
-    def give(self, r: RobotRecord, name: str, args: list[Any], queue: bool, by: str) -> dict[str, Any]:
+    def _give_moved(self, r: RobotRecord, name: str, args: list[Any], by: str,
+                    moved_from: dict[str, Any]) -> dict[str, Any]:
+        return self.give(r, name, args, True, by, moved_from=moved_from)
+
+    def give(self, r: RobotRecord, name: str, args: list[Any], queue: bool, by: str, *,
+             moved_from: dict[str, Any] | None = None) -> dict[str, Any]:
         """Give robot ``r`` a task now (interrupting) or queued; who may is the driver's check.
-        Returns the ``give`` reply's body; the host gets ``task.start`` or ``task.interrupt``."""
+        Returns the ``give`` reply's body; the host gets ``task.start`` or ``task.interrupt``.
+        ``moved_from`` (``tag``, ``task_id``): a lost teammate's task moved here (the ``task.given``
+        event says so)."""
         self.contest.check_robot(r.tag)
         self.contest.check_phase("give")
         spec = find_spec(r.tasks, name, r.tag)
@@ -250,8 +285,10 @@ class Match:
         t = TaskRecord(self.next_task_id, r.tag, spec["name"], args, TaskMode.QUEUE if queue else TaskMode.NOW, by,
                        given_at=self.wall())
         self.next_task_id += 1
-        self.out.emit("task.given", r.team, {"tag": r.tag, "task_id": t.id, "name": t.name, "args": args,
-                                             "mode": t.mode, "by": by})
+        given = {"tag": r.tag, "task_id": t.id, "name": t.name, "args": args, "mode": t.mode, "by": by}
+        if moved_from is not None:
+            given["from"] = moved_from
+        self.out.emit("task.given", r.team, given)
         started = self.tasks.give(r, t, idle_ok=r.status is RobotStatus.CONNECTED)
         if started is not None:
             self.out.to_host(r, "task.start", started.wire())
@@ -472,10 +509,12 @@ class Match:
 
     # ------------------------------------------------------------------ views
     def snapshot(self, team: str | None) -> dict[str, Any]:
-        """What ``team`` (None: the referee) sees of the match now: robots, clock, scores, finds."""
+        """What ``team`` (None: the referee) sees of the match now: robots, clock, scores, finds, the
+        videos its robots filmed."""
         c = self.contest
         return {"robots": [r.summary() for r in self.registry.of_team(team)], "match": c.state(),
-                "score": c.board.table(), "finds": [f for f in c.judge.finds if team is None or f["team"] == team]}
+                "score": c.board.table(), "finds": [f for f in c.judge.finds if team is None or f["team"] == team],
+                "videos": [v for v in self.videos.records.values() if team is None or v["team"] == team]}
 
 
 __all__ = ["MAX_RESULT", "MAX_SPEED_FACTOR", "Match"]

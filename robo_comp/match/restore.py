@@ -3,7 +3,8 @@
 The log holds every change of a match (see ``docs/protocol.md``, "Event log"). Folding its
 records into a freshly made :class:`~robo_comp.match.model.Match` restores its robots and tags,
 advertised tasks, current/pending/queued/done tasks, the phase and the clock, score changes,
-disqualifications, pictures (evidence) and finds; no event is emitted (the log has them all).
+disqualifications, pictures (evidence) and finds, the teams' reallocation settings, the
+obstacles their robots reported and the videos they filmed; no event is emitted (the log has them all).
 Robots come back ``lost`` until their hosts register again (see :meth:`Restorer.hosts_gone`).
 """
 from __future__ import annotations
@@ -47,6 +48,7 @@ class Restorer:
             "task.given": self._given, "task.started": self._started,
             "task.done": self._done, "match.phase": self._phase, "match.clock": self._clock, "score.change": self._score,
             "disqualified": self._disqualified, "picture": self._picture, "find.reported": self._find,
+            "teamwork": self._teamwork, "map.obstacle": self._obstacle, "video": self._video,
         }
 
     def apply(self, topic: str, team: str | None, data: dict[str, Any], t: float) -> None:
@@ -55,6 +57,16 @@ class Restorer:
         h = self.handlers.get(topic)
         if h is not None:
             h(team, data, t)
+
+    # teamwork ----------------------------------------------------------
+    def _teamwork(self, team: str | None, d: dict[str, Any], t: float) -> None:
+        self.match.teamwork.reallocate[d["team"]] = bool(d["reallocate"])
+
+    def _video(self, team: str | None, d: dict[str, Any], t: float) -> None:
+        self.match.videos.restore(d)
+
+    def _obstacle(self, team: str | None, d: dict[str, Any], t: float) -> None:
+        self.match.teamwork.obstacles.setdefault(d["team"], {})[(d["x"], d["y"])] = d["tag"]
 
     # robots ------------------------------------------------------------
     def _robot(self, tag: int) -> RobotRecord | None:

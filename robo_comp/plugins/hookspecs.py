@@ -64,6 +64,22 @@ def robo_comp_task_interrupted(robot: HostedRobot, task_name: str, task_id: int,
     ``robot``; the switch itself happens at the next movement boundary. Return nothing."""
 
 
+@hookspec
+def robo_comp_tasks_offered(team: str, tag: int, tasks: list[dict[str, Any]],
+                            teammates: list[dict[str, Any]]) -> list[dict[str, Any]] | None:
+    """Called by the match (live in the core, and on the engine) when robot ``tag`` of ``team`` is
+    lost or leaves with work left: ``tasks`` are its running, pending and queued tasks
+    (``task_id``, ``name``, ``args``, ``state``), ``teammates`` the team's connected robots as the
+    ``robots`` listing shows them (``tag``, ``x``, ``y``, ``task``, ``queue``, ...).
+
+    Return ``[{"task_id": id, "tag": teammate}, ...]`` to move tasks to teammates of your
+    choosing (each is cancelled on the lost robot and queued on the teammate), or None / ``[]``.
+    The first plugin that names a task wins it; a teammate that does not advertise the task is
+    passed over. Tasks no plugin moves go to the built-in reallocation when the team turned it on
+    (``robo-comp ctl teamwork on``), else they wait for the lost robot. Must be fast and must not
+    raise."""
+
+
 # ---------------------------------------------------------------------- extensions
 @hookspec
 def robo_comp_extension_loaded(tag: int, name: str, version: str, sha256: str, tasks: list[str]) -> None:

@@ -35,7 +35,7 @@ from robo_comp.protocol.messages import (
 from robo_comp.protocol.replies import reply_body, reply_error
 from robo_comp.protocol.topics import (
     AFTER_MATCH_TOPICS, DEBUG_REPLAY, EVERYONE, PRIVATE_FIELDS, PRIVATE_TOPICS, PUBLIC_TOPICS, TABLE, TOPICS, EventView,
-    check_event, public_event, replay_public_event,
+    check_event, public_event, readable, replay_public_event,
 )
 from robo_comp.protocol.wire import (
     INSTANCE_MAX,
@@ -67,6 +67,6 @@ __all__ = [
     "AFTER_MATCH_TOPICS", "DEBUG_REPLAY", "PRIVATE_FIELDS", "TABLE", "check_event", "PRIVATE_TOPICS", "PUBLIC_TOPICS", "PROTOCOL_VERSION", "RADIO_RATE", "REQUESTS", "ROUTING_ID_BYTES", "SESSION_BYTES",
     "SESSION_KEY", "SOCKET_MAX_FRAME", "TOPICS", "Message", "check_reports", "decode", "decode_envelope",
     "describe_type", "error_reply", "event_frames", "is_finite", "new_instance_id", "new_routing_id", "new_session_secret",
-    "ok_reply", "pack", "public_event", "replay_public_event", "reply_body", "reply_error", "request", "unpack", "unpack_walls",
+    "ok_reply", "pack", "public_event", "readable", "replay_public_event", "reply_body", "reply_error", "request", "unpack", "unpack_walls",
     "validate",
 ]

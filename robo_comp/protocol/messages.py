@@ -61,8 +61,12 @@ REQUESTS: dict[str, dict[str, tuple[str, bool]]] = {
     "find": {"tag": (_INT, True), "x": (_NUM, True), "y": (_NUM, True), "kind": (_STR, False),
              "evidence": (_LIST, False)},
     "picture.get": {"id": (_INT, True)},
+    "video.get": {"id": (_INT, True)},
     "map": {"tag": (_OPT_INT, False), "radius": (_INT, False)},
     "map.delta": {"since": (_INT, True)},
+    # a team's teamwork settings: 'reallocate' moves a lost robot's tasks to teammates (the referee
+    # names the 'team'); without 'reallocate' the reply says the setting
+    "teamwork": {"reallocate": (_BOOL, False), "team": (_STR, False)},
     # team code (see robo_comp/core/uploads.py)
     "upload": {"tags": (_LIST, True), "filename": (_STR, True), "source": (_ANY, True), "kind": (_STR, False),
                "run": (_BOOL, False)},
@@ -99,6 +103,11 @@ REQUESTS: dict[str, dict[str, tuple[str, bool]]] = {
     "picture": {"tag": (_INT, True), "x": (_NUM, False), "y": (_NUM, False), "heading": (_NUM, False),
                 "png": (_BIN, True), "label": (_STR, False)},
     "bump": {"tag": (_INT, True), "x": (_NUM, False), "y": (_NUM, False), "with": (_OPT_INT, False)},
+    # a short video of the robot's camera (WebM): examineArea films its turn on the spot
+    "video": {"tag": (_INT, True), "x": (_NUM, False), "y": (_NUM, False), "heading": (_NUM, False),
+              "webm": (_BIN, True), "seconds": (_NUM, False), "frames": (_INT, False), "label": (_STR, False)},
+    # a cell a robot's sensors saw blocked that the map shows free (its team's map gets it)
+    "obstacle": {"tag": (_INT, True), "x": (_INT, True), "y": (_INT, True)},
     "advertise": {"tag": (_INT, True), "tasks": (_LIST, True)},
     "log": {"tag": (_OPT_INT, False), "stream": (_STR, True), "text": (_STR, True)},
     # debug drawing of team code (robo_comp/protocol/drawing.py): one frame per robot, for its team only
@@ -137,7 +146,7 @@ CORE_TO_HOST = tuple(t for t in TO_HOST if t != "reply")
 #: Messages only the organiser's robot hosts send (``STATE/hosts/<team>.token``): they say what
 #: happens in the world (robots, poses, pictures, bumps, task results) and answer for robots.
 HOST_ONLY = frozenset({"register", "report", "reports", "task.next", "task.done", "radio", "leave",
-                       "picture", "bump", "advertise", "log", "draw", "reply"})
+                       "picture", "video", "bump", "obstacle", "advertise", "log", "draw", "reply"})
 #: Messages every principal may send (a host reports a find for its team's code, reads the map).
 ANY_ROLE = frozenset({"hello", "heartbeat", "bye", "arena", "map", "map.delta", "find"})
 #: Messages of consoles, walls and scripts: a team's or the referee's token.

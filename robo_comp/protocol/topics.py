@@ -10,7 +10,10 @@ the referee) and what it says. Everything takes visibility and parsing from here
   recorded match shown to the public shows exactly what the live public feed showed, never more;
 * :class:`EventView` is what a recorded match's views (public, a team's, the referee's) see;
 * :func:`check_event` says what is wrong with an event (an unknown topic, a missing or unknown
-  field): the tests check every event a core logs and every event the engine logs with it.
+  field): the tests check every event a core logs and every event the engine logs with it;
+* :func:`readable` is what the viewers' fold (:class:`robo_comp.view.model.MatchView`, which the
+  wall and the web gateway share, and the consoles' model) asks before it folds an event: one
+  that lacks what the table says it carries (a damaged or hostile log, say) is skipped.
 
 A topic missing from the table is never public and fails :func:`check_event`: a new topic is
 added here first, with its fields and its public ones.
@@ -84,7 +87,7 @@ TABLE: dict[str, Topic] = {t.name: t for t in (
            about="claims about the world the match did not believe (referee; one per robot and kind a beat)"),
     _topic("radio", "from to data delivered", public="", about="a robot's message to its teammates"),
     # tasks
-    _topic("task.given", "tag task_id name args mode by", public="tag task_id name mode by",
+    _topic("task.given", "tag task_id name args mode by", "from", public="tag task_id name mode by",
            about="a task given to a robot (now, or queued)"),
     _topic("task.started", "tag task_id name args", public="tag task_id name", about="a robot started a task"),
     _topic("task.done", "tag task_id name ok state status result", public="tag task_id name ok state",
@@ -111,6 +114,15 @@ TABLE: dict[str, Topic] = {t.name: t for t in (
            about="how an upload went"),
     _topic("upload.unloaded", "tags name", public="", about="a module taken away from robots"),
     _topic("sandbox.reset", "tags by results", public="", about="the referee restarted a team's sandbox"),
+    # teamwork (issue 33)
+    _topic("task.offered", "tag team reallocate tasks", "message", public="tag team reallocate",
+           about="a lost or departed robot's running and queued tasks offered to its team (each task's 'to': the "
+                 "teammate it moves to, or nil)"),
+    _topic("teamwork", "team reallocate by", public="", about="a team turned reallocation of a lost robot's tasks on "
+                                                              "or off"),
+    _topic("map.obstacle", "tag team x y", public="", about="a cell a robot reported blocked: on its team's map"),
+    _topic("video", "id tag team x y heading t", "seconds frames label sha256",
+           public="id tag team x y heading t seconds", about="a video a robot filmed (examineArea; the team's: the film)"),
     _topic("debug.draw", "tags frames", "team", public="",
            about="team code's debug drawing: each robot's new frame (robo_comp/protocol/drawing.py); the team's "
                  "own live, in replays as the match's debug_replay says (AFTER_MATCH_TOPICS)"),
@@ -166,6 +178,30 @@ def check_event(topic: str, data: Any) -> str | None:
     if unknown:
         return f"{topic}: fields not in the table: {', '.join(sorted(map(str, unknown)))}"
     return None
+
+
+#: The fields that say what an event is about (its robot, task, upload, team, phase): a viewer
+#: folds an event only with them (the others it takes as they come: an older core's event, or a
+#: public view, may lack some, and a newer one may carry more).
+KEY_FIELDS = frozenset({"tag", "tags", "id", "task_id", "upload_id", "team", "teams", "phase", "topic"})
+
+
+def readable(topic: str, data: Any) -> bool:
+    """Whether a viewer may fold this event: a map that carries what the table says the event is
+    about (its :data:`KEY_FIELDS` among those it always carries; for a public topic, those the
+    public view keeps), a robot's ``tag`` an integer; a topic not in the table is the viewer's
+    own business (it ignores what it does not know)."""
+    t = TABLE.get(topic)
+    if t is None:
+        return True
+    if not isinstance(data, dict):
+        return False
+    need = t.required & KEY_FIELDS
+    if not t.private and not need <= data.keys():
+        need = need & set(t.public)
+    if not need <= data.keys():
+        return False
+    return "tag" not in need or type(data["tag"]) is int
 
 
 class EventView:

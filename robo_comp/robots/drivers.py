@@ -7,6 +7,7 @@ Other drivers (the ER1's) plug in through the ``robo_comp_driver`` hook.
 """
 from __future__ import annotations
 
+import math
 from typing import Any
 
 from robo_comp.robots.steps import Capture, Move, Step, Turn, Wait
@@ -14,6 +15,8 @@ from robo_comp.world.arena import Arena
 from robo_comp.world.localization import Localization
 
 CAPTURE_SECONDS = 0.2
+#: How far (cells) before what its front sensor sees a freely driving robot stops.
+STOP_SHORT = 0.02
 
 
 class PoseReadings:
@@ -99,23 +102,64 @@ class ArenaDriver(PoseReadings):
 
     # commands ----------------------------------------------------------------
     def begin(self, step: Step) -> None:
-        """Start ``step``."""
+        """Start ``step``: a move turns by the bearing of the cell from where the robot believes it
+        is and drives the believed distance (a grid4 robot rounds them to 90° and whole cells)."""
         self.step = step
         self.bump = None
         if isinstance(step, Move):
-            self.arena.command(self.tag, "goto", (step.x, step.y))
+            x, y, h = self.pose
+            dx, dy = step.x - x, step.y - y
+            turn = (math.degrees(math.atan2(dy, dx)) - h + 180.0) % 360.0 - 180.0
+            dist = math.hypot(dx, dy)
+            if self.arena.drive != "grid4":  # a grid4 robot drives whole cells; a free one stops short
+                # of what its front sensor sees rather than touch it (a believed distance a little long)
+                dist = min(dist, max(0.0, self.arena.clearance(self.tag, self.arena.pose(self.tag).heading + turn)
+                                     - STOP_SHORT))
+            self.arena.command(self.tag, "turn", turn)
+            self.arena.command(self.tag, "forward", dist, append=True)
         elif isinstance(step, Turn):
             self.arena.command(self.tag, "turn", step.degrees)
         else:
             self._start_timer(step)
 
     def halt(self) -> None:
-        """Stop at once."""
+        """Stop at once (a movement stopped half-way leaves the robot less sure where it is:
+        :meth:`Localization.interrupted`)."""
+        if self.arena.is_moving(self.tag):
+            self.loc.interrupted(self.tag)
         self.arena.command(self.tag, "halt")
         self.step = None
+
+    def sees_crossing(self, x: int, y: int) -> bool:
+        """Whether another robot (of any team) is in the neighbouring cell ``(x, y)`` (where the robot
+        believes it is going) or driving into it: the cell it would really drive into."""
+        bx, by = self.cell()
+        p = self.arena.pose(self.tag)
+        return self.arena.driving_into(self.tag, math.floor(p.x + 0.5) + x - bx, math.floor(p.y + 0.5) + y - by)
+
+    @property
+    def grid_exact(self) -> bool:
+        """Whether a move ends exactly in its cell (a grid4 robot settles on the grid); a freely
+        driving one may end a little long (robots.traffic keeps teammates out of the cell beyond)."""
+        return self.arena.drive == "grid4"
+
+    def sees_blocked(self, x: int, y: int) -> bool:
+        """Whether the robot's range sensors see the neighbouring cell ``(x, y)`` (where it believes
+        it is going) blocked by debris, something the map does not show: the cell it would really
+        drive into, from where it really is."""
+        bx, by = self.cell()
+        p = self.arena.pose(self.tag)
+        cx, cy = math.floor(p.x + 0.5) + x - bx, math.floor(p.y + 0.5) + y - by
+        debris = self.arena.debris
+        return 0 <= cy < debris.shape[0] and 0 <= cx < debris.shape[1] and bool(debris[cy, cx])
 
     def update(self, dt: float) -> bool:
         """After the arena stepped: True when the current step finished (or a bump ended it)."""
         if self.step is None:
             return False
-        return self._step_ended(self.bump is None and self.arena.is_moving(self.tag), dt)
+        if self.bump is not None:  # stopped half-way by a bump
+            self.loc.interrupted(self.tag)
+        ended = self._step_ended(self.bump is None and self.arena.is_moving(self.tag), dt)
+        if ended and self.bump is None:
+            self.loc.settled(self.tag)
+        return ended

@@ -20,7 +20,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -44,6 +44,7 @@ from robo_comp.world.localization import Localization
 from robo_comp.world.mapservice import MapView
 from robo_comp.world.planner import warm_up
 from robo_comp.world.sensors import warm_up as sensors_warm_up
+from robo_comp.world.video import FPS, encode_webm
 from robo_comp.world.public import scenario_from_payload
 from robo_comp.world.scenario import Scenario
 
@@ -137,6 +138,8 @@ class RobotHost:
         self.robots: dict[str, SimRobot] = {}
         self.by_tag: dict[int, SimRobot] = {}
         self.walls = np.zeros((1, 1), dtype=bool)
+        #: What the robots' planners avoid: the map's walls and the obstacles the team reported.
+        self.blocked = self.walls
         self.team: str | None = None
         self.state = "down"  # down, hello, arena, registering, up
         self.replies: dict[int, Reply] = {}
@@ -192,6 +195,8 @@ class RobotHost:
         self.released: set[str] = set()
         #: robot id -> its task.done not yet answered by the core (sent again on re-registering).
         self.unacked_done: dict[str, dict[str, Any]] = {}
+        #: Videos being written in the planner thread: (job, robot, task, the request's body).
+        self._videos: list[tuple[Future[bytes], SimRobot, RunningTask, dict[str, Any]]] = []
 
     @property
     def heartbeat(self) -> float:
@@ -267,6 +272,14 @@ class RobotHost:
         """The whole map, asked for again after a delta that did not fit."""
         if ok:
             self.map.apply(body)
+            self._map_obstacles()
+
+    def _map_obstacles(self) -> None:
+        """The obstacles the team's map holds go onto what the planners avoid."""
+        h, w = self.blocked.shape
+        for x, y in self.map.obstacles:
+            if 0 <= x < w and 0 <= y < h:
+                self.blocked[y, x] = True
 
     def _on_hello(self, ok: bool, body: dict[str, Any]) -> None:
         if not ok:
@@ -338,7 +351,10 @@ class RobotHost:
             self.sock.send(P.request("draw", 0, {"tags": tags, "frames": frames}, self.session))
 
     def code_request(self, type_: str, body: dict[str, Any], on_reply: Reply) -> None:
-        """A request to the core on behalf of team code (a find, the radio)."""
+        """A request to the core on behalf of team code (a find, the radio, an obstacle: on this
+        host's map at once)."""
+        if type_ == "obstacle" and 0 <= body["y"] < self.blocked.shape[0] and 0 <= body["x"] < self.blocked.shape[1]:
+            self.blocked[body["y"], body["x"]] = True
         self._send(type_, body, on_reply)
 
     def code_picture(self, r: SimRobot, on_reply: Reply) -> None:
@@ -376,7 +392,8 @@ class RobotHost:
         if self.speed:
             self.world.speed = self.speed
         self.loc = Localization(self.world, external=self.positioning is not None)
-        self.walls = self.world.walls
+        self.walls = scenario.walls  # the map's (the arena's debris is for the robots' sensors to find)
+        self.blocked = self.walls.copy()
         self.fix_gate = PoseGate(self.walls, self.world.speed * float(self.world.speed_map.max(initial=1.0)))
 
     def _create_robots(self, arena: dict[str, Any]) -> None:
@@ -384,7 +401,7 @@ class RobotHost:
         start = [c for c in self.world.free_start_cells(self.team)] if any(
             t["name"] == self.team and t.get("start") for t in arena.get("teams", [])) else []
         taken = set(start)
-        free = [(x, y) for y, x in np.argwhere(~self.walls).tolist() if (x, y) not in taken]
+        free = [(x, y) for y, x in np.argwhere(~self.world.walls).tolist() if (x, y) not in taken]
         need = max(0, min(self.count - len(start), len(free)))
         cells = start + self.rng.sample(free, need)  # seeded: the same cells for the same seed
         prefix = self.prefix or self.team
@@ -520,6 +537,7 @@ class RobotHost:
         if type_ == "map.delta":
             try:
                 self.map.apply(body)
+                self._map_obstacles()
             except Exception as e:  # a delta that does not fit our version: ask for all again
                 log.warning("map delta not applied (%s); fetching the whole map", e)
                 self._send("map.delta", {"since": 0}, self._on_whole_map)
@@ -554,7 +572,7 @@ class RobotHost:
         """Plan in the host's planner thread: the robot waits at its boundary; the loop goes on."""
         occupied = r.others_cells() if step.avoid_robots else set()
         assert r.task is not None
-        r.task.plan = self.planner.submit(plan_around, self.walls, r.free_cell(), step.goal, occupied)
+        r.task.plan = self.planner.submit(plan_around, self.blocked, r.free_cell(), step.goal, occupied)
         return PLANNING
 
     def compute(self, r: SimRobot, step: Compute) -> bool:
@@ -565,6 +583,13 @@ class RobotHost:
         """The plugins hear of an interrupt before it takes effect."""
         self.pm.hook.robo_comp_task_interrupted(robot=r, task_name=t.name, task_id=t.id, by_task_id=by_task_id)
 
+    def obstacle(self, r: SimRobot, cell: tuple[int, int]) -> None:
+        """On this host's map at once, and to the core for the team's map (its other hosts get it
+        with the next ``map.delta``)."""
+        x, y = cell
+        self.blocked[y, x] = True
+        self._send("obstacle", {"tag": r.tag, "x": x, "y": y}, _log_refusal("obstacle"))
+
     def capture(self, r: SimRobot, t: RunningTask, label: str) -> None:
         """Take the camera picture at the robot's true pose and upload it as evidence."""
         assert self.world is not None
@@ -573,6 +598,47 @@ class RobotHost:
         self._send("picture", {"tag": r.tag, "x": x, "y": y, "heading": heading, "png": png,
                                "label": label[:64]},
                    lambda ok, body: self._on_picture(t, ok, body))
+
+    def frame(self, r: SimRobot) -> Any:
+        """A frame of the camera at the robot's true pose (the simulated arena's view)."""
+        assert self.world is not None
+        return self.world.camera_image(r.robot_id)
+
+    def video(self, r: SimRobot, t: RunningTask, frames: list[Any], label: str) -> None:
+        """Written as WebM in the planner thread (a second of the loop's time otherwise), then sent
+        to the core from the loop (:meth:`_send_videos`); its id goes into the task's result."""
+        x, y, heading = r.driver.truth()
+        t.uploads += 1
+        job = self.planner.submit(encode_webm, frames)
+        self._videos.append((job, r, t, {"tag": r.tag, "x": x, "y": y, "heading": heading, "label": label,
+                                         "frames": len(frames), "seconds": round(len(frames) / FPS, 3)}))
+
+    def _send_videos(self) -> None:
+        """Send the videos written since the last look."""
+        waiting = []
+        for job, r, t, body in self._videos:
+            if not job.done():
+                waiting.append((job, r, t, body))
+                continue
+            try:
+                data = job.result()
+            except RoboCompError as e:
+                t.uploads -= 1
+                log.warning("robot %s: no video: %s", r.robot_id, e.message)
+                continue
+            self._send("video", dict(body, webm=data), self._video_reply(t))
+        self._videos = waiting
+
+    @staticmethod
+    def _video_reply(t: RunningTask) -> Reply:
+        """What the core's answer to a video does: its id into the task's result."""
+        def on_reply(ok: bool, body: dict[str, Any]) -> None:
+            t.uploads -= 1
+            if ok:
+                t.videos.append(body["id"])
+            else:
+                log.warning("video refused: %s", body.get("message"))
+        return on_reply
 
     @staticmethod
     def _on_picture(t: RunningTask, ok: bool, body: dict[str, Any]) -> None:
@@ -631,6 +697,10 @@ class RobotHost:
                 self.runtime.boundary(r)
         if self.runtime.planning:
             self.runtime.take_plans()
+        if self.runtime.filming:
+            self.runtime.film(dt)
+        if self._videos:
+            self._send_videos()
         if self.foreign.seen:
             self.foreign.expire(self.world, time.monotonic())
 

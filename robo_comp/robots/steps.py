@@ -5,6 +5,11 @@ Each step is one movement (or a picture); the runtime completes it before asking
 generator for the next one, so an *interrupt* (a new task given "now") takes effect at a
 movement boundary, while a *stop* halts in the middle of a step. The generator's return
 value is the task's result; raising :class:`TaskFailed` ends it with a clear status.
+
+What comes back for a :class:`Move` is None when the robot made it, or a :class:`Replan` when it
+did not (a teammate holds the cell, an obstacle the map does not show is in the way) or when it
+ended somewhere else (a positioning fix moved the robot off its path): the task then plans again
+from where the robot is (``robo_comp.robots.builtin_tasks`` shows how).
 """
 from __future__ import annotations
 
@@ -63,13 +68,38 @@ class Plan:
     avoid_robots: bool = True
 
 
-Step = Move | Turn | Capture | Wait | Compute | Plan
+@dataclass(frozen=True, slots=True)
+class Record:
+    """Start filming with the camera (``label``: the video's name), or, with ``label`` None, stop
+    and upload the video; the robot goes on meanwhile (the runtime takes a frame every
+    ``1 / robo_comp.world.video.FPS`` seconds). Takes no time itself. The video's id comes with
+    the task's result (``videos``), as pictures' do."""
+
+    label: str | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class Replan:
+    """What comes back for a :class:`Move` the robot did not make, or that did not end where it
+    should: plan again from where the robot is. ``reason`` is ``"teammate"`` (a teammate held the
+    cell longer than the runtime waits), ``"robot"`` (another host's or team's robot kept driving
+    into it), ``"obstacle"`` (the robot's sensors saw the cell blocked,
+    and it was reported for the team's map), ``"wall"`` (the cell is blocked on the map, as the
+    team knows it now) or ``"off path"`` (the robot is not next to the cell, or a fix moved it
+    elsewhere during the move); ``cell`` is the cell of the move."""
+
+    reason: str
+    cell: tuple[int, int] | None = None
+
+
+Step = Move | Turn | Capture | Wait | Compute | Plan | Record
 
 #: A planned path: cells from the robot's cell to the goal, both included.
 CellPath = list[tuple[int, int]]
 #: What the runtime sends back into a task for the step it yielded: the path (or None when
-#: there is none) for a :class:`Plan`, None for every other step.
-Answer = CellPath | None
+#: there is none) for a :class:`Plan`, None or a :class:`Replan` for a :class:`Move`, None for
+#: every other step.
+Answer = CellPath | Replan | None
 
 
 class TaskFailed(Exception):
@@ -80,12 +110,14 @@ class TaskFailed(Exception):
     of team code that raised, where known."""
 
     def __init__(self, message: str, reason: str = "failed", line: int | None = None,
-                 traceback: list[str] | None = None) -> None:
+                 traceback: list[str] | None = None, details: dict[str, Any] | None = None) -> None:
         super().__init__(message)
         self.reason = reason
         self.line = line
         #: Team code's traceback through its own files (``file:line in function: code``), where known.
         self.traceback = traceback or []
+        #: More for the task's result (plain data), e.g. a ``goTo``'s ``end_error``.
+        self.details = details or {}
 
 
 class RobotView(Protocol):
@@ -95,6 +127,9 @@ class RobotView(Protocol):
 
     def cell(self) -> tuple[int, int]:
         """The robot's current cell."""
+
+    def pose(self) -> tuple[float, float, float]:
+        """Where the robot believes it is: ``(x, y, heading)`` (the positioning system's estimate)."""
 
     def plan_to(self, goal: tuple[int, int]) -> CellPath | None:
         """A path from the current cell to ``goal`` (inclusive), or None."""

@@ -38,7 +38,7 @@ from robo_comp.sandbox.parent import (
     PENDING, Drawing, Limits, LoadFailed, Loaded, LogLine, RpcCall, Sandbox, SandboxRestarted, SandboxStopped,
     TaskDone, TaskFailed as SbFailed,
 )
-from robo_comp.robots.steps import Compute, Move, Plan, Step, TaskFailed, TaskSpec, Turn, Wait
+from robo_comp.robots.steps import Compute, Move, Plan, Replan, Step, TaskFailed, TaskSpec, Turn, Wait
 from robo_comp.world.planner import find_path
 
 log = logging.getLogger("robo_comp.robots.teamcode")
@@ -67,7 +67,8 @@ class CodeHost(Protocol):
     pm: Any  # the host's plugin manager (extension hooks are called through it)
     by_tag: dict[int, Any]  # tag -> CodeRobot
     world: Any  # the host's simulated arena (``sense``), None until it knows the arena
-    walls: Any  # the arena's wall grid ``[y, x]``
+    walls: Any  # the map's wall grid ``[y, x]``
+    blocked: Any  # the walls as the team knows them: the map's and the obstacles its robots reported
 
     def upload_answered(self, rid: int, results: list[dict[str, Any]]) -> None:
         """Answer the core's ``upload`` request ``rid`` with one result per robot."""
@@ -165,7 +166,8 @@ class CallSite(Protocol):
 
     @property
     def walls(self) -> Any:
-        """The arena's wall grid ``[y, x]`` (read only: a host's robot reads its host's)."""
+        """The walls as the robot's team knows them, ``[y, x]``: the map's and the obstacles its
+        robots reported (read only: a host's robot reads its host's)."""
 
     def pose(self) -> tuple[float, float, float]:
         """The robot's believed ``(x, y, heading)``."""
@@ -227,6 +229,14 @@ def _report_find(s: CallSite, args: list[Any], settle: Settle) -> Any:
     return PENDING
 
 
+def _report_obstacle(s: CallSite, args: list[Any], settle: Settle) -> Any:
+    x, y = (list(args) + [None, None])[:2]
+    if type(x) is not int or type(y) is not int:
+        raise Refused("report_obstacle(x, y) takes a cell: two whole numbers")
+    s.request("obstacle", {"x": x, "y": y}, lambda ok, b: settle(ok, b.get("new") if ok else b))
+    return PENDING
+
+
 def _radio(s: CallSite, args: list[Any], settle: Settle) -> Any:
     to, data = (list(args) + [None, None])[:2]
     s.request("radio", {"to": to, "data": data}, lambda ok, b: settle(ok, b.get("delivered") if ok else b))
@@ -246,7 +256,7 @@ def _draw(s: CallSite, args: list[Any], settle: Settle) -> Any:
 ROBOT_CALLS: dict[str, Callable[[CallSite, list[Any], Settle], Any]] = {
     "position": _position, "sense": _sense, "plan": _plan, "map_piece": _map_piece,
     "take_picture": _take_picture, "upload_picture": _take_picture, "look": _look,
-    "report_find": _report_find, "radio": _radio, "draw": _draw,
+    "report_find": _report_find, "radio": _radio, "report_obstacle": _report_obstacle, "draw": _draw,
 }
 #: The robot API team code sees in the sandbox that is answered in the sandbox itself (debug
 #: drawing: collected there, sent as one ``draw`` with the next movement call).
@@ -320,7 +330,9 @@ def answer_call(site: CallSite, name: str, args: list[Any], settle: Settle) -> A
 def movement_steps(site: CallSite, name: str, args: list[Any]) -> Generator[Step, Any, Any]:
     """The movement steps of ``move``, ``turn`` or ``go_to``: what the host's driver carries
     out and the bench's arena simulates. ``go_to`` yields a :class:`Plan` and expects the path
-    (None: no path) sent back. Raises :class:`Refused` when the way is blocked."""
+    (None: no path) sent back, and plans again (around the teammates in the way) whenever the
+    runtime answers a move with a :class:`~robo_comp.robots.steps.Replan`. Raises
+    :class:`Refused` when the way is blocked."""
     if name == "turn":
         yield Turn(float(args[0]))
         return
@@ -334,16 +346,39 @@ def movement_steps(site: CallSite, name: str, args: list[Any]) -> Generator[Step
             nx, ny = x + sign * dx, y + sign * dy
             if not in_bounds(walls, nx, ny):
                 raise Refused(f"({nx}, {ny}) is a wall or outside the arena; stopped at ({x}, {y})")
-            yield Move(nx, ny)
+            answer = yield Move(nx, ny)
+            if isinstance(answer, Replan):
+                raise Refused(f"{_REPLANS.get(answer.reason, answer.reason)} ({nx}, {ny}); stopped at {site.cell()}")
         return
     goal = (int(args[0]), int(args[1]))
     if not in_bounds(walls, *goal):
         raise Refused(f"({goal[0]}, {goal[1]}) is a wall or outside the arena")
-    path = yield Plan(goal, avoid_robots=False)  # the host plans off its loop; the bench at once
-    if path is None:
-        raise Refused(f"no path to ({goal[0]}, {goal[1]})")
-    for x, y in path[1:]:
-        yield Move(x, y)
+    avoid = False  # the first plan around walls only; a re-plan around the teammates in the way too
+    stuck = plans = 0
+    while stuck < GO_TO_PLANS and plans < 10 * GO_TO_PLANS:
+        if site.cell() == goal:
+            return
+        stuck += 1
+        plans += 1
+        path = yield Plan(goal, avoid_robots=avoid)  # the host plans off its loop; the bench at once
+        if not isinstance(path, list):
+            raise Refused(f"no path to ({goal[0]}, {goal[1]})")
+        for x, y in path[1:]:
+            answer = yield Move(x, y)
+            if isinstance(answer, Replan):
+                avoid = True
+                break
+            stuck = 0
+    if site.cell() != goal:
+        raise Refused(f"did not reach ({goal[0]}, {goal[1]}) after {plans} plans; stopped at {site.cell()}")
+
+
+#: Plans in a row a team code ``go_to`` makes without driving a cell before it gives up (a plan
+#: follows every move the runtime answered with a :class:`~robo_comp.robots.steps.Replan`).
+GO_TO_PLANS = 30
+#: What team code is told when a ``move`` could not be made.
+_REPLANS = {"teammate": "a teammate holds", "robot": "another robot is driving into", "obstacle": "an obstacle (reported for the team's map) blocks",
+            "wall": "the team's map shows a wall at", "off path": "the robot is not next to"}
 
 
 @dataclass(slots=True)
@@ -356,7 +391,7 @@ class HostSite:
 
     @property
     def walls(self) -> Any:  # noqa: D102
-        return self.host.walls
+        return self.host.blocked
 
     def pose(self) -> tuple[float, float, float]:  # noqa: D102
         x, y, h = self.r.driver.pose

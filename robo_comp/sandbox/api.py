@@ -60,6 +60,9 @@ ROBOT_API: tuple[RobotCall, ...] = (
     _call("look", doc='Take a picture and say what it shows: ``{"picture": id, "victims": [{"x", "y", "kind"}]}``.'),
     _call("upload_picture", "picture=None", doc="Upload a picture (the last one if not given) to the environment."),
     _call("radio", "to data", doc="Send plain ``data`` to another robot of the team (tag ``to``; None: all of it)."),
+    _call("report_obstacle", "x y", "x y",
+          doc="Report cell (x, y) blocked where the map shows it free: on your team's map from now on "
+              "(True: new, False: known)."),
     _call("log", "text", local=True, doc="Write a line to the team's log (counts against the output limit)."),
     _call("draw_dot", 'x y colour="yellow"', local=True,
           doc="Draw a dot at cell (x, y) on your team's view (debug drawing: costs nothing; False when "

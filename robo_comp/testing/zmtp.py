@@ -76,14 +76,33 @@ def router_address(state: Path) -> tuple[str, int]:
     return url.hostname, url.port
 
 
-def core_rss(state: Path) -> int:
-    """Resident memory, in bytes, of the core process whose state folder is ``state`` (Linux)."""
+def _core_status(state: Path, field: str) -> int:
+    """A memory figure (``VmRSS``, ``VmHWM``) of the core process whose state folder is ``state``, in bytes (Linux)."""
     pid = json.loads((Path(state) / "core.json").read_text())["pid"]
     for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-        if line.startswith("VmRSS:"):
+        if line.startswith(field + ":"):
             return int(line.split()[1]) * 1024
-    raise RuntimeError(f"no VmRSS for process {pid}")
+    raise RuntimeError(f"no {field} for process {pid}")
 
 
-__all__ = ["core_rss", "router_address", "zmtp_command", "zmtp_frame", "zmtp_greeting", "zmtp_initiate",
-           "zmtp_open", "zmtp_plain_handshake", "zmtp_plain_hello"]
+def core_rss(state: Path) -> int:
+    """Resident memory, in bytes, of the core process whose state folder is ``state`` (Linux)."""
+    return _core_status(state, "VmRSS")
+
+
+def reset_core_peak(state: Path) -> None:
+    """Start the core's peak resident memory (:func:`core_peak`) anew from what it holds now
+    (Linux's ``/proc/PID/clear_refs``, the same user's process)."""
+    pid = json.loads((Path(state) / "core.json").read_text())["pid"]
+    Path(f"/proc/{pid}/clear_refs").write_text("5")
+
+
+def core_peak(state: Path) -> int:
+    """The most resident memory, in bytes, the core process whose state folder is ``state`` held
+    since it started or since :func:`reset_core_peak` (``VmHWM``): a bound that held only between
+    two samples still shows."""
+    return _core_status(state, "VmHWM")
+
+
+__all__ = ["core_peak", "core_rss", "reset_core_peak", "router_address", "zmtp_command", "zmtp_frame", "zmtp_greeting",
+           "zmtp_initiate", "zmtp_open", "zmtp_plain_handshake", "zmtp_plain_hello"]

@@ -16,6 +16,7 @@ import numpy as np
 
 from robo_comp.protocol import unpack_walls
 from robo_comp.protocol.clock import HeardClock
+from robo_comp.protocol.topics import readable
 
 #: Events kept for the log pane and the monitor's "recent events".
 MAX_EVENTS = 2000
@@ -141,7 +142,10 @@ class ConsoleModel:
 
     # ------------------------------------------------------------------ events
     def apply(self, topic: str, team: str | None, data: dict[str, Any]) -> LogEntry | None:
-        """Fold one pushed event into the model; return the log entry (None for quiet topics)."""
+        """Fold one pushed event into the model; return the log entry (None for quiet topics, and
+        for an event that lacks what protocol/topics.py's table says it carries: not folded)."""
+        if not readable(topic, data):
+            return None
         tag = data.get("tag")
         if topic in ("robot.registered", "robot.returned"):
             if isinstance(tag, int):  # what the core sends; an event without one names no robot
@@ -277,6 +281,25 @@ def _short(v: Any) -> str:
     return str(v)
 
 
+def _teamwork_sentence(who: str, topic: str, d: dict[str, Any]) -> str:
+    """A lost robot's tasks offered to its team, the team's reallocation setting, an obstacle."""
+    if topic == "teamwork":
+        return (f"reallocation of a lost robot's tasks turned {'ON' if d.get('reallocate') else 'off'} "
+                f"by {d.get('by', '?')}")
+    if topic == "map.obstacle":
+        return f"{who} found an obstacle at ({d.get('x')}, {d.get('y')}): on the team's map"
+    tasks = d.get("tasks") or []
+    moved = [f"{task_label(t)} → robot {t['to']}" for t in tasks if t.get("to") is not None]
+    waiting = [task_label(t) for t in tasks if t.get("to") is None]
+    parts = []
+    if moved:
+        parts.append("moved " + ", ".join(moved))
+    if waiting:
+        parts.append(", ".join(waiting) + (" wait for it" if not d.get("reallocate") else " found no teammate")
+                     + (" ('ctl teamwork on' moves them)" if not d.get("reallocate") else ""))
+    return f"{who} {d.get('message', 'is gone')}: its task(s) offered to the team; " + "; ".join(parts)
+
+
 def describe_event(e: LogEntry) -> str:
     """One readable sentence for an event log line."""
     d = e.data
@@ -338,6 +361,8 @@ def describe_event(e: LogEntry) -> str:
         return f"the referee restarted the sandbox of robot(s) {', '.join(map(str, d.get('tags') or []))}"
     if t == "upload.done":
         return f"upload to {d.get('tags')}: {'ok' if d.get('ok') else 'FAILED'} {d.get('message', '')}"
+    if t in ("task.offered", "teamwork", "map.obstacle"):
+        return _teamwork_sentence(who, t, d)
     rest = ", ".join(f"{k}={v}" for k, v in d.items() if k not in ("tag", "team"))[:120]
     return f"{who} {rest}"
 

@@ -15,6 +15,7 @@ import numpy as np
 
 from robo_comp.protocol import unpack_walls
 from robo_comp.protocol.clock import HeardClock
+from robo_comp.protocol.topics import readable
 
 #: Trail points kept per robot (the last N positions at least ``TRAIL_STEP`` cells apart).
 TRAIL_LEN = 48
@@ -90,9 +91,10 @@ class Robot:
 
 @dataclass(slots=True)
 class Thing:
-    """Something on the map a user can click: a find, a discovery, a known object or a picture."""
+    """Something on the map a user can click: a find, a discovery, a known object, a picture or a
+    video."""
 
-    kind: str  # "find", "discovery", "object", "picture"
+    kind: str  # "find", "discovery", "object", "picture", "video"
     id: Any
     x: float
     y: float
@@ -110,6 +112,10 @@ class Thing:
         if self.kind == "picture":
             return [int(self.id)]
         return [int(p) for p in self.info.get("evidence") or [] if isinstance(p, int)]
+
+    def videos(self) -> list[int]:
+        """Video ids that belong to this thing (the video itself)."""
+        return [int(self.id)] if self.kind == "video" else []
 
 
 @dataclass(slots=True)
@@ -136,6 +142,8 @@ class MatchView:
         self.version = 0
         self.panel_version = 0  # changes with everything but positions (the panel redraws on it)
         self.events = 0
+        #: Events not folded: they lacked what the topic table says they carry.
+        self.skipped = 0
         self.replay = False  # set by a replay source: the clock line then shows the recording's time
         #: The core's storage fault while it lasts (its event log cannot be written), else None.
         self.storage: str | None = None
@@ -169,7 +177,8 @@ class MatchView:
         self.panel_version += 1
 
     def load_snapshot(self, snap: dict[str, Any]) -> None:
-        """Start from a ``snapshot`` reply (arena, robots and, when present, match, score, finds)."""
+        """Start from a ``snapshot`` reply (arena, robots and, when present, match, score, finds,
+        videos)."""
         self.set_arena(snap["arena"])
         self.robots.clear()
         for row in snap.get("robots") or []:
@@ -184,12 +193,18 @@ class MatchView:
             self.score = list(snap["score"])
         for f in snap.get("finds") or []:
             self._find(f)
+        for v in snap.get("videos") or []:
+            _on_video(self, v)
         self.version += 1
         self.panel_version += 1
 
     def apply(self, topic: str, d: dict[str, Any]) -> None:
-        """Apply one event (public or full view); unknown topics are ignored."""
+        """Apply one event (public or full view); unknown topics are ignored, and so is an event
+        that lacks what protocol/topics.py's table says it carries (counted in ``skipped``)."""
         self.events += 1
+        if not readable(topic, d):
+            self.skipped += 1
+            return
         handler = _HANDLERS.get(topic)
         if handler is not None:
             handler(self, d)
@@ -308,6 +323,11 @@ def _on_picture(m: MatchView, d: dict[str, Any]) -> None:
     m.things[t.key] = t
 
 
+def _on_video(m: MatchView, d: dict[str, Any]) -> None:
+    t = Thing("video", d.get("id"), float(d.get("x", 0)), float(d.get("y", 0)), d.get("team"), "", dict(d))
+    m.things[t.key] = t
+
+
 def _on_broadcast(m: MatchView, d: dict[str, Any]) -> None:
     m.note(str(d.get("message") or ""), "broadcast")
 
@@ -351,6 +371,7 @@ _HANDLERS: dict[str, Any] = {
     "find.reported": lambda m, d: m._find(d),
     "map.discovery": _on_discovery,
     "picture": _on_picture,
+    "video": _on_video,
     "broadcast": _on_broadcast,
     "penalty": _on_penalty,
     "core.storage": _on_storage,

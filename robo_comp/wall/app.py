@@ -22,11 +22,12 @@ from robo_comp.client import Client, recv_event
 from robo_comp import protocol as P
 from robo_comp.errors import AuthError, FieldError, RoboCompError
 from robo_comp.wall.interact import Command, Interaction
-from robo_comp.view.model import MatchView
+from robo_comp.view.model import MatchView, Thing
 from robo_comp.wall.render import Overlay, Renderer
 from robo_comp.wall.replay import ReplaySource
 from robo_comp.wall.view import TileSpec, ViewState
 from robo_comp.world.mapservice import unpack_costs
+from robo_comp.world.video import decode_webm
 
 MONITOR_REFRESH = 1.0
 VIEW_REPUBLISH = 1.0
@@ -88,6 +89,10 @@ class LiveSource:
         """PNG bytes of picture ``pid`` (the core checks the token may see it)."""
         return self.request(self.client.request, "picture.get", id=pid)["png"]
 
+    def video(self, vid: int) -> bytes:
+        """WebM bytes of video ``vid`` (the core checks the token may see it)."""
+        return self.request(self.client.request, "video.get", id=vid)["webm"]
+
     def close(self) -> None:
         """Leave the core (the match goes on)."""
         self.sub.close(0)
@@ -120,6 +125,8 @@ class WallApp:
                                        double_click=double_click, path_wait=path_wait)
         self.monitor_data: dict[int, dict[str, Any] | str] = {}
         self.pictures: dict[int, bytes | str] = {}
+        #: Video id -> its frames, or why not (fetched when its info box opens).
+        self.videos: dict[int, list[Any] | str] = {}
         self.screen: pygame.Surface | None = None
         self.running = True
         self.frames = 0
@@ -166,7 +173,7 @@ class WallApp:
         info = self.model.things.get(self.view.info) if self.view.info else None
         return Overlay(self.interaction.selected, list(self.interaction.points),
                        {t: self.monitor_data[t] for t in self.view.monitors if t in self.monitor_data},
-                       info, self.pictures, self.interaction.hint())
+                       info, self.pictures, self.interaction.hint(), self.videos)
 
     def render(self, surf: pygame.Surface, now: float | None = None) -> None:
         """Draw the current state onto ``surf``."""
@@ -344,6 +351,17 @@ class WallApp:
                     self.pictures[pid] = self.source.picture(pid)
             except RoboCompError as e:
                 self.pictures[pid] = e.message
+        self._fetch_videos(thing)
+
+    def _fetch_videos(self, thing: Thing) -> None:
+        """The frames of the thing's video (once), for the info box to play."""
+        for vid in thing.videos():
+            if vid in self.videos or self.source is None:
+                continue
+            try:
+                self.videos[vid] = decode_webm(self.source.video(vid))
+            except RoboCompError as e:
+                self.videos[vid] = e.message
 
     def publish_view(self, now: float) -> None:
         """A master tile sends its view when it changes and every second (for late joiners)."""

@@ -96,7 +96,7 @@ class Interaction:
         if best is not None:
             return Hit("robot", tag=best)
         k = max(4, min(rnd(geom.scale * 0.45), self.layout.px(30))) + 2
-        for key, t in self.model.things.items():
+        for key, t in reversed(self.model.things.items()):  # the newest first: it is drawn on top
             cx, cy = geom.cell_centre(t.x, t.y)
             if abs(cx - px) <= k and abs(cy - py) <= k:
                 return Hit("thing", key=key, cell=(math.floor(t.x), math.floor(t.y)))

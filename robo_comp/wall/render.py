@@ -24,6 +24,7 @@ from robo_comp.view.colours import (
 )
 from robo_comp.view.model import Message, Robot, Thing, MatchView
 from robo_comp.wall.view import Layout, MapGeometry, Rect, TileSpec, ViewState, rnd
+from robo_comp.world.video import FPS as VIDEO_FPS
 
 BACKGROUND: RGB = (12, 12, 16)
 GRID_SHADE = 0.92
@@ -107,6 +108,8 @@ class Overlay:
     info_thing: Thing | None = None
     info_pictures: dict[int, bytes | str] = field(default_factory=dict)
     hint: str = ""
+    #: Video id -> its frames (RGB arrays), or why they cannot be shown.
+    info_videos: dict[int, list[Any] | str] = field(default_factory=dict)
 
 
 def map_pixels(cells: np.ndarray, geom: MapGeometry, origin: tuple[int, int], size: tuple[int, int],
@@ -168,6 +171,7 @@ class Renderer:
         self._trail_px: dict[int, tuple[int, deque[tuple[int, int]], tuple[int, int, int, int]]] = {}
         self._trail_geom: Any = None
         self._pictures: dict[int, pygame.Surface | None] = {}
+        self._video_frame = 0  # the frame of the info box's video drawn now
         self._dirty: list[tuple[int, int, int, int]] = []  # drawn over in the last frame
         self._on_screen: Any = None
         self._shown: dict[str, Any] = {}
@@ -453,6 +457,8 @@ class Renderer:
                 rect = pygame.Rect(cx - q, cy - q, 2 * q + 1, 2 * q + 1)
                 pygame.draw.rect(surf, self._colours(t.team)[2], rect)
                 pygame.draw.rect(surf, OUTLINE, rect, 1)
+            elif t.kind == "video":
+                self._video_mark(surf, cx, cy, k, t.team)
 
     def _draw_overlay(self, surf: pygame.Surface, geom: MapGeometry, overlay: Overlay) -> None:
         if overlay.selected is None:
@@ -483,7 +489,7 @@ class Renderer:
         key = (m.panel_version, int(elapsed), None if remaining is None else int(remaining), tuple(boxes.items()),
                repr(overlay.monitor_data), overlay.info_thing.key if overlay.info_thing else None,
                tuple((k, len(v)) for k, v in overlay.info_pictures.items()),
-               repr(overlay.info_thing.info) if overlay.info_thing else None)
+               repr(overlay.info_thing.info) if overlay.info_thing else None, self._video_tick(overlay, now))
         self._layout_score(boxes["score"])
         if not self._intersects(L.panel):
             return
@@ -593,6 +599,44 @@ class Renderer:
                 break
             panel.blit(pygame.transform.scale(img, (w, th)), (x, r.bottom - th - pad))
             x += w + pad
+        self._render_video(panel, r, overlay, put)
+
+    def _video_mark(self, surf: pygame.Surface, cx: int, cy: int, k: int, team: str | None) -> None:
+        """A video on the map: a play triangle in the team's light colour."""
+        q = max(3, k * 3 // 4)
+        pts = [(cx - q * 3 // 5, cy - q), (cx + q, cy), (cx - q * 3 // 5, cy + q)]
+        pygame.draw.polygon(surf, self._colours(team)[2], pts)
+        pygame.draw.polygon(surf, OUTLINE, pts, 1)
+
+    def _video_tick(self, overlay: Overlay, now: float | None) -> int | None:
+        """The frame of the video in the info box to show now (the panel is drawn again when it
+        changes: the wall plays the video at its frame rate); None without a video."""
+        t = overlay.info_thing
+        frames = overlay.info_videos.get(t.videos()[0]) if t is not None and t.videos() else None
+        if not isinstance(frames, list) or not frames:
+            return None
+        self._video_frame = int((now or 0.0) * VIDEO_FPS) % len(frames)
+        return self._video_frame
+
+    def _render_video(self, panel: pygame.Surface, r: pygame.Rect, overlay: Overlay, put: Any) -> None:
+        """A video in the info box, playing (frame :attr:`_video_frame`), or why it cannot be shown."""
+        t = overlay.info_thing
+        if t is None or not t.videos():
+            return
+        L = self.layout
+        pad, size = L.px(8), L.px(18)
+        vid = t.videos()[0]
+        got = overlay.info_videos.get(vid)
+        if isinstance(got, str):
+            put(f"video {vid}: {got}"[:60], r.x + pad, r.bottom - size - pad, ERROR, size)
+            return
+        if not got:
+            return
+        frame = got[min(self._video_frame, len(got) - 1)]
+        img = pygame.surfarray.make_surface(frame.swapaxes(0, 1))
+        th = L.px(120)
+        w = max(1, rnd(img.get_width() * th / max(1, img.get_height())))
+        panel.blit(pygame.transform.scale(img, (min(w, r.w - 2 * pad), th)), (r.x + pad, r.bottom - th - pad))
 
     def _picture(self, pid: int, png: bytes | None) -> pygame.Surface | None:
         if pid not in self._pictures and png:

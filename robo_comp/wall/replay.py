@@ -88,3 +88,10 @@ class ReplaySource:
         if not p.is_file():
             raise FieldError(f"picture {pid} is not beside this log")
         return p.read_bytes()
+
+    def video(self, vid: int) -> bytes:
+        """A video from the ``videos/`` folder beside the log."""
+        p = self.path.parent / "videos" / f"{int(vid)}.webm"
+        if not p.is_file():
+            raise FieldError(f"video {vid} is not beside this log")
+        return p.read_bytes()

@@ -101,6 +101,7 @@ def run(args: argparse.Namespace) -> int:
     import uvicorn
 
     from robo_comp.web.server import OriginCheck, make_app, view_key
+    from robo_comp.web.wire import config
 
     for o in args.allow_origin:
         OriginCheck.normalise(o)  # a malformed origin is an error now, not a silent refusal later
@@ -115,9 +116,7 @@ def run(args: argparse.Namespace) -> int:
                          "that port? (--port 0 picks a free one)") from None
     port = sock.getsockname()[1]
     host = "127.0.0.1" if args.host in ("0.0.0.0", "::") else args.host
-    config = uvicorn.Config(make_app(gw, allow_origins=args.allow_origin), log_level="warning", ws_max_size=1 << 20, lifespan="on",
-                            ws_per_message_deflate=False)  # one text for all browsers: never compress it per browser
-    server = uvicorn.Server(config)
+    server = uvicorn.Server(config(make_app(gw, allow_origins=args.allow_origin)))
     what = f"replay of {args.replay}" if args.replay else f"live match at {args.core}"
     print(f"web: serving the {what} on http://{host}:{port}/", flush=True)
     for name, tok in sorted(getattr(gw, "private_tokens", {}).items()):

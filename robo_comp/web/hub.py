@@ -11,9 +11,14 @@
   sends that session: its snapshot, its pushed events, its answers to ``monitor`` and
   ``picture.get``. What the token may see is the core's decision, never the gateway's.
 
-Every browser of a view gets the same text for an event: each batch is applied to the hub's
-:class:`MatchView` (for browsers that join later) and serialised once. A browser that cannot
-keep up is never waited for: its queue is dropped and it gets a fresh ``state`` instead.
+Every browser of a view gets the same bytes for an event: each batch the core's feed has ready
+is serialised and framed once (a :class:`Frame`) and written to every browser's socket in one
+pass, without a task or a queue per browser (:mod:`robo_comp.web.wire`); then it is applied to the
+hub's :class:`MatchView` (for browsers that join later). A browser that cannot keep up is never
+waited for: while its socket is full its frames wait, and a waiting frame of poses is dropped
+once later ones place all its robots (conflation: it gets the newest poses, not every step); one
+that stays behind past :data:`HELD_FRAMES` frames or :data:`HELD_BYTES` gets a fresh ``state``
+instead.
 """
 from __future__ import annotations
 
@@ -23,8 +28,10 @@ import copy
 import json
 import logging
 import time
+from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
 import zmq
 import zmq.asyncio
 
@@ -36,18 +43,32 @@ from robo_comp.link import CoreLink, LinkState
 from robo_comp.view.model import MatchView
 from robo_comp.web.state import TaskNames, jsonable, map_png, public_snapshot, state_json
 from robo_comp.web.story import Story
+from robo_comp.web.wire import Wire, frame_text
 from robo_comp.world.mapservice import unpack_costs
 
 log = logging.getLogger("robo_comp.web")
 
-#: Messages queued for one browser before it counts as behind (it then gets a fresh state).
-QUEUE_LIMIT = 200
+#: Frames held for a browser whose socket is full, at most, after conflation (past that, or
+#: :data:`HELD_BYTES`, it gets one fresh state instead of the frames it missed).
+HELD_FRAMES = 64
+HELD_BYTES = 4 << 20
 #: Events read from the PUB socket in one batch at most.
 BATCH = 2000
+#: Seconds: an event that follows the last one of a batch this soon joins it (the core publishes
+#: a pose period's batches, one per team, within a millisecond or so: one frame, not two or four),
+#: for at most one animation frame (:data:`BATCH_SPAN`) after the batch's first event; a batch
+#: with a pose batch of every team of the last period does not wait.
+BATCH_GAP = 0.001
+BATCH_SPAN = 1 / 60
 #: Seconds between the public view's keep-alive requests.
 PING = 0.5
 #: How long a join waits for the view's first snapshot.
 JOIN_TIMEOUT = 10.0
+#: Seconds a view's ``state`` message is reused for browsers that join meanwhile, unless an event
+#: changes the view first (a thousand browsers that open the page together cost one state).
+STATE_REUSE = 0.1
+#: The fields of a ``robot.positions`` event the page draws (``sigma`` stays in the hub's model).
+PAGE_POSES = ("team", "tags", "x", "y", "heading", "moving")
 
 
 def dumps(msg: dict[str, Any]) -> str:
@@ -59,58 +80,129 @@ def dumps(msg: dict[str, Any]) -> str:
 
 
 def compact(topic: str, d: dict[str, Any]) -> dict[str, Any]:
-    """Poses rounded for the page (1/100 cell, 1/10 degree): half the bytes of a position batch."""
+    """A position batch as the page gets it: the fields it draws, poses rounded (1/100 cell, 1/10
+    degree): a third of the bytes of the core's batch."""
     if topic != "robot.positions":
         return d
-    out = dict(d)
+    out = {k: d[k] for k in PAGE_POSES if k in d}
     for k, n in (("x", 2), ("y", 2), ("heading", 1)):
         v = d.get(k)
         if isinstance(v, list):
-            out[k] = [round(float(a), n) for a in v]
+            try:
+                out[k] = np.round(np.asarray(v, dtype=np.float64), n).tolist()
+            except (TypeError, ValueError):  # not numbers: the page is told what the core said
+                out[k] = v
     return out
 
 
+@dataclass(eq=False)
+class Frame:
+    """One message of a view, serialised and framed once for every browser of the view.
+
+    ``poses``: for a frame that holds only ``robot.positions`` events, the robots it places
+    (later such frames that place them all make this one redundant for a browser still waiting
+    for it); ``None`` for every other frame, which is never dropped."""
+
+    text: str
+    poses: frozenset[int] | None = None
+    data: bytes = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        self.data = frame_text(self.text.encode())
+
+
 class Subscriber:
-    """One browser's WebSocket: a bounded queue of messages and the task that sends them."""
+    """One browser of a view, and what waits for it while its socket is full (see the module
+    docstring): :meth:`offer` writes a frame at once when the wire takes it, else holds it.
 
-    def __init__(self, send: Any, limit: int = QUEUE_LIMIT) -> None:
-        self.send = send  # async callable(text)
-        self.queue: asyncio.Queue[str] = asyncio.Queue(limit)
+    A held frame of poses is dropped once the frames of poses held after it place every robot it
+    places (the page would draw those robots where the later frames put them anyway); every
+    other frame is kept, in order."""
+
+    def __init__(self, wire: Wire, limit: int = HELD_FRAMES) -> None:
+        self.wire = wire
+        self.limit = limit
+        self.held: list[Frame] = []
+        self._unplaced: list[set[int] | None] = []  # per held frame of poses: robots no later frame places
+        self.held_bytes = 0
         self.behind = False
-        self.hub: Any = None
+        self.hub: Hub | None = None
         self.task: asyncio.Task[None] | None = None
+        self.conflated = 0  # frames of poses dropped for newer ones
+        self.resyncs = 0  # fresh states sent instead of the frames missed
 
-    def offer(self, text: str) -> None:
-        """Queue a message; a full queue marks the browser as behind (it is resynchronised)."""
+    def offer(self, frame: Frame) -> None:
+        """Send ``frame`` now, or hold it (conflated) until the browser takes more."""
+        if not self.held and not self.behind and not self.wire.full:
+            self.wire.write(frame.data, frame.text)
+            return
         if self.behind:
             return
-        try:
-            self.queue.put_nowait(text)
-        except asyncio.QueueFull:
+        if frame.poses is not None and self.held:
+            self._conflate(frame.poses)
+        self.held.append(frame)
+        self._unplaced.append(None if frame.poses is None else set(frame.poses))
+        self.held_bytes += len(frame.data)
+        if len(self.held) > self.limit or self.held_bytes > HELD_BYTES:
             self.behind = True
-            while not self.queue.empty():
-                self.queue.get_nowait()
-            self.queue.put_nowait("")  # wake the sender
+            self._clear()
+        if self.task is None or self.task.done():
+            self.task = asyncio.get_running_loop().create_task(self._drain())
 
-    async def run(self) -> None:
-        """Send queued messages until cancelled or the browser is gone; a browser that fell
-        behind gets a fresh state."""
-        try:
-            await self._run()
-        except Exception as e:  # the socket closed under us: the connection's reader ends it
-            log.debug("sending to a browser stopped: %s", e)
+    def _conflate(self, poses: frozenset[int]) -> None:
+        """Drop the held frames of poses whose every robot ``poses`` places anew."""
+        drop = False
+        for left in self._unplaced:
+            if left is not None:
+                left -= poses
+                drop |= not left
+        if drop:
+            keep = [i for i, left in enumerate(self._unplaced) if left is None or left]
+            self.conflated += len(self.held) - len(keep)
+            self.held = [self.held[i] for i in keep]
+            self._unplaced = [self._unplaced[i] for i in keep]
+            self.held_bytes = sum(len(f.data) for f in self.held)
 
-    async def _run(self) -> None:
-        while True:
-            text = await self.queue.get()
+    def _clear(self) -> None:
+        self.held.clear()
+        self._unplaced.clear()
+        self.held_bytes = 0
+
+    def resync(self, frame: Frame) -> None:
+        """A fresh state replaces whatever waits."""
+        self._clear()
+        self.behind = False
+        self.offer(frame)
+
+    async def _drain(self) -> None:
+        """Write what waits as the browser takes it (a fresh state for one that fell behind)."""
+        w = self.wire
+        while (self.held or self.behind) and not w.closed:
+            await w.drained()
+            if w.closed:
+                break
             if self.behind:
                 self.behind = False
-                while not self.queue.empty():
-                    self.queue.get_nowait()
                 if self.hub is not None:
-                    text = self.hub.state_text()
-            if text:
-                await self.send(text)
+                    self.resyncs += 1
+                    f = self.hub.state_frame()
+                    w.write(f.data, f.text)
+                continue
+            while self.held and not w.full:
+                f = self.held.pop(0)
+                self._unplaced.pop(0)
+                self.held_bytes -= len(f.data)
+                w.write(f.data, f.text)
+        self._clear()
+
+    def close(self) -> None:
+        """The browser left: nothing more is written."""
+        if self.task is not None:
+            self.task.cancel()
+        self._clear()
+        close = getattr(self.wire, "close", None)
+        if close is not None:
+            close()
 
 
 class Hub:
@@ -131,21 +223,33 @@ class Hub:
         self.events_in = 0
         self.story = Story()
         self.t0 = time.monotonic()  # the live timeline's zero (the story's ``t``)
+        self._state: tuple[float, Frame] | None = None  # (made at, the state message) for joins
+        self.frames_out = 0  # frames made (each written to every browser of the view)
 
     # ------------------------------------------------------------------ browsers
     def view_info(self) -> dict[str, Any]:
         """What the page shows about this view (its name and whether it is private)."""
         return {"name": self.name, "kind": self.kind}
 
-    def state_text(self) -> str:
-        """The ``state`` message for a browser that joins (or fell behind)."""
+    def state_frame(self) -> Frame:
+        """The ``state`` message for a browser that joins (or fell behind); reused for
+        :data:`STATE_REUSE` seconds unless the view changes first."""
+        now = time.monotonic()
+        if self._state is not None and now - self._state[0] < STATE_REUSE:
+            return self._state[1]
         av = self.model.arena_version
         if self._map[0] != av and self.model.arena is not None:
             self._map = (av, map_png(self.model))
         body = state_json(self.model, self.model.clock(), map_url=self._map[1], tasks=self.tasks.names)
         body["story"] = self.story.to_json()
-        body["now"] = round(time.monotonic() - self.t0, 3)
-        return dumps({"type": "state", "view": self.view_info(), "live": True, "state": body})
+        body["now"] = round(now - self.t0, 3)
+        frame = Frame(dumps({"type": "state", "view": self.view_info(), "live": True, "state": body}))
+        self._state = (now, frame)
+        return frame
+
+    def state_text(self) -> str:
+        """The text of :meth:`state_frame`."""
+        return self.state_frame().text
 
     def _match_clock(self) -> float | None:
         """The match clock now (None while the core reports no phases)."""
@@ -157,13 +261,14 @@ class Hub:
         with what the public view told so far, on the same timeline)."""
         self.story = copy.deepcopy(other.story)
         self.t0 = other.t0
+        self._state = None
 
     def attach(self, sub: Subscriber) -> None:
         """Start sending this view to ``sub`` (its state first, then every event)."""
         sub.hub = self
         self.subs.add(sub)
         self.empty_since = None
-        sub.offer(self.state_text())
+        sub.offer(self.state_frame())
 
     def detach(self, sub: Subscriber) -> None:
         """Stop sending to ``sub``."""
@@ -174,7 +279,25 @@ class Hub:
             self.empty_since = time.monotonic()
 
     def publish(self, events: list[tuple[str, dict[str, Any]]]) -> None:
-        """Apply a batch of events to the model and send it, serialised once, to every browser."""
+        """Send a batch of events, serialised and framed once, to every browser, and apply it to
+        the model. A batch of poses only goes out first (the model is for browsers that join
+        later); any other batch is applied first, since the story it tells goes with it."""
+        self._state = None
+        self.events_in += len(events)
+        if all(t == "robot.positions" for t, _ in events):
+            if not self.subs:  # nobody watches: the model only
+                for topic, data in events:
+                    self.model.apply(topic, data)
+                return
+            poses: set[int] = set()
+            for _, d in events:
+                tags = d.get("tags")
+                if isinstance(tags, list):
+                    poses.update(t for t in tags if isinstance(t, int))
+            self.fan_out(Frame(dumps({"type": "ev", "e": [[t, compact(t, d)] for t, d in events]}), frozenset(poses)))
+            for topic, data in events:
+                self.model.apply(topic, data)
+            return
         resync = False
         told: dict[int, dict[str, Any]] = {}
         samples = len(self.story.scores)
@@ -186,29 +309,31 @@ class Hub:
                 for it in self.story.apply(topic, data, now, self._match_clock()):
                     told[it.id] = it.to_dict()
             resync |= topic == "core.started"
-        self.events_in += len(events)
         if resync:  # a new arena: everyone starts again from a state
-            text = self.state_text()
-        else:
-            msg: dict[str, Any] = {"type": "ev", "e": [[t, compact(t, d)] for t, d in events]}
-            if told:
-                msg["s"] = list(told.values())
-            if len(self.story.scores) != samples and self.story.scores:
-                t, c, board = self.story.scores[-1]
-                msg["k"] = [round(t, 3), None if c is None else round(c, 2), board]
-            if any(t == "match.phase" for t, _ in events):
-                msg["v"] = self.story.victims
-            text = dumps(msg)
+            self.resync_all()
+            return
+        msg: dict[str, Any] = {"type": "ev", "e": [[t, compact(t, d)] for t, d in events]}
+        if told:
+            msg["s"] = list(told.values())
+        if len(self.story.scores) != samples and self.story.scores:
+            t, c, board = self.story.scores[-1]
+            msg["k"] = [round(t, 3), None if c is None else round(c, 2), board]
+        if any(t == "match.phase" for t, _ in events):
+            msg["v"] = self.story.victims
+        self.fan_out(Frame(dumps(msg)))
+
+    def fan_out(self, frame: Frame) -> None:
+        """Write ``frame`` to every browser of the view (held for those whose socket is full)."""
+        self.frames_out += 1
         for s in list(self.subs):
-            s.offer(text)
+            s.offer(frame)
 
     def resync_all(self) -> None:
-        """Send every browser a fresh state (after a reconnect to the core)."""
-        text = self.state_text()
+        """Send every browser a fresh state (after a reconnect to the core, or a new arena)."""
+        self._state = None
+        frame = self.state_frame()
         for s in list(self.subs):
-            s.behind = False
-            with contextlib.suppress(asyncio.QueueFull):
-                s.queue.put_nowait(text)
+            s.resync(frame)
 
     def load(self, snap: dict[str, Any], costs: Any = None) -> None:
         """Start the model from a snapshot (and the map service's cell costs, when given)."""
@@ -217,6 +342,7 @@ class Hub:
         if costs is not None:
             model.set_costs(costs)
         self.model = model
+        self._state = None
         self.tasks = TaskNames()
         for r in snap.get("robots") or []:
             t = r.get("task")
@@ -243,6 +369,8 @@ class Hub:
             return {"kind": t.kind, "id": t.id, "team": t.team, "state": t.state, "x": t.x, "y": t.y, "info": t.info}
         if op == "picture":
             raise FieldError("pictures belong to the team that took them: enter that team's token to see them")
+        if op == "video":
+            raise FieldError("videos belong to the team that filmed them: enter that team's token to see them")
         raise FieldError(f"unknown request {op!r}")
 
     async def close(self) -> None:
@@ -319,6 +447,7 @@ class PublicHub(LinkedHub):
         self._reader: asyncio.Task[None] | None = None
         self._pinger: asyncio.Task[None] | None = None
         self._pub: str = ""
+        self._core_id: Any = None  # the core process whose snapshot the view was loaded from
 
     def start(self) -> None:
         """Connect in the background, and keep the session alive without pushed events."""
@@ -336,12 +465,26 @@ class PublicHub(LinkedHub):
                     await self.link.request("watch", on=False, timeout=2.0)
 
     async def _resync(self) -> None:
+        """After each (re)connection: the feed, a snapshot and a fresh state for every browser; but
+        when the session comes back to the same core process, whose feed this view kept reading
+        (the session only timed out: a loaded machine, a core stopped for a while), the view is
+        whole and the browsers keep their frames (with a thousand browsers, a fresh state each is
+        a few hundred MiB to send)."""
         try:
             await self.link.request("watch", on=False)  # the public view needs no pushed events
             url = pub_url(self.link.url, int(self.link.info["pub_port"]))
+            core_id = self.link.info.get("core_id")
+            if self.loaded and core_id is not None and core_id == self._core_id and url == self._pub \
+                    and self.sub is not None:
+                buffered, self._buffer = self._buffer, None
+                if buffered:
+                    self.publish(buffered)
+                self.ready.set()
+                return
             if url != self._pub or self.sub is None:
                 self._open_sub(url)
                 await asyncio.sleep(0.2)  # let the subscription reach the PUB socket (slow joiner)
+            self._core_id = core_id
             self._buffer = []
             snap, costs = await self._snapshot()
             self.load(public_snapshot(snap), costs)
@@ -367,14 +510,28 @@ class PublicHub(LinkedHub):
         self._reader = asyncio.get_running_loop().create_task(self._read(sub))
 
     async def _read(self, sub: zmq.asyncio.Socket) -> None:
+        """Read the feed in batches (see :data:`BATCH_GAP`) and publish each as one frame. A batch
+        that already holds a pose batch of every team of the last pose period goes at once."""
+        gap = max(1, round(BATCH_GAP * 1000))  # ms
+        teams: set[Any] = set()  # the teams whose poses the last batch carried
         while True:
             try:
                 frames = await sub.recv_multipart()
+                first = time.monotonic()
                 batch = [_event(frames)]
-                while len(batch) < BATCH and await sub.poll(0):
+                posed = _posed(batch[0], set())
+                while len(batch) < BATCH:
+                    if not await sub.poll(0):
+                        left = BATCH_SPAN - (time.monotonic() - first)
+                        if (teams and posed >= teams) or left <= 0 \
+                                or not await sub.poll(max(1, min(gap, int(left * 1000)))):
+                            break
                     batch.append(_event(await sub.recv_multipart()))
+                    posed = _posed(batch[-1], posed)
             except zmq.ZMQError:
                 return
+            if posed:
+                teams = posed
             events = [e for e in batch if e is not None]
             if self._buffer is not None:
                 self._buffer.extend(events)
@@ -389,6 +546,13 @@ class PublicHub(LinkedHub):
         if self.sub is not None:
             self.sub.close(0)
         await super().close()
+
+
+def _posed(event: tuple[str, dict[str, Any]] | None, teams: set[Any]) -> set[Any]:
+    """``teams``, and the team of ``event`` when it is a pose batch."""
+    if event is not None and event[0] == "robot.positions":
+        teams.add(event[1].get("team"))
+    return teams
 
 
 def _event(frames: list[bytes]) -> tuple[str, dict[str, Any]] | None:
@@ -436,4 +600,12 @@ class TeamHub(LinkedHub):
             reply = await self.link.request("picture.get", id=_int(body, "id"))
             return {"id": body.get("id"), "png": "data:image/png;base64," + jsonable(reply.get("png", b"")),
                     "label": reply.get("label", ""), "tag": reply.get("tag")}
+        if op == "video":
+            return await self._video(_int(body, "id"))
         return await super().ask(op, body)
+
+    async def _video(self, vid: int) -> dict[str, Any]:
+        """Video ``vid`` as a data URL the page's ``<video>`` plays (the core decides who may see it)."""
+        reply = await self.link.request("video.get", id=vid)
+        return {"id": vid, "webm": "data:video/webm;base64," + jsonable(reply.get("webm", b"")),
+                "label": reply.get("label", ""), "tag": reply.get("tag"), "seconds": reply.get("seconds")}

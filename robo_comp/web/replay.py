@@ -55,6 +55,7 @@ class RecordingView:
     key_index: list[int] = field(default_factory=list)  # events applied before each keyframe
     key_json: list[str] = field(default_factory=list)
     pictures: dict[int, str | None] = field(default_factory=dict)  # picture id -> its team
+    videos: dict[int, str | None] = field(default_factory=dict)  # video id -> its team
     story_json: str = "{}"  # the view's whole story (ticker, markers, score over time)
 
     def seek_text(self, at: float, duration: float) -> str:
@@ -139,8 +140,8 @@ class Recording:
             while t > next_key and model.arena is not None:
                 self._keyframe(v, model, tasks, maps, next_key, now)
                 next_key += KEYFRAME_EVERY
-            if rec.topic == "picture" and isinstance(rec.data.get("id"), int):
-                v.pictures[rec.data["id"]] = rec.data.get("team") or rec.team
+            if rec.topic in ("picture", "video") and isinstance(rec.data.get("id"), int):
+                (v.pictures if rec.topic == "picture" else v.videos)[rec.data["id"]] = rec.data.get("team") or rec.team
             table = fold.feed(rec.topic, rec.data)  # every view: the core publishes its table to everyone
             data = see(rec.topic, rec.team, rec.data)
             now[0] = t
@@ -187,6 +188,18 @@ class Recording:
         import base64
 
         return "data:image/png;base64," + base64.b64encode(p.read_bytes()).decode()
+
+
+    def video(self, view: RecordingView, vid: int) -> str:
+        """Video ``vid`` as a data URL, if the view may see it and it is beside the log."""
+        if view.kind == "public" or (view.name != "referee" and view.videos.get(vid) != view.name):
+            raise FieldError("videos belong to the team that filmed them: enter that team's token to see them")
+        p = self.path.parent / "videos" / f"{int(vid)}.webm"
+        if not p.is_file():
+            raise FieldError(f"video {vid} is not beside this log (videos/{vid}.webm)")
+        import base64
+
+        return "data:video/webm;base64," + base64.b64encode(p.read_bytes()).decode()
 
 
 def _tokens_beside(log: Path) -> dict[str, str]:

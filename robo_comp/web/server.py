@@ -42,6 +42,7 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 from robo_comp.errors import FieldError, RoboCompError
 from robo_comp.web.hub import JOIN_TIMEOUT, Hub, PublicHub, Subscriber, TeamHub, dumps, whole
 from robo_comp.web.replay import Playback, Recording
+from robo_comp.web.wire import AsgiWire, wire_of
 
 log = logging.getLogger("robo_comp.web")
 STATIC = Path(__file__).parent / "static"
@@ -50,7 +51,7 @@ IDLE_CLOSE = 30.0
 #: Headers on every HTTP response: the page loads only its own scripts and styles, talks only
 #: to its own host, cannot be framed, and sends no Referer (a view key in a link stays private).
 SECURITY_HEADERS = {
-    "content-security-policy": "default-src 'none'; script-src 'self'; style-src 'self'; img-src 'self' data:; "
+    "content-security-policy": "default-src 'none'; script-src 'self'; style-src 'self'; img-src 'self' data:; media-src data:; "
                                "connect-src 'self'; base-uri 'none'; frame-ancestors 'none'",
     "referrer-policy": "no-referrer",
     "x-frame-options": "DENY",
@@ -263,7 +264,9 @@ class Connection:
         self.gw = gw
         self.ws = ws
         self.origins = origins or OriginCheck()
-        self.sub = Subscriber(self._send)
+        # a live view's frames go straight to the socket where the server offers it (uvicorn with
+        # robo_comp.web.wire.WireProtocol), else one at a time through ASGI
+        self.sub = Subscriber(wire_of(ws.scope) or AsgiWire(self._send))
         self.playback: Playback | None = None
         self._send_lock = asyncio.Lock()
 
@@ -280,7 +283,6 @@ class Connection:
             return
         await self.ws.accept()
         await self._send(dumps({"type": "hello", **self.gw.info()}))
-        self.sub.task = asyncio.get_running_loop().create_task(self.sub.run())
         try:
             while True:
                 try:
@@ -300,7 +302,7 @@ class Connection:
         except WebSocketDisconnect:
             pass
         finally:
-            self.sub.task.cancel()
+            self.sub.close()
             if self.sub.hub is not None:
                 self.sub.hub.detach(self.sub)
             if self.playback is not None:
@@ -381,6 +383,8 @@ class Connection:
             return {"took_ms": round(await pb.seek(msg.get("t")) * 1000, 3)}
         elif op == "picture":
             return {"id": msg.get("id"), "png": self.gw.recording.picture(pb.view, whole(msg, "id"))}
+        elif op == "video":
+            return {"id": msg.get("id"), "webm": self.gw.recording.video(pb.view, whole(msg, "id"))}
         elif op in ("monitor", "find"):
             return {"note": "a replay's page answers from its own state"}
         else:

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from robo_comp.protocol.topics import public_event
 from robo_comp.view.model import MatchView, find_state
 
 # The map is drawn in the wall's colours, from its pygame module: without pygame's greeting on stdout.
@@ -38,6 +39,7 @@ def public_snapshot(snap: dict[str, Any]) -> dict[str, Any]:
                      for r in snap.get("robots") or []]
     out["finds"] = [{**{k: f[k] for k in PUBLIC_FIND if k in f}, "state": find_state(f)}
                     for f in snap.get("finds") or []]
+    out["videos"] = [public_event("video", v) for v in snap.get("videos") or []]
     return out
 
 

@@ -99,7 +99,9 @@ class Arena:
                  capacity: int = 16) -> None:
         self.scenario = scenario or default_scenario()
         sc = self.scenario
-        self.walls: np.ndarray = sc.walls.copy()
+        #: What blocks a robot: the map's walls and the debris the map does not show.
+        self.debris: np.ndarray = sc.debris_mask()
+        self.walls: np.ndarray = sc.walls | self.debris
         self.height, self.width = self.walls.shape
         self.costs: np.ndarray = sc.cost_grid()
         self.cell_size = sc.cell_size
@@ -690,6 +692,33 @@ class Arena:
         return {"time": self.time,
                 "robots": [{"tag": t, "team": self.team_of(t), **self.pose(t).to_dict()} for t in self._slot],
                 "victims": [v.to_dict() for v in self.victims]}
+
+    def driving_into(self, tag: str, x: int, y: int) -> bool:
+        """Whether another robot is in cell ``(x, y)`` or driving into it now (it stands in a
+        neighbouring cell and drives towards it): what robot ``tag``'s range sensors and its eyes on
+        the robots next to it would tell."""
+        me = self._slot_of(tag)
+        if 0 <= x < self.width and 0 <= y < self.height and int(self._occ[y, x]) - 1 not in (-1, me):
+            return True
+        for nx, ny in ((x + 1, y), (x - 1, y), (x, y + 1), (x, y - 1)):
+            if not (0 <= nx < self.width and 0 <= ny < self.height):
+                continue
+            o = int(self._occ[ny, nx]) - 1
+            if o < 0 or o == me or self.mode[o] != _DRIVE:
+                continue
+            hr = math.radians(float(self.heading[o])) if self.sign[o] > 0 else math.radians(float(self.heading[o]) + 180.0)
+            if math.cos(hr) * (x - nx) + math.sin(hr) * (y - ny) > 0.7:  # within 45 degrees of the cell
+                return True
+        return False
+
+    def clearance(self, tag: str, heading: float, max_cells: float = 4.0) -> float:
+        """How far (cells) robot ``tag`` can drive along ``heading`` before its front reaches a
+        wall or another robot: what its front range sensor reads, less its reach (``max_cells``
+        when nothing is that near)."""
+        s = self._slot_of(tag)
+        d = float(cast_rays(self._blocked(), self.x[s:s + 1], self.y[s:s + 1], np.array([math.radians(heading)]),
+                            max_cells + BODY_REACH)[0])
+        return min(max_cells, d - BODY_REACH)
 
     # for the ray caster users
     def ray_distance(self, x: float, y: float, heading: float, max_cells: float = 1000.0) -> float:

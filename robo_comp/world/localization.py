@@ -167,6 +167,24 @@ class PositioningSystem:
 # ------------------------------------------------------------------ dead reckoning
 
 
+#: A fix farther from the estimate than this many σ of both (chi-square, 2 degrees of freedom,
+#: 99.7 %) means the estimate is wrong beyond what it believed (a wheel slipped, a turn was
+#: stopped half-way): its variance is raised to what the fix says, so the fix weighs.
+GATE = 11.8
+#: Fixes in a row beyond :data:`GATE` after which the estimate, not the fixes, is taken to be wrong
+#: (a single one is left out as the positioning system's own error).
+DOUBTS = 2
+#: The least position uncertainty (σ, cells) an estimate has when a fix comes: wheels slip, a
+#: robot is nudged; without it an estimate that believes itself exact stops listening to fixes. It is
+#: at least FLOOR_SHARE of the fixes' own noise: a filter that listens too little to noisy fixes lags
+#: behind a robot whose heading is a little off (measured: bench/bench_teamwork.py --end-error).
+POSE_FLOOR = 0.1
+FLOOR_SHARE = 0.5
+#: Cells the positioning system's fixes must have moved (at the least; more with noisier fixes:
+#: :meth:`DeadReckoner.track_base`) before their track says which way the robot really drives.
+TRACK_BASE = 2.0
+
+
 class DeadReckoner:
     """A robot's own pose estimate: odometry with drift between fixes, corrected on a fix.
 
@@ -175,6 +193,14 @@ class DeadReckoner:
     per cell). :meth:`correct` blends a fix in with a scalar Kalman gain from the
     estimate's variance and the fix noise ``fix_noise`` (σ, cells): with exact fixes the
     estimate jumps to the fix.
+
+    The heading is corrected too: by a camera's fix, which measures it; by fixes that measure a
+    position only (the HX5's) through their track: between two fixes at least
+    :meth:`track_base` cells apart, the way the fixes moved and the way the estimate moved (by
+    odometry alone) differ by the heading's error, weighed against the heading's own variance
+    (``hvar``, degrees², which grows with turning and driving, and jumps when a movement was
+    stopped half-way: :meth:`interrupted`). A fix beyond :data:`GATE` is left out unless the next
+    one is too (:data:`DOUBTS`): then the estimate is wrong and its variance is raised to match.
     """
 
     def __init__(self, x: float, y: float, heading: float, drift: Drift | None = None,
@@ -185,8 +211,14 @@ class DeadReckoner:
         self.rng = rng if rng is not None else np.random.default_rng(0)
         self.fix_noise = float(fix_noise)
         self.var = 0.0                  # position variance (cells²) of the estimate
+        self.hvar = 0.0                 # heading variance (degrees²) of the estimate
         self.last_fix: float | None = None
         self.time = time
+        # the fix the next fix's track is measured from, and the way odometry moved the estimate since
+        self.anchor: tuple[float, float] | None = None
+        self.odo_x = self.odo_y = 0.0
+        self.doubts = 0  # fixes in a row beyond GATE
+        self.heading_doubts = 0  # tracks in a row beyond 3σ of the heading's and the bearing's noise
 
     def pose(self) -> tuple[float, float, float]:
         """The estimated (x, y, heading)."""
@@ -202,7 +234,9 @@ class DeadReckoner:
         d = self.drift
         if turn:
             self.heading += turn + self.rng.normal(0.0, d.heading * abs(turn) / 90.0) if d.heading else turn
+            self.hvar += (d.heading * abs(turn) / 90.0) ** 2
         if distance:
+            self.hvar += d.heading_per_cell ** 2 * abs(distance)
             if d.heading_per_cell:
                 self.heading += self.rng.normal(0.0, d.heading_per_cell * math.sqrt(abs(distance)))
             scale = 1.0 + (self.rng.normal(0.0, d.distance) if d.distance else 0.0)
@@ -210,7 +244,10 @@ class DeadReckoner:
             hr = math.radians(self.heading)
             self.x += dist * math.cos(hr)
             self.y += dist * math.sin(hr)
-            lateral = abs(distance) * math.radians(d.heading_per_cell + d.heading)
+            self.odo_x += dist * math.cos(hr)
+            self.odo_y += dist * math.sin(hr)
+            # sideways, a heading that is off by its σ moves the robot by that much of the distance
+            lateral = abs(distance) * math.radians(d.heading_per_cell + d.heading + math.sqrt(self.hvar))
             self.var += (d.distance * distance) ** 2 + lateral ** 2
         self.heading %= 360.0
 
@@ -219,16 +256,71 @@ class DeadReckoner:
         Kalman gain ``var / (var + fix_noise²)``; a fix that measured the ``heading`` too (a
         camera) turns the estimate toward it by the same gain."""
         r2 = self.fix_noise ** 2
+        if gain is None:  # a robot's pose is never known better than this between two fixes
+            self.var = max(self.var, max(POSE_FLOOR, FLOOR_SHARE * self.fix_noise) ** 2)
+        miss = (fix.x - self.x) ** 2 + (fix.y - self.y) ** 2
+        if gain is None and miss > GATE * (self.var + r2):
+            self.doubts += 1
+            if self.doubts < DOUBTS:  # one fix that far off is more likely the fix's error: left out
+                return
+            self.var = max(self.var, miss - r2)  # fixes keep saying so: the estimate is off
+        self.doubts = 0
         if gain is None:
             gain = 1.0 if r2 == 0 else self.var / (self.var + r2)
         g = min(max(float(gain), 0.0), 1.0)
+        if heading is None:
+            self._track_heading(fix)
         self.x += g * (fix.x - self.x)
         self.y += g * (fix.y - self.y)
         if heading is not None:
             self.heading = (self.heading + g * ((heading - self.heading + 180.0) % 360.0 - 180.0)) % 360.0
+            self.hvar = (1.0 - g) * self.hvar
         # Posterior variance of a blend with weight g: (1-g)² var + g² r².
         self.var = (1.0 - g) ** 2 * self.var + g * g * r2
         self.last_fix = fix.time
+        if self.anchor is None:
+            self.anchor = (fix.x, fix.y)
+            self.odo_x = self.odo_y = 0.0
+
+    def track_base(self) -> float:
+        """Cells between two fixes before their track corrects the heading: :data:`TRACK_BASE`, more
+        for noisier fixes (the bearing between two fixes is then known to about 10°)."""
+        return max(TRACK_BASE, 8.0 * self.fix_noise)
+
+    def _track_heading(self, fix: Fix) -> None:
+        """Correct the heading from the way the fixes moved against the way the estimate moved."""
+        a = self.anchor
+        if a is None:
+            return
+        fdx, fdy = fix.x - a[0], fix.y - a[1]
+        edx, edy = self.odo_x, self.odo_y
+        moved = math.hypot(edx, edy)
+        base = self.track_base()
+        if moved < base or math.hypot(fdx, fdy) < base / 2:
+            return
+        err = (math.degrees(math.atan2(fdy, fdx) - math.atan2(edy, edx)) + 180.0) % 360.0 - 180.0
+        r2 = math.degrees(math.sqrt(2.0) * self.fix_noise / moved) ** 2  # the bearing's noise, degrees²
+        self.anchor = None  # the next track starts at this fix
+        if err * err > 9.0 * (self.hvar + r2):
+            self.heading_doubts += 1
+            if self.heading_doubts < DOUBTS:  # one track that far off is more likely the fixes' noise
+                return
+            self.hvar = max(self.hvar, err * err - r2)  # tracks keep saying so: the heading is off
+        self.heading_doubts = 0
+        g = self.hvar / (self.hvar + r2) if self.hvar + r2 > 0 else 0.0
+        self.heading = (self.heading + g * err) % 360.0
+        self.hvar = (1.0 - g) * self.hvar
+
+    def interrupted(self, turn: float = 45.0, distance: float = 0.5, grid: bool = False) -> None:
+        """A movement was stopped half-way: how far the robot turned (up to ``turn`` degrees) and
+        drove (up to ``distance`` cells) is not known: the variances grow by as much (uniform). A
+        ``grid`` robot (the ER1 way: it stands only facing along the grid, and settles there when
+        stopped) takes the grid's nearest heading instead."""
+        if grid:
+            self.heading = (round(self.heading / 90.0) * 90.0) % 360.0
+        else:
+            self.hvar += turn * turn / 3.0
+        self.var += distance * distance / 3.0
 
     def reset(self, x: float, y: float, heading: float | None = None) -> None:
         """Set the estimate to a known pose (e.g. given by the referee)."""
@@ -238,6 +330,9 @@ class DeadReckoner:
         self.var = 0.0
 
 
+#: Fixes in a row beyond :data:`GATE` after which the estimate, not the fixes, is taken to be wrong
+#: (a single one is left out as the positioning system's own error).
+DOUBTS = 2
 #: The least position uncertainty (σ, cells) a robot's estimate has when a camera fix comes.
 CAMERA_PRIOR = 0.1
 
@@ -316,6 +411,30 @@ class Localization:
         # lifted and put down): a camera's fix always weighs, even on a robot standing still
         r.var = max(r.var, CAMERA_PRIOR ** 2)
         r.correct(Fix(tag, x, y, 0.0, time), heading=heading)
+
+    def settled(self, tag: str) -> None:
+        """Robot ``tag`` finished a step. A grid4 robot (the ER1 way: it turns only by quarters)
+        stands facing along the grid then, and knows it: its estimate's heading takes the grid's
+        nearest (its turns' small errors do not add up into a heading that drifts sideways)."""
+        if self.arena.drive == "grid4" and (tag in self.reckoners or tag in self.arena.tags):
+            rk = self._reckoner(tag)
+            dist, turn = self.arena.odometry(tag, reset=True)  # what it drove since the last update first
+            if dist or turn:
+                rk.advance(dist, turn)
+            rk.heading = (round(rk.heading / 90.0) * 90.0) % 360.0
+
+    def interrupted(self, tag: str) -> None:
+        """Robot ``tag``'s movement was stopped half-way (a stop, a bump). On a grid4 arena the robot
+        settles back on the grid, which its wheels do not measure: its estimate settles on the grid
+        too and is less sure of its position (:meth:`DeadReckoner.interrupted`). A freely driving
+        robot's wheels measured the part of the movement it made: nothing changes."""
+        if tag in self.reckoners or tag in self.arena.tags:
+            rk = self._reckoner(tag)
+            dist, turn = self.arena.odometry(tag, reset=True)  # what it drove since the last update first
+            if dist or turn:
+                rk.advance(dist, turn)
+            if self.arena.drive == "grid4":  # it settled back on the grid, unmeasured (a free robot's
+                rk.interrupted(grid=True)      # wheels measured the part of the movement it made)
 
     def sigma(self, tag: str) -> float:
         """Robot ``tag``'s position uncertainty σ (cells): it grows while no fix comes."""

@@ -11,6 +11,9 @@ cell costs of the work space, surface zones, known objects, the positions robots
 * :meth:`MapService.delta_since` -- what changed since a version; a client keeps a
   :class:`MapView` and calls :meth:`MapView.apply` on every delta, and its
   :meth:`MapView.snapshot` then equals the service's snapshot for its team.
+* :meth:`MapService.add_obstacle` -- a cell a team's robot reported blocked where the map shows it
+  free (``obstacles``, ``[x, y]`` each): on that team's map (everyone's when discoveries are
+  shared); its planners route around it.
 
 Discoveries are visible to the discovering team and the referee only, unless the
 scenario says ``shared_discoveries``. Everything returned is plain data -- dicts, lists,
@@ -230,6 +233,16 @@ class MapService:
             raise FieldError(f"no discovery {disc_id!r}")
         return dict(e[2], evidence=list(e[2]["evidence"]))
 
+    def add_obstacle(self, team: str, x: int, y: int) -> bool:
+        """Put cell ``(x, y)``, which a robot of ``team`` reported blocked, on ``team``'s map
+        (everyone's if discoveries are shared); False if it was there already."""
+        self._check_cell(x, y)
+        key = ("obstacle", f"{team}:{x}:{y}")
+        if key in self._ent:
+            return False
+        self._touch(key, [int(x), int(y)], None if self.shared_discoveries else team)
+        return True
+
     def _check_cell(self, x: int, y: int) -> None:
         if not (0 <= x < self.width and 0 <= y < self.height):
             raise FieldError(f"cell ({x}, {y}) is outside the {self.width}×{self.height} map")
@@ -244,6 +257,7 @@ class MapService:
             "zones": [z.to_dict() for z in self.zones],
             "objects": self._items("object", team), "robots": self._items("robot", team),
             "discoveries": [dict(d, evidence=list(d["evidence"])) for d in self._items("discovery", team)],
+            "obstacles": sorted({tuple(c) for c in self._items("obstacle", team)}),
         }
 
     def delta_since(self, version: int, team: str | None = None, robots: bool = True) -> dict[str, Any]:
@@ -258,7 +272,7 @@ class MapService:
             return self.snapshot(team)
         out: dict[str, Any] = {"type": "delta", "from": version, "version": self.version,
                                "cells": [], "robots": [], "removed_robots": [], "objects": [],
-                               "removed_objects": [], "discoveries": []}
+                               "removed_objects": [], "discoveries": [], "obstacles": []}
         for key in keys:
             v, vis, val = self._ent[key]
             if v <= version or not self._visible(vis, team):
@@ -274,6 +288,8 @@ class MapService:
                 (out["objects"].append(dict(val)) if val is not None else out["removed_objects"].append(key[1]))
             elif kind == "discovery":
                 out["discoveries"].append(dict(val, evidence=list(val["evidence"])))
+            elif kind == "obstacle":
+                out["obstacles"].append(list(val))
         return out
 
     def piece(self, tag: str, radius: int, team: str | None = None) -> dict[str, Any]:
@@ -330,6 +346,8 @@ class MapView:
         self.objects: dict[str, dict[str, Any]] = {}
         self.robots: dict[str, dict[str, Any]] = {}
         self.discoveries: dict[str, dict[str, Any]] = {}
+        #: Cells the team's robots reported blocked (the map's walls do not show them).
+        self.obstacles: set[tuple[int, int]] = set()
 
     def apply(self, delta: dict[str, Any]) -> None:
         """Apply a snapshot (``type == "full"``) or a delta (``type == "delta"``).
@@ -345,6 +363,7 @@ class MapView:
             self.objects = {o["id"]: dict(o) for o in delta["objects"]}
             self.robots = {r["tag"]: dict(r) for r in delta["robots"]}
             self.discoveries = {d["id"]: dict(d, evidence=list(d["evidence"])) for d in delta["discoveries"]}
+            self.obstacles = {(int(c[0]), int(c[1])) for c in delta.get("obstacles", ())}
             self.version = int(delta["version"])
             return
         if kind != "delta":
@@ -364,6 +383,8 @@ class MapView:
             self.objects.pop(oid, None)
         for d in delta["discoveries"]:
             self.discoveries[d["id"]] = dict(d, evidence=list(d["evidence"]))
+        for c in delta.get("obstacles", ()):
+            self.obstacles.add((int(c[0]), int(c[1])))
         self.version = max(self.version, int(delta["version"]))
 
     def snapshot(self) -> dict[str, Any]:
@@ -375,4 +396,5 @@ class MapView:
             "objects": [self.objects[k] for k in sorted(self.objects)],
             "robots": [self.robots[k] for k in sorted(self.robots)],
             "discoveries": [self.discoveries[k] for k in sorted(self.discoveries)],
+            "obstacles": sorted(self.obstacles),
         }

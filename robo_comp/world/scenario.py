@@ -255,6 +255,17 @@ class Scenario:
     scoring: dict[str, Any] = field(default_factory=dict)
     #: ``[match] approve_uploads``: a team's upload during a running match waits for the referee.
     approve_uploads: bool = False
+    #: ``[[debris]]``: blocked cells that are not on the map (rubble fallen since it was drawn):
+    #: ground truth like the victims, in the simulated arena only; robots find them with their
+    #: sensors and report them for their team's map.
+    debris: list[Rect] = field(default_factory=list)
+
+    def debris_mask(self) -> np.ndarray:
+        """The ``[[debris]]`` cells as a bool grid ``[y, x]`` (the map's walls left out)."""
+        mask = np.zeros(self.walls.shape, dtype=bool)
+        for r in self.debris:
+            mask[r.y:r.y + r.h, r.x:r.x + r.w] = True
+        return mask & ~self.walls
 
     @property
     def width(self) -> int:
@@ -482,7 +493,7 @@ def _tname(v: Any) -> str:
 
 # -------------------------------------------------------------------------- parsing
 
-_TOP_KEYS = {"name", "map", "cell_size", "duration", "seed", "shared_discoveries", "walls",
+_TOP_KEYS = {"name", "map", "cell_size", "duration", "seed", "shared_discoveries", "walls", "debris",
              "costs", "zones", "objects", "victims", "teams", "positioning", "drift", "robot",
              "sensors", "camera", "scoring", "match"}
 _SCORING_NUMS = ("default_points", "first_bonus", "false_report", "collision", "robot_lost", "match_radius")
@@ -570,6 +581,11 @@ def _build(data: dict, ctx: _Ctx, base: Path) -> Scenario:
         ctx.check_keys(item, {"x", "y", "w", "h"}, path)
         r = rect(item, path)
         walls[r.y:r.y + r.h, r.x:r.x + r.w] = True
+    debris = []
+    for i, item in enumerate(ctx.array(data, "debris", ())):
+        path = ("debris", i)
+        ctx.check_keys(item, {"x", "y", "w", "h"}, path)
+        debris.append(rect(item, path))
 
     c = ctx.table(data, "costs", (), {"normal", "near_cost", "radius"})
     normal = float(ctx.num(c, "normal", ("costs",), 1.0, lo=1, hi=1e6))
@@ -619,6 +635,8 @@ def _build(data: dict, ctx: _Ctx, base: Path) -> Scenario:
         x, y = cell(item, path)
         if walls[y, x]:
             ctx.fail(path, f"at ({x}, {y}) is inside a wall")
+        if any(d.contains(x, y) for d in debris):
+            ctx.fail(path, f"at ({x}, {y}) is under debris")
         pts = item.get("points")
         if pts is not None:
             pts = ctx.num(item, "points", path, lo=-1_000_000, hi=1_000_000, integer=True)
@@ -710,7 +728,7 @@ def _build(data: dict, ctx: _Ctx, base: Path) -> Scenario:
                     duration=duration, seed=seed, positioning=positioning, drift=drift,
                     kinematics=kin, sensors=sensors, camera=camera,
                     shared_discoveries=shared, map_name=map_name, scoring=scoring,
-                    approve_uploads=approve)
+                    approve_uploads=approve, debris=debris)
 
 
 def _default_colour(i: int) -> str:

@@ -7,7 +7,8 @@ the beginning of a match. They seed a league and give students opponents (docs/l
   drives there cell by cell, waits instead of driving into a robot it senses ahead or a cell a
   teammate holds, looks around and reports what it sees. No points lost to bumps.
 * ``explorer``: the template's explorer made autonomous: a fixed sweep of waypoints per robot,
-  driven with ``go_to``, looking around at each; it bumps into robots now and then.
+  driven with ``go_to``, looking around at each; it bumps into the other team's robots now and
+  then (the robot host keeps teammates apart).
 * ``random_walker``: random turns and moves, looking now and then.
 * ``sitter``: looks around once where it starts and stops.
 

@@ -2,7 +2,8 @@
 
 Each robot gets its own band of a fixed sweep of waypoints (every ``SPACING`` cells, in
 serpentine order), drives to each with ``go_to`` and looks around (four pictures), reporting
-every victim the camera shows. It plans around walls only, so robots sometimes bump.
+every victim the camera shows. It plans around walls only; the robot host keeps its robots
+out of each other's way, but it still bumps into the other team's robots now and then.
 """
 
 MANIFEST = {

@@ -310,6 +310,7 @@ function legend() {
     out.push(li("dot", "#5a5a64", "robot that left"));
     for (const [state, c] of Object.entries(L.finds)) out.push(li("diamond", c, `find, ${state}`));
     out.push(li("square", "#7ab8ff", "picture taken"));
+    out.push(li("triangle", "#c77dff", "video filmed"));
     out.push(li("dot", L.discovery, "discovery (team view)"));
     out.push(li("cross", VICTIM_FOUND, "victim found (at the end)"));
     out.push(li("cross", VICTIM_MISSED, "victim missed (at the end)"));
@@ -420,6 +421,7 @@ async function thingInfo(key, fresh) {
   const pics = th.kind === "picture" ? [th.id] : (Array.isArray(th.info.evidence) ? th.info.evidence : []);
   const box = $("info-pictures");
   box.innerHTML = "";
+  if (th.kind === "video") await showVideo(box, th.id);
   for (const pid of pics.slice(0, 4)) {
     try {
       const p = await ask("picture", { id: pid });
@@ -429,6 +431,19 @@ async function thingInfo(key, fresh) {
       const d = document.createElement("p"); d.className = "error"; d.textContent = `picture ${pid}: ${e.message}`;
       box.appendChild(d);
     }
+  }
+}
+// A video's film in the info box (the core decides who may see it: the team that filmed it, the referee).
+async function showVideo(box, vid) {
+  try {
+    const v = await ask("video", { id: vid });
+    const el = document.createElement("video");
+    el.src = v.webm; el.controls = true; el.autoplay = true; el.loop = true; el.muted = true;
+    el.setAttribute("aria-label", `video ${vid}`); el.dataset.vid = vid;
+    box.appendChild(el);
+  } catch (e) {
+    const d = document.createElement("p"); d.className = "error"; d.textContent = `video ${vid}: ${e.message}`;
+    box.appendChild(d);
   }
 }
 $("info-close").onclick = () => showInfo(null);

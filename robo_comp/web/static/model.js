@@ -220,6 +220,8 @@ const HANDLERS = {
     y: +d.y || 0, team: d.team ?? null, state: d.state || "discovered", info: { ...d } }),
   "picture": (m, d) => m.things.set(`picture:${d.id}`, { kind: "picture", id: d.id, x: +d.x || 0, y: +d.y || 0,
     team: d.team ?? null, state: "", info: { ...d } }),
+  "video": (m, d) => m.things.set(`video:${d.id}`, { kind: "video", id: d.id, x: +d.x || 0, y: +d.y || 0,
+    team: d.team ?? null, state: "", info: { ...d } }),
   "broadcast": (m, d, t) => m.note(String(d.message ?? ""), "broadcast", t),
   "penalty": (m, d, t) => m.note(`penalty ${d.team}: ${d.points} (${d.reason || ""})`, "error", t),
   "task.started": (m, d) => { if (d.tag != null) m.robot(d.tag, d.team).task = d.name || null; },

@@ -207,6 +207,8 @@ export class Renderer {
         const q = r * 0.6;
         ctx.rect(cx - q, cy - q * 0.75, 2 * q, 1.5 * q);
         ctx.fillStyle = "#7ab8ff";
+      } else if (th.kind === "video") {
+        videoMark(ctx, cx, cy, r);
       } else {
         ctx.arc(cx, cy, r * 0.7, 0, Math.PI * 2);
         ctx.fillStyle = "#ff8c00";
@@ -331,10 +333,17 @@ export class Renderer {
       if (d < bd) { bd = d; best = { robot: r.tag }; }
     }
     if (best) return best;
-    for (const [key, th] of this.model.things) {
+    for (const [key, th] of [...this.model.things].reverse()) {  // the newest first: it is drawn on top
       const dx = cam.ox + (th.x + 0.5) * s - sx, dy = cam.oy + (th.y + 0.5) * s - sy, d = dx * dx + dy * dy;
       if (d < bd) { bd = d; best = { thing: key }; }
     }
     return best;
   }
+}
+
+// A video filmed (examineArea): a play triangle, in the colour of the page's legend.
+function videoMark(ctx, cx, cy, r) {
+  const q = r * 0.75;
+  ctx.moveTo(cx - q * 0.6, cy - q); ctx.lineTo(cx + q, cy); ctx.lineTo(cx - q * 0.6, cy + q); ctx.closePath();
+  ctx.fillStyle = "#c77dff";
 }

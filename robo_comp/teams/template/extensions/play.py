@@ -7,9 +7,10 @@ so ``play`` decides everything: where to go, when to look, what to report.
 
 This one is a start: the robots share out a grid of waypoints, drive to each with ``go_to``,
 look around with ``robot.look()`` (a picture, and the victims it shows) and report each victim
-once. It drives straight into other robots now and then (a bump ends ``play``; the league
-starts it again, and it goes on where it stopped). The league's ``frontier`` reference team
-(robo_comp/league/reference/frontier.py) shows how to avoid that.
+once. The robot host keeps teammates out of each other's way (``go_to`` waits for a teammate,
+plans around it or makes way), but a robot of the other team can still be run into (a bump ends
+``play``; the league starts it again, and it goes on where it stopped). The league's ``frontier``
+reference team (robo_comp/league/reference/frontier.py) shows how to sense robots ahead.
 
 Submit the team with ``robo-comp league submit LEAGUE OUR_TEAM .`` from this folder.
 """
