@@ -25,7 +25,7 @@ from robo_comp.view.colours import (
 )
 from robo_comp.view.legend import LegendEntry, legend
 from robo_comp.view.model import Message, Robot, Thing, MatchView
-from robo_comp.view.story import Story, StoryItem, banner, clock_line, clock_text, number_text
+from robo_comp.view.story import Banner, Story, StoryItem, banner, clock_line, clock_text, number_text
 from robo_comp.wall.view import Layout, MapGeometry, Rect, TileSpec, ViewState, rnd
 from robo_comp.world.video import FPS as VIDEO_FPS
 
@@ -191,7 +191,11 @@ class Renderer:
         self._bar: tuple[Any, pygame.Surface] | None = None
         self._legend: tuple[Any, pygame.Surface] | None = None
         self._banner: tuple[Any, pygame.Surface] | None = None
-        self._ticker: list[StoryItem] = []  # the ticker's lines in the panel drawn now
+        #: What the last frame showed (for tests): the ticker's lines, the banner (None before the
+        #: finish) and the canvas rects of what is drawn over the map (``legend``, ``banner``).
+        self.ticker: list[StoryItem] = []
+        self.banner: Banner | None = None
+        self.over: dict[str, Rect] = {}
         self._generation = model.generation
         self._trail_px: dict[int, tuple[int, deque[tuple[int, int]], tuple[int, int, int, int]]] = {}
         self._trail_geom: Any = None
@@ -274,6 +278,7 @@ class Renderer:
                 blit(static, (x, y), (x, y, w, h))
             surf.set_clip(None)
         self._dirty = []
+        self.over = {}
         if clip.width > 0 and clip.height > 0:
             surf.set_clip(clip)
             self._draw_things(surf, geom)
@@ -521,8 +526,9 @@ class Renderer:
             draw_lines(surf, c, [(cx - k, cy), (cx + k, cy)], w)
             draw_lines(surf, c, [(cx, cy - k), (cx, cy + k)], w)
 
-    def _over_map(self, surf: pygame.Surface, src: pygame.Surface, pos: tuple[int, int]) -> None:
+    def _over_map(self, surf: pygame.Surface, name: str, src: pygame.Surface, pos: tuple[int, int]) -> None:
         """Blit ``src`` at canvas position ``pos`` over the map (restored from the static map next frame)."""
+        self.over[name] = (pos[0], pos[1], src.get_width(), src.get_height())
         ox, oy = self.tile.origin
         x, y = pos[0] - ox, pos[1] - oy
         surf.blit(src, (x, y))
@@ -539,7 +545,7 @@ class Renderer:
         img = self._legend[1]
         mx, my, mw, mh = self.layout.map
         pad = self.layout.px(8)
-        self._over_map(surf, img, (mx + pad, my + mh - img.get_height() - pad))
+        self._over_map(surf, "legend", img, (mx + pad, my + mh - img.get_height() - pad))
 
     def _render_legend(self, entries: list[LegendEntry]) -> pygame.Surface:
         L = self.layout
@@ -598,7 +604,7 @@ class Renderer:
     def _draw_banner(self, surf: pygame.Surface, overlay: Overlay) -> None:
         """The winner banner at the top of the map once the match is finished."""
         story = overlay.story
-        b = banner(self.model.match.phase, self.model.score, story.victims if story is not None else [])
+        b = self.banner = banner(self.model.match.phase, self.model.score, story.victims if story is not None else [])
         if b is None:
             return
         colour = self._colours(b.winner)[0] if b.winner else TEXT
@@ -615,7 +621,7 @@ class Renderer:
             self._banner = (key, img)
         img = self._banner[1]
         mx, my, mw, _ = self.layout.map
-        self._over_map(surf, img, (mx + (mw - img.get_width()) // 2, my + self.layout.px(12)))
+        self._over_map(surf, "banner", img, (mx + (mw - img.get_width()) // 2, my + self.layout.px(12)))
 
     def _draw_overlay(self, surf: pygame.Surface, geom: MapGeometry, overlay: Overlay) -> None:
         if overlay.selected is None:
@@ -645,10 +651,10 @@ class Renderer:
         elapsed, remaining = m.match.now(now)
         clock = clock_line(m.match.phase, elapsed, remaining, replay=m.replay, recording_t=m.clock() if m.replay else None)
         if "ticker" in boxes and overlay.story is not None:
-            self._ticker = overlay.story.upto(overlay.story_now, max(1, boxes["ticker"][3] // L.px(18)))
+            self.ticker = overlay.story.upto(overlay.story_now, max(1, boxes["ticker"][3] // L.px(18)))
         else:
-            self._ticker = []
-        shown = (overlay.story.version if overlay.story else -1, tuple((it.id, it.count, it.points) for it in self._ticker))
+            self.ticker = []
+        shown = (overlay.story.version if overlay.story else -1, tuple((it.id, it.count, it.points) for it in self.ticker))
         key = (m.panel_version, str(clock), shown, tuple(boxes.items()),
                repr(overlay.monitor_data), overlay.info_thing.key if overlay.info_thing else None,
                tuple((k, len(v)) for k, v in overlay.info_pictures.items()),
@@ -737,13 +743,13 @@ class Renderer:
         pad, size = L.px(8), L.px(18)
         put("what happened", r.x + pad, r.y + L.px(5), DIM, L.px(20))
         y = r.y + L.px(28)
-        if not self._ticker:
+        if not self.ticker:
             put("nothing yet", r.x + pad, y, DIM, size)
             return
         font = self.font(size)
         x_sw = r.x + pad + font.size("00:00 ")[0]
         x_tx = x_sw + L.px(14)
-        for it in self._ticker:
+        for it in self.ticker:
             if y + size > r.bottom - L.px(4):
                 break
             pts = ""
