@@ -42,8 +42,8 @@ DIM: RGB = (160, 162, 176)
 ERROR: RGB = (255, 86, 70)
 BROADCAST: RGB = (255, 220, 90)
 WHITE: RGB = (255, 255, 255)
-#: The legend's and the banner's backing over the map (a little of the map shows through).
-OVER_MAP = (12, 12, 16, 215)
+#: The legend's and the banner's backing over the map (opaque: a plain copy each frame).
+OVER_MAP: RGB = (24, 25, 32)
 TEXT_CACHE_MAX = 8192
 
 #: Position uncertainty (σ, cells) above which the wall rings a robot with where it may be.
@@ -557,7 +557,7 @@ class Renderer:
         head = self.text("legend (l hides it)", size, DIM)
         w = max(sum(widths) + pad, head.get_width() + 2 * pad)
         h = line * (1 + max(len(c) for c in cols)) + 2 * pad
-        img = pygame.Surface((w, h), pygame.SRCALPHA, 32)
+        img = pygame.Surface((w, h), 0, 32)
         img.fill(OVER_MAP)
         img.blit(head, (pad, pad))
         x = pad
@@ -614,7 +614,7 @@ class Renderer:
             pad = L.px(12)
             title, detail = self.text(b.title, L.px(44), colour), self.text(b.detail, L.px(20), TEXT)
             w = max(title.get_width(), detail.get_width()) + 2 * pad
-            img = pygame.Surface((w, title.get_height() + detail.get_height() + 2 * pad), pygame.SRCALPHA, 32)
+            img = pygame.Surface((w, title.get_height() + detail.get_height() + 2 * pad), 0, 32)
             img.fill(OVER_MAP)
             img.blit(title, ((w - title.get_width()) // 2, pad))
             img.blit(detail, ((w - detail.get_width()) // 2, pad + title.get_height()))
@@ -649,6 +649,9 @@ class Renderer:
         self.boxes = boxes
         m = self.model
         elapsed, remaining = m.match.now(now)
+        self._layout_score(boxes["score"])
+        if not self._intersects(L.panel):
+            return
         clock = clock_line(m.match.phase, elapsed, remaining, replay=m.replay, recording_t=m.clock() if m.replay else None)
         if "ticker" in boxes and overlay.story is not None:
             self.ticker = overlay.story.upto(overlay.story_now, max(1, boxes["ticker"][3] // L.px(18)))
@@ -659,9 +662,6 @@ class Renderer:
                repr(overlay.monitor_data), overlay.info_thing.key if overlay.info_thing else None,
                tuple((k, len(v)) for k, v in overlay.info_pictures.items()),
                repr(overlay.info_thing.info) if overlay.info_thing else None, self._video_tick(overlay, now))
-        self._layout_score(boxes["score"])
-        if not self._intersects(L.panel):
-            return
         if self._panel is None or self._panel[0] != key:
             self._panel = (key, self._render_panel(boxes, str(replace(clock, phase=clock.phase.upper())), overlay))
         self._show(surf, "panel", self._panel[1], self._panel[1], L.panel[:2])
