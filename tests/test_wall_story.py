@@ -156,3 +156,18 @@ def test_the_banners_rule_and_the_match_clock_are_the_pages() -> None:
     assert str(clock_line("running", 24.4, 275.2, replay=False)) == "running   0:24   (4:35 left)"
     assert str(clock_line(None, 0.0, None, replay=True, recording_t=3725.0)) == "replay   1:02:05"
     assert str(clock_line(None, 0.0, None, replay=False)) == "live   0:00"
+
+
+def test_the_score_fold_reads_the_victims_a_finish_reveals() -> None:
+    """A log without score tables whose finish carries the revealed victims (a list, as the match
+    emits it; the fold read only a team → ids table and stopped on the list)."""
+    from robo_comp.view.score import ScoreFold
+
+    fold = ScoreFold()
+    fold.feed("core.started", {"teams": ["red", "blue"]})
+    fold.feed("score.change", {"team": "red", "points": 10.0, "kind": "victim", "reason": "v1", "victim": "v1"})
+    table = fold.feed("match.phase", {"phase": "finished", "scores": {"red": 10.0, "blue": 0.0},
+                                      "victims": [{"id": "v1", "x": 1, "y": 1, "found_by": ["red"]},
+                                                  {"id": "v2", "x": 2, "y": 2, "found_by": []}]})
+    assert table is not None
+    assert {r["team"]: (r["score"], r["victims"]) for r in table["teams"]} == {"red": (10.0, 1), "blue": (0.0, 0)}
