@@ -73,11 +73,13 @@ def tell(st: Any, i: int, robots: int) -> None:
     team, tag = TEAMS[i % 4][0], 101 + (i * 7) % robots
     if i % 3:
         st.apply("robot.bump", {"team": team, "tag": tag, "x": 5.0, "y": 5.0}, float(i), float(i))
-        st.apply("score.change", {"team": team, "points": -1, "kind": "collision", "reason": "bump"}, float(i), float(i))
+        st.apply("score.change", {"team": team, "points": -1, "kind": "collision", "reason": "bump"},
+                 float(i), float(i))
     else:
         st.apply("find.reported", {"team": team, "tag": tag, "x": 9.0, "y": 5.0, "kind": "adult", "state": "confirmed"},
                  float(i), float(i))
-        st.apply("score.change", {"team": team, "points": 10, "kind": "victim", "reason": "victim found"}, float(i), float(i))
+        st.apply("score.change", {"team": team, "points": 10, "kind": "victim", "reason": "victim found"},
+                 float(i), float(i))
 
 
 def run(tile: TileSpec, robots: int, frames: int, trails: bool, incremental: bool = True,

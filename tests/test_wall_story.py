@@ -113,7 +113,8 @@ def test_the_ticker_after_a_seek_back_shows_only_the_lines_up_to_then(played) ->
     assert app.model.match.phase == "running"
     lines = app.renderer.ticker
     told = [it for it in src.story.items if it.t <= back]
-    assert max(it.t for it in src.story.items) > back and lines and [it.id for it in lines] == [it.id for it in reversed(told)]
+    assert max(it.t for it in src.story.items) > back
+    assert lines and [it.id for it in lines] == [it.id for it in reversed(told)]
     assert any(it.kind == "find" for it in lines) and app.renderer.banner is None
 
 
@@ -145,7 +146,8 @@ def test_the_legend_is_drawn_and_the_key_l_toggles_it(played) -> None:
 def test_the_banners_rule_and_the_match_clock_are_the_pages() -> None:
     from robo_comp.view.story import banner, clock_line
 
-    rows = [{"team": "red", "score": 20, "victims": 2, "rank": 1}, {"team": "blue", "score": 20, "victims": 2, "rank": 2}]
+    rows = [{"team": "red", "score": 20, "victims": 2, "rank": 1},
+            {"team": "blue", "score": 20, "victims": 2, "rank": 2}]
     assert banner("running", rows, []) is None
     assert banner("finished", rows, []).title == "A draw"
     rows[1]["victims"] = 1

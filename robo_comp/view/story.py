@@ -152,8 +152,8 @@ class Story:
                 it.points += points
                 return [it]
         sign = "+" if points >= 0 else "−"
-        return [self._add("score", t, c, f"{team} {sign}{number_text(abs(points))}: {d.get('reason', '')}", team, None, d,
-                          points=points)]
+        text = f"{team} {sign}{number_text(abs(points))}: {d.get('reason', '')}"
+        return [self._add("score", t, c, text, team, None, d, points=points)]
 
     def _add(self, kind: str, t: float, c: float | None, text: str, team: str | None, tag: int | None,
              d: dict[str, Any], *, state: str = "", points: float = 0.0) -> StoryItem:
@@ -236,8 +236,11 @@ def banner(phase: str | None, score: list[dict[str, Any]], victims: list[dict[st
     not disqualified, unless the next one has the same score and victims (a draw)."""
     if phase != "finished":
         return None
-    rows = sorted((r for r in score if not r.get("disqualified")),
-                  key=lambda r: r.get("rank") if isinstance(r.get("rank"), (int, float)) else 99)
+    def rank(r: dict[str, Any]) -> float:
+        v = r.get("rank")
+        return float(v) if isinstance(v, (int, float)) else 99.0
+
+    rows = sorted((r for r in score if not r.get("disqualified")), key=rank)
     title, winner = "Match over", None
     if rows and (len(rows) < 2 or rows[0].get("score") != rows[1].get("score")
                  or rows[0].get("victims") != rows[1].get("victims")):

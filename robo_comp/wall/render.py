@@ -652,12 +652,14 @@ class Renderer:
         self._layout_score(boxes["score"])
         if not self._intersects(L.panel):
             return
-        clock = clock_line(m.match.phase, elapsed, remaining, replay=m.replay, recording_t=m.clock() if m.replay else None)
+        clock = clock_line(m.match.phase, elapsed, remaining, replay=m.replay,
+                           recording_t=m.clock() if m.replay else None)
         if "ticker" in boxes and overlay.story is not None:
             self.ticker = overlay.story.upto(overlay.story_now, max(1, boxes["ticker"][3] // L.px(18)))
         else:
             self.ticker = []
-        shown = (overlay.story.version if overlay.story else -1, tuple((it.id, it.count, it.points) for it in self.ticker))
+        shown = (overlay.story.version if overlay.story else -1,
+                 tuple((it.id, it.count, it.points) for it in self.ticker))
         key = (m.panel_version, str(clock), shown, tuple(boxes.items()),
                repr(overlay.monitor_data), overlay.info_thing.key if overlay.info_thing else None,
                tuple((k, len(v)) for k, v in overlay.info_pictures.items()),
