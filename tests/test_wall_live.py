@@ -149,6 +149,9 @@ def test_clicks_give_goto_and_followpath_and_double_click_opens_the_monitor(core
     spot = free_cells_near(app, r.x, r.y, 1)[0]
     red.request("find", tag=tag, x=spot[0], y=spot[1], kind="victim", evidence=[pics[0].id])
     wait_for(lambda: (app.step(wait=False), "find:1" in app.model.things)[1], 5, "the find on the wall")
+    # the ticker follows the live feed: the find is its newest line (issue 29)
+    app.step(wait=False)
+    assert app.renderer.ticker and app.renderer.ticker[0].kind == "find" and app.renderer.ticker[0].tag == tag
     clock.t += 5
     post_click(app, app.renderer.geometry().cell_centre(*spot))
     assert app.view.info == "find:1"

@@ -218,7 +218,7 @@ def test_replay_opens_on_the_match_and_tells_it(browser, played, tmp_path: Path)
 
 
 def test_a_score_line_joins_the_latest_item_it_explains_within_the_fold_window() -> None:
-    from robo_comp.web.story import FOLD_WITHIN, Story
+    from robo_comp.view.story import FOLD_WITHIN, Story
 
     s = Story(limit=None)
     s.apply("penalty", {"team": "blue", "reason": "first"}, 0.0, None)

@@ -82,8 +82,9 @@ class MatchClock:
         return max(0.0, self.duration - self.elapsed(now))
 
     def expired(self, now: float) -> bool:
-        """True when a running match has used up its time."""
-        return self.phase is Phase.RUNNING and self.remaining(now) <= 0.0
+        """True when a running match has used up its time (to a nanosecond: a simulated clock
+        that adds up its steps ends a few ulps short of the match's length)."""
+        return self.phase is Phase.RUNNING and self.remaining(now) <= 1e-9
 
     def apply(self, action: str, now: float, seconds: float | None = None) -> Phase:
         """Carry out a referee action; return the new phase or raise :class:`PhaseError`."""

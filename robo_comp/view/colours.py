@@ -18,6 +18,17 @@ LOST_MARK: RGB = (255, 210, 0)
 FIND_COLOURS: dict[str, RGB] = {"reported": (250, 200, 40), "confirmed": (40, 190, 70),
                                 "rejected": (220, 40, 40), "duplicate": (150, 150, 150)}
 DISCOVERY: RGB = (255, 140, 0)
+DQ_MARK: RGB = (20, 20, 20)  # the cross on a disqualified robot (the wall)
+LEFT: RGB = (90, 90, 100)  # a robot that left (the page greys it; the wall no longer draws it)
+PICTURE: RGB = (122, 184, 255)  # the mark where a robot took a picture
+VIDEO: RGB = (199, 125, 255)  # the mark where a robot filmed a video
+#: The hidden victims revealed at the finish: found by a team, or missed by all.
+VICTIM_FOUND: RGB = (40, 190, 70)
+VICTIM_MISSED: RGB = (255, 59, 48)
+#: A ticker line's swatch by the story item's kind, where no team or find state colours it.
+KIND_COLOURS: dict[str, RGB] = {"find": (40, 190, 70), "penalty": (255, 86, 70), "bump": (255, 159, 26),
+                                "lost": (255, 210, 0), "phase": (255, 176, 32), "broadcast": (122, 184, 255),
+                                "disqualified": (255, 45, 85), "score": (192, 192, 208)}
 
 
 def hex_rgb(colour: str) -> RGB:
@@ -66,5 +77,6 @@ def cell_colours(arena: Arena) -> np.ndarray:
     return np.floor(img + 0.5).astype(np.uint8)
 
 
-__all__ = ["DISCOVERY", "FIND_COLOURS", "FLOOR", "LOST_MARK", "NEAR_WALL", "RGB", "WALL", "ZONE_COLOURS",
-           "ZONE_DEFAULT", "cell_colours", "hex_rgb"]
+__all__ = ["DISCOVERY", "DQ_MARK", "FIND_COLOURS", "FLOOR", "KIND_COLOURS", "LEFT", "LOST_MARK", "NEAR_WALL",
+           "PICTURE", "RGB", "VICTIM_FOUND", "VICTIM_MISSED", "VIDEO", "WALL", "ZONE_COLOURS", "ZONE_DEFAULT",
+           "cell_colours", "hex_rgb"]

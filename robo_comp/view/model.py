@@ -132,24 +132,38 @@ class MatchView:
 
     def __init__(self, clock: Any = time.monotonic) -> None:
         self.clock = clock
-        self.arena: Arena | None = None
         self.arena_version = 0
+        self.version = 0
+        self.panel_version = 0  # changes with everything but positions (the panel redraws on it)
+        #: Changes when :meth:`reset` forgets the match (a viewer drops what it kept of it).
+        self.generation = 0
+        self.replay = False  # set by a replay source: the clock line then shows the recording's time
+        self._forget()
+
+    def _forget(self) -> None:
+        self.arena: Arena | None = None
         self.robots: dict[int, Robot] = {}
         self.things: dict[str, Thing] = {}
         self.match = HeardClock()
         self.score: list[dict[str, Any]] = []
         self.messages: deque[Message] = deque(maxlen=MESSAGES_KEPT)
-        self.version = 0
-        self.panel_version = 0  # changes with everything but positions (the panel redraws on it)
         self.events = 0
         #: Events not folded: they lacked what the topic table says they carry.
         self.skipped = 0
-        self.replay = False  # set by a replay source: the clock line then shows the recording's time
         #: The core's storage fault while it lasts (its event log cannot be written), else None.
         self.storage: str | None = None
         #: Team code's debug drawing: each robot's newest frame (robo_comp/protocol/drawing.py),
         #: only in views that may see it (the team's own; a replay as the match chose).
         self.debug: dict[int, list[list[Any]]] = {}
+
+    def reset(self) -> None:
+        """Forget the match (a replay seeking back plays its log again from the start); the
+        clock, the replay flag and the version counters go on (every one changes)."""
+        self._forget()
+        self.arena_version += 1
+        self.version += 1
+        self.panel_version += 1
+        self.generation += 1
 
     # ------------------------------------------------------------------ feeding
     def set_arena(self, payload: dict[str, Any]) -> None:

@@ -52,7 +52,14 @@ class ScoreFold:
                 if abs(float(score) - board.score_of(str(team))) > 1e-9:  # lines missing from the log
                     board.restore_line(ScoreLine(str(team), float(score) - board.score_of(str(team)),
                                                  "final", "the match's final score", 0.0))
-            for team, found in (data.get("victims") or {}).items():
+            victims = data.get("victims")
+            if isinstance(victims, list):  # a match's finish: the revealed victims, with who found each
+                found_by: dict[str, set[Any]] = {}
+                for v in victims:
+                    for team in (v.get("found_by") or []) if isinstance(v, dict) else []:
+                        found_by.setdefault(str(team), set()).add(v.get("id"))
+                victims = found_by
+            for team, found in (victims if isinstance(victims, dict) else {}).items():
                 board.add_team(str(team))
                 board.found[str(team)] = set(found)
         else:

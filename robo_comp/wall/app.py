@@ -23,6 +23,7 @@ from robo_comp import protocol as P
 from robo_comp.errors import AuthError, FieldError, RoboCompError
 from robo_comp.wall.interact import Command, Interaction
 from robo_comp.view.model import MatchView, Thing
+from robo_comp.view.story import Story
 from robo_comp.wall.render import Overlay, Renderer
 from robo_comp.wall.replay import ReplaySource
 from robo_comp.wall.view import TileSpec, ViewState
@@ -36,6 +37,8 @@ _KEYS = {pygame.K_RETURN: "enter", pygame.K_KP_ENTER: "enter", pygame.K_ESCAPE: 
          pygame.K_PLUS: "+", pygame.K_EQUALS: "+", pygame.K_KP_PLUS: "+", pygame.K_MINUS: "-",
          pygame.K_KP_MINUS: "-", pygame.K_0: "0", pygame.K_LEFT: "left", pygame.K_RIGHT: "right",
          pygame.K_UP: "up", pygame.K_DOWN: "down"}
+#: Seconds a replay seeks back or on with [ and ].
+SEEK_STEP = 10.0
 
 
 class LiveSource:
@@ -46,6 +49,10 @@ class LiveSource:
         # both sockets (the session and the event feed) use the client's CurveZMQ keys, if any
         self.client = Client(core, token, client="wall", timeout=timeout, curve_cert=curve_cert, core_key=core_key)
         self.sub = self.client.subscribe()
+        #: The ticker's lines and the victims revealed at the finish, told from the events this
+        #: wall received (on its own timeline: seconds since it started, as the web gateway's).
+        self.story = Story()
+        self.t0 = time.monotonic()
 
     def start(self, model: MatchView) -> None:
         """Subscribe first, then take the snapshot, so no event after it is missed."""
@@ -74,6 +81,7 @@ class LiveSource:
             except zmq.Again:
                 break
             model.apply(topic, payload)
+            self.story.follow(model, topic, payload, time.monotonic() - self.t0)
             n += 1
         return n
 
@@ -171,9 +179,12 @@ class WallApp:
     def overlay(self) -> Overlay:
         """The user's state for the renderer."""
         info = self.model.things.get(self.view.info) if self.view.info else None
+        src = self.source
         return Overlay(self.interaction.selected, list(self.interaction.points),
                        {t: self.monitor_data[t] for t in self.view.monitors if t in self.monitor_data},
-                       info, self.pictures, self.interaction.hint(), self.videos)
+                       info, self.pictures, self.interaction.hint(), self.videos,
+                       story=src.story if src is not None else None,
+                       story_now=src.replay_time() if isinstance(src, ReplaySource) else None)
 
     def render(self, surf: pygame.Surface, now: float | None = None) -> None:
         """Draw the current state onto ``surf``."""
@@ -241,12 +252,30 @@ class WallApp:
         elif ev.type == pygame.KEYDOWN:
             if ev.key == pygame.K_q:
                 self.running = False
+            elif isinstance(self.source, ReplaySource) and self.replay_key(ev):
+                pass
             elif ev.key in _KEYS:
                 cmds = self.interaction.key(_KEYS[ev.key], now)
-            elif getattr(ev, "unicode", "") in ("+", "-", "d", "D"):
+            elif getattr(ev, "unicode", "") in ("+", "-", "d", "D", "l"):
                 cmds = self.interaction.key(ev.unicode, now)
         for cmd in cmds:
             self.execute(cmd)
+
+    def replay_key(self, ev: pygame.event.Event) -> bool:
+        """A replay's keys: ``[`` / ``]`` seek 10 s back / on, Home / End to the start / the
+        end, space pauses and plays; True when ``ev`` was one of them."""
+        src = self.source
+        assert isinstance(src, ReplaySource)
+        char = getattr(ev, "unicode", "")
+        if char in ("[", "]"):
+            src.jump(self.model, src.replay_time() + (SEEK_STEP if char == "]" else -SEEK_STEP))
+        elif ev.key in (pygame.K_HOME, pygame.K_END):
+            src.jump(self.model, 0.0 if ev.key == pygame.K_HOME else src.duration)
+        elif ev.key == pygame.K_SPACE:
+            src.toggle_pause()
+        else:
+            return False
+        return True
 
     # ------------------------------------------------------------------ commands
     def execute(self, cmd: Command) -> None:

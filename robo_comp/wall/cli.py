@@ -50,11 +50,20 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--frames", type=int, default=0, help="exit after N frames (0 = run until closed)")
 
 
+#: The wall's keys, for ``--help`` (docs/wall.md has the whole table).
+KEYS = """keys: l legend on/off; d / D debug drawing (all, or the selected robot's / its team's);
++ - 0 and arrows zoom and pan; Esc drops the selection; q quits.
+In a replay: [ and ] seek 10 s back and on, Home and End go to the start and the end, space
+pauses and plays."""
+
+
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     """Add the ``wall`` subcommand."""
     p = subparsers.add_parser("wall", help="show the arena live or a replay, on a screen or a tiled display wall",
-                              description="The display wall: map, robots, finds, scoreboard; click to inspect "
-                                          "and command. See docs/wall.md.")
+                              description="The display wall: map, robots, finds, scoreboard, what happened (the "
+                                          "ticker), the legend and the winner banner at the finish; click to "
+                                          "inspect and command. See docs/wall.md.",
+                              epilog=KEYS, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_arguments(p)
     p.set_defaults(func=run)
 
@@ -126,7 +135,8 @@ def run(args: argparse.Namespace) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """``python -m robo_comp.wall.cli``: the wall without the ``robo-comp`` front command."""
-    p = argparse.ArgumentParser(prog="robo-comp wall", description="The robo_comp display wall.")
+    p = argparse.ArgumentParser(prog="robo-comp wall", description="The robo_comp display wall.", epilog=KEYS,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
     add_arguments(p)
     args = p.parse_args(argv)
     try:

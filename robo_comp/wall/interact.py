@@ -77,7 +77,7 @@ class Interaction:
     def hit(self, px: float, py: float) -> Hit:
         """The robot, thing, panel box or cell under canvas pixel ``(px, py)``."""
         for key, rect in self.boxes().items():
-            if key != "score" and _inside(rect, px, py):
+            if key not in ("score", "ticker") and _inside(rect, px, py):
                 header = py < rect[1] + self.layout.px(24)
                 return Hit("box", key=key if header else None)
         geom = self.geometry()
@@ -139,11 +139,14 @@ class Interaction:
     def key(self, name: str, now: float) -> list[Command]:
         """A key by name: ``enter``, ``escape``, ``+``, ``-``, ``0``, ``left``/``right``/``up``/``down``,
         ``d`` (debug drawing: the selected robot's on/off, or all of it with no robot selected) and
-        ``D`` (the selected robot's team's debug drawing on/off)."""
+        ``D`` (the selected robot's team's debug drawing on/off) and ``l`` (the legend on/off)."""
         if name == "enter":
             return self.finish()
         if name in ("d", "D"):
             self.toggle_debug(name == "D")
+            return []
+        if name == "l":
+            self.view.legend = not self.view.legend
             return []
         if name == "escape":
             self.cancel()

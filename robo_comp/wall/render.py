@@ -13,22 +13,24 @@ import io
 import math
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 import pygame
 
 from robo_comp.view.colours import (
-    DISCOVERY, FIND_COLOURS, FLOOR, LOST_MARK, RGB, cell_colours, hex_rgb,
+    DISCOVERY, DQ_MARK, FIND_COLOURS, FLOOR, KIND_COLOURS, LOST_MARK, PICTURE, RGB, VICTIM_FOUND, VICTIM_MISSED,
+    VIDEO, cell_colours, hex_rgb,
 )
+from robo_comp.view.legend import LegendEntry, legend
 from robo_comp.view.model import Message, Robot, Thing, MatchView
+from robo_comp.view.story import Banner, Story, StoryItem, banner, clock_line, clock_text, number_text
 from robo_comp.wall.view import Layout, MapGeometry, Rect, TileSpec, ViewState, rnd
 from robo_comp.world.video import FPS as VIDEO_FPS
 
 BACKGROUND: RGB = (12, 12, 16)
 GRID_SHADE = 0.92
-DQ_MARK: RGB = (20, 20, 20)
 OUTLINE: RGB = (20, 20, 24)
 SELECT: RGB = (255, 255, 255)
 PATH: RGB = (255, 120, 0)
@@ -39,6 +41,9 @@ TEXT: RGB = (236, 236, 240)
 DIM: RGB = (160, 162, 176)
 ERROR: RGB = (255, 86, 70)
 BROADCAST: RGB = (255, 220, 90)
+WHITE: RGB = (255, 255, 255)
+#: The legend's and the banner's backing over the map (opaque: a plain copy each frame).
+OVER_MAP: RGB = (24, 25, 32)
 TEXT_CACHE_MAX = 8192
 
 #: Position uncertainty (σ, cells) above which the wall rings a robot with where it may be.
@@ -50,12 +55,24 @@ def mix(a: RGB, b: RGB, t: float) -> RGB:
     return (rnd(a[0] + (b[0] - a[0]) * t), rnd(a[1] + (b[1] - a[1]) * t), rnd(a[2] + (b[2] - a[2]) * t))
 
 
-def mmss(seconds: float | None) -> str:
-    """``m:ss`` (``--`` for none)."""
-    if seconds is None:
-        return "--"
-    s = max(0, int(seconds))
-    return f"{s // 60}:{s % 60:02d}"
+def wrap(font: pygame.font.Font, text: str, width: int) -> list[str]:
+    """``text`` cut into lines of at most ``width`` pixels at spaces (a word too long is cut)."""
+    out: list[str] = []
+    line = ""
+    for word in text.split():
+        cand = f"{line} {word}" if line else word
+        if font.size(cand)[0] <= width or not line:
+            line = cand
+        else:
+            out.append(line)
+            line = word
+        while font.size(line)[0] > width and len(line) > 1:  # one word wider than the line
+            cut = max(1, len(line) * width // max(1, font.size(line)[0]))
+            out.append(line[:cut])
+            line = line[cut:]
+    if line:
+        out.append(line)
+    return out
 
 
 def draw_unclipped(surf: pygame.Surface, bbox: tuple[int, int, int, int],
@@ -110,6 +127,10 @@ class Overlay:
     hint: str = ""
     #: Video id -> its frames (RGB arrays), or why they cannot be shown.
     info_videos: dict[int, list[Any] | str] = field(default_factory=dict)
+    #: The match's story (ticker lines, victims revealed at the finish) and the timeline's now
+    #: (a replay's position; None live: every line told so far).
+    story: Story | None = None
+    story_now: float | None = None
 
 
 def map_pixels(cells: np.ndarray, geom: MapGeometry, origin: tuple[int, int], size: tuple[int, int],
@@ -168,6 +189,14 @@ class Renderer:
         self._static: tuple[Any, pygame.Surface] | None = None
         self._panel: tuple[Any, pygame.Surface] | None = None
         self._bar: tuple[Any, pygame.Surface] | None = None
+        self._legend: tuple[Any, pygame.Surface] | None = None
+        self._banner: tuple[Any, pygame.Surface] | None = None
+        #: What the last frame showed (for tests): the ticker's lines, the banner (None before the
+        #: finish) and the canvas rects of what is drawn over the map (``legend``, ``banner``).
+        self.ticker: list[StoryItem] = []
+        self.banner: Banner | None = None
+        self.over: dict[str, Rect] = {}
+        self._generation = model.generation
         self._trail_px: dict[int, tuple[int, deque[tuple[int, int]], tuple[int, int, int, int]]] = {}
         self._trail_geom: Any = None
         self._pictures: dict[int, pygame.Surface | None] = {}
@@ -249,6 +278,7 @@ class Renderer:
                 blit(static, (x, y), (x, y, w, h))
             surf.set_clip(None)
         self._dirty = []
+        self.over = {}
         if clip.width > 0 and clip.height > 0:
             surf.set_clip(clip)
             self._draw_things(surf, geom)
@@ -258,6 +288,11 @@ class Renderer:
             if self.view.debug and self.model.debug:
                 self._draw_debug(surf, geom)
             self._draw_overlay(surf, geom, overlay)
+            if self.model.match.phase == "finished" and overlay.story is not None and overlay.story.victims:
+                self._draw_victims(surf, geom, overlay.story.victims)
+            if self.view.legend:
+                self._draw_legend(surf)
+            self._draw_banner(surf, overlay)
             surf.set_clip(None)
         self._draw_panel(surf, now, overlay)
         self._draw_bar(surf, now, overlay)
@@ -301,7 +336,8 @@ class Renderer:
         return c
 
     def _draw_trails(self, surf: pygame.Surface, geom: MapGeometry) -> None:
-        if self._trail_geom != geom:
+        if self._trail_geom != geom or self._generation != self.model.generation:  # (a replay seeking back)
+            self._generation = self.model.generation
             self._trail_px.clear()
             self._trail_geom = geom
         ox, oy = self.tile.origin
@@ -455,10 +491,137 @@ class Renderer:
             elif t.kind == "picture":
                 q = max(2, k // 2)
                 rect = pygame.Rect(cx - q, cy - q, 2 * q + 1, 2 * q + 1)
-                pygame.draw.rect(surf, self._colours(t.team)[2], rect)
+                pygame.draw.rect(surf, PICTURE, rect)
                 pygame.draw.rect(surf, OUTLINE, rect, 1)
             elif t.kind == "video":
-                self._video_mark(surf, cx, cy, k, t.team)
+                self._video_mark(surf, cx, cy, k)
+
+    def _draw_victims(self, surf: pygame.Surface, geom: MapGeometry, victims: list[dict[str, Any]]) -> None:
+        """The hidden victims, revealed when the match is over: a ring and a cross, green where a
+        team found the victim, red where no one did, with its id (as the web page draws them)."""
+        ox, oy = self.tile.origin
+        rad = max(6, rnd(geom.scale * 0.5))
+        size = max(12, min(18, rad + 4))
+        dirty = self._dirty.append
+        for v in victims:
+            try:
+                px, py = geom.cell_centre(float(v["x"]), float(v["y"]))
+            except (KeyError, TypeError, ValueError):
+                continue
+            cx, cy = px - ox, py - oy
+            colour = VICTIM_FOUND if v.get("found_by") else VICTIM_MISSED
+            self._victim_mark(surf, cx, cy, rad, colour)
+            label = self.text(str(v.get("id", "")), size, colour)
+            back = pygame.Rect(cx + rad + 2, cy - label.get_height() // 2, label.get_width() + 6, label.get_height())
+            surf.fill(BACKGROUND, back)
+            surf.blit(label, (back.x + 3, back.y))
+            dirty((cx - rad - 3, cy - rad - 3, 2 * rad + 7 + back.w + 2, 2 * rad + 7))
+            dirty((back.x, back.y, back.w, back.h))
+
+    def _victim_mark(self, surf: pygame.Surface, cx: int, cy: int, rad: int, colour: RGB) -> None:
+        """A ring and a cross in ``colour`` over a white one (seen on any floor)."""
+        k = rad * 3 // 5
+        for c, w in ((WHITE, max(4, rad * 9 // 20)), (colour, max(2, rad * 7 // 25))):
+            pygame.draw.circle(surf, c, (cx, cy), rad, w)
+            draw_lines(surf, c, [(cx - k, cy), (cx + k, cy)], w)
+            draw_lines(surf, c, [(cx, cy - k), (cx, cy + k)], w)
+
+    def _over_map(self, surf: pygame.Surface, name: str, src: pygame.Surface, pos: tuple[int, int]) -> None:
+        """Blit ``src`` at canvas position ``pos`` over the map (restored from the static map next frame)."""
+        self.over[name] = (pos[0], pos[1], src.get_width(), src.get_height())
+        ox, oy = self.tile.origin
+        x, y = pos[0] - ox, pos[1] - oy
+        surf.blit(src, (x, y))
+        self._dirty.append((x, y, src.get_width(), src.get_height()))
+
+    def _draw_legend(self, surf: pygame.Surface) -> None:
+        """The legend in the map's lower left corner (key l): what shapes and colours mean."""
+        entries = [e for e in legend(self.model) if e.key != "left"]  # the wall does not draw robots that left
+        if not entries:
+            return
+        key = (tuple(entries), self.layout)
+        if self._legend is None or self._legend[0] != key:
+            self._legend = (key, self._render_legend(entries))
+        img = self._legend[1]
+        mx, my, mw, mh = self.layout.map
+        pad = self.layout.px(8)
+        self._over_map(surf, "legend", img, (mx + pad, my + mh - img.get_height() - pad))
+
+    def _render_legend(self, entries: list[LegendEntry]) -> pygame.Surface:
+        L = self.layout
+        pad, line, size = L.px(8), L.px(17), L.px(16)
+        sym = L.px(22)
+        rows = max(6, min(-(-len(entries) // 2), (L.map[3] // 3 - 2 * pad - line) // line))  # two columns if they fit
+        cols = [entries[i:i + rows] for i in range(0, len(entries), rows)]
+        widths = [sym + max(self.font(size).size(e.text)[0] for e in col) + 2 * pad for col in cols]
+        head = self.text("legend (l hides it)", size, DIM)
+        w = max(sum(widths) + pad, head.get_width() + 2 * pad)
+        h = line * (1 + max(len(c) for c in cols)) + 2 * pad
+        img = pygame.Surface((w, h), 0, 32)
+        img.fill(OVER_MAP)
+        img.blit(head, (pad, pad))
+        x = pad
+        for col, cw in zip(cols, widths):
+            y = pad + line
+            for e in col:
+                self._legend_symbol(img, e, x + sym // 2, y + line // 2, max(4, line * 2 // 5))
+                img.blit(self.text(e.text, size, TEXT), (x + sym, y + (line - size) // 2 + L.px(2)))
+                y += line
+            x += cw
+        return img
+
+    def _legend_symbol(self, img: pygame.Surface, e: LegendEntry, cx: int, cy: int, k: int) -> None:
+        """The shape the map draws for a legend entry, at ``(cx, cy)`` with half-size ``k``."""
+        square = pygame.Rect(cx - k, cy - k, 2 * k + 1, 2 * k + 1)
+        if e.key in ("robot", "lost", "disqualified"):
+            robot = Robot(0, e.team, status={"robot": "connected"}.get(e.key, e.key))
+            pygame.draw.circle(img, e.colour if e.key == "robot" else (150, 150, 150), (cx, cy), k)
+            pygame.draw.circle(img, OUTLINE, (cx, cy), k, 1)
+            pygame.draw.line(img, OUTLINE, (cx + k // 3, cy), (cx + k * 17 // 10, cy), max(1, k // 4))
+            if e.key != "robot":
+                self._mark(img, robot, cx, cy, k * 3 // 4)
+        elif e.key == "find":
+            pts = [(cx, cy - k), (cx + k, cy), (cx, cy + k), (cx - k, cy)]
+            pygame.draw.polygon(img, e.colour, pts)
+            pygame.draw.polygon(img, OUTLINE, pts, 1)
+        elif e.key in ("picture", "discovery"):
+            q = square if e.key == "discovery" else square.inflate(-k, -k)
+            pygame.draw.rect(img, e.colour, q)
+            pygame.draw.rect(img, OUTLINE, q, 1)
+        elif e.key == "video":
+            self._video_mark(img, cx, cy, k)
+        elif e.key in ("victim_found", "victim_missed"):
+            self._victim_mark(img, cx, cy, k, e.colour)
+        elif e.key == "start":
+            pygame.draw.rect(img, mix(FLOOR, e.colour, 0.2), square)
+        elif e.key == "zone":
+            pygame.draw.rect(img, mix(FLOOR, e.colour, 0.55), square)
+        else:  # wall, costly cells: the cell's colour
+            pygame.draw.rect(img, e.colour, square)
+        if e.key in ("start", "zone", "wall", "costly"):
+            pygame.draw.rect(img, DIM, square, 1)
+
+    def _draw_banner(self, surf: pygame.Surface, overlay: Overlay) -> None:
+        """The winner banner at the top of the map once the match is finished."""
+        story = overlay.story
+        b = self.banner = banner(self.model.match.phase, self.model.score, story.victims if story is not None else [])
+        if b is None:
+            return
+        colour = self._colours(b.winner)[0] if b.winner else TEXT
+        key = (b, colour, self.layout)
+        if self._banner is None or self._banner[0] != key:
+            L = self.layout
+            pad = L.px(12)
+            title, detail = self.text(b.title, L.px(44), colour), self.text(b.detail, L.px(20), TEXT)
+            w = max(title.get_width(), detail.get_width()) + 2 * pad
+            img = pygame.Surface((w, title.get_height() + detail.get_height() + 2 * pad), 0, 32)
+            img.fill(OVER_MAP)
+            img.blit(title, ((w - title.get_width()) // 2, pad))
+            img.blit(detail, ((w - detail.get_width()) // 2, pad + title.get_height()))
+            self._banner = (key, img)
+        img = self._banner[1]
+        mx, my, mw, _ = self.layout.map
+        self._over_map(surf, "banner", img, (mx + (mw - img.get_width()) // 2, my + self.layout.px(12)))
 
     def _draw_overlay(self, surf: pygame.Surface, geom: MapGeometry, overlay: Overlay) -> None:
         if overlay.selected is None:
@@ -486,15 +649,23 @@ class Renderer:
         self.boxes = boxes
         m = self.model
         elapsed, remaining = m.match.now(now)
-        key = (m.panel_version, int(elapsed), None if remaining is None else int(remaining), tuple(boxes.items()),
-               repr(overlay.monitor_data), overlay.info_thing.key if overlay.info_thing else None,
-               tuple((k, len(v)) for k, v in overlay.info_pictures.items()),
-               repr(overlay.info_thing.info) if overlay.info_thing else None, self._video_tick(overlay, now))
         self._layout_score(boxes["score"])
         if not self._intersects(L.panel):
             return
+        clock = clock_line(m.match.phase, elapsed, remaining, replay=m.replay,
+                           recording_t=m.clock() if m.replay else None)
+        if "ticker" in boxes and overlay.story is not None:
+            self.ticker = overlay.story.upto(overlay.story_now, max(1, boxes["ticker"][3] // L.px(18)))
+        else:
+            self.ticker = []
+        shown = (overlay.story.version if overlay.story else -1,
+                 tuple((it.id, it.count, it.points) for it in self.ticker))
+        key = (m.panel_version, str(clock), shown, tuple(boxes.items()),
+               repr(overlay.monitor_data), overlay.info_thing.key if overlay.info_thing else None,
+               tuple((k, len(v)) for k, v in overlay.info_pictures.items()),
+               repr(overlay.info_thing.info) if overlay.info_thing else None, self._video_tick(overlay, now))
         if self._panel is None or self._panel[0] != key:
-            self._panel = (key, self._render_panel(boxes, elapsed, remaining, overlay))
+            self._panel = (key, self._render_panel(boxes, str(replace(clock, phase=clock.phase.upper())), overlay))
         self._show(surf, "panel", self._panel[1], self._panel[1], L.panel[:2])
 
     def _layout_score(self, box: Rect) -> None:
@@ -510,8 +681,7 @@ class Renderer:
         return [{"team": t, "score": 0, "victims": 0, "penalties": 0, "rank": i + 1}
                 for i, t in enumerate(self.model.teams())]
 
-    def _render_panel(self, boxes: dict[Any, Rect], elapsed: float, remaining: float | None,
-                      overlay: Overlay) -> pygame.Surface:
+    def _render_panel(self, boxes: dict[Any, Rect], clock: str, overlay: Overlay) -> pygame.Surface:
         L = self.layout
         px0, py0, pw, ph = L.panel
         panel = pygame.Surface((pw, ph), 0, 32)
@@ -535,10 +705,6 @@ class Renderer:
         x0, y = r.x + pad, r.y + pad
         put(m.arena.name if m.arena else "", x0, y, TEXT, L.px(24))
         y += size
-        phase = (m.match.phase or ("replay" if m.replay else "live")).upper()
-        if m.replay and not m.match.phase:
-            elapsed = m.clock()
-        clock = f"{phase}   {mmss(elapsed)}" + (f"   left {mmss(remaining)}" if remaining is not None else "")
         put(clock, x0, y, BROADCAST if m.match.phase in ("paused", "setup") else TEXT)
         y += size
         cols = (r.right - pad - L.px(130), r.right - pad - L.px(60), r.right - pad)
@@ -562,7 +728,47 @@ class Renderer:
         for k, rect in boxes.items():
             if isinstance(k, tuple) and k[0] == "monitor":
                 self._render_monitor(panel, box(rect), k[1], overlay.monitor_data.get(k[1]), put)
+        if "ticker" in boxes:
+            self._render_ticker(panel, box(boxes["ticker"]), put)
         return panel
+
+    def _item_colour(self, it: StoryItem) -> RGB:
+        """A ticker line's swatch: a find's state colour, else its team's, else its kind's."""
+        if it.kind == "find":
+            return FIND_COLOURS.get(it.state, FIND_COLOURS["reported"])
+        return self._colours(it.team)[0] if it.team else KIND_COLOURS.get(it.kind, DIM)
+
+    def _render_ticker(self, panel: pygame.Surface, r: pygame.Rect, put: Any) -> None:
+        """The ticker: what happened, newest first, each line with its match-clock time, a swatch,
+        its words (wrapped once) and its points (the web page's ticker, from the same story)."""
+        L = self.layout
+        pad, size = L.px(8), L.px(18)
+        put("what happened", r.x + pad, r.y + L.px(5), DIM, L.px(20))
+        y = r.y + L.px(28)
+        if not self.ticker:
+            put("nothing yet", r.x + pad, y, DIM, size)
+            return
+        font = self.font(size)
+        x_sw = r.x + pad + font.size("00:00 ")[0]
+        x_tx = x_sw + L.px(14)
+        for it in self.ticker:
+            if y + size > r.bottom - L.px(4):
+                break
+            pts = ""
+            if it.points:
+                pts = ("+" if it.points > 0 else "\u2212") + number_text(abs(it.points))
+            pts_w = font.size(pts)[0] + L.px(6) if pts else 0
+            lines = wrap(font, it.text, r.right - pad - pts_w - x_tx)
+            put(clock_text(it.c if it.c is not None else it.t), r.x + pad, y, DIM, size)
+            pygame.draw.rect(panel, self._item_colour(it), (x_sw, y + 2, L.px(9), size - 6))
+            if pts:
+                put(pts, 0, y, (110, 220, 120) if it.points > 0 else ERROR, size, right=r.right - pad)
+            for i, line in enumerate(lines[:2]):
+                if i and y + 2 * size > r.bottom - L.px(4):
+                    break
+                put(line, x_tx, y, BROADCAST if it.kind in ("broadcast", "phase") else TEXT, size)
+                y += size
+            y += L.px(3)
 
     def _render_info(self, panel: pygame.Surface, r: pygame.Rect, overlay: Overlay, put: Any) -> None:
         L = self.layout
@@ -601,11 +807,11 @@ class Renderer:
             x += w + pad
         self._render_video(panel, r, overlay, put)
 
-    def _video_mark(self, surf: pygame.Surface, cx: int, cy: int, k: int, team: str | None) -> None:
-        """A video on the map: a play triangle in the team's light colour."""
+    def _video_mark(self, surf: pygame.Surface, cx: int, cy: int, k: int) -> None:
+        """A video on the map: a play triangle in the legend's video colour (the page's)."""
         q = max(3, k * 3 // 4)
         pts = [(cx - q * 3 // 5, cy - q), (cx + q, cy), (cx - q * 3 // 5, cy + q)]
-        pygame.draw.polygon(surf, self._colours(team)[2], pts)
+        pygame.draw.polygon(surf, VIDEO, pts)
         pygame.draw.polygon(surf, OUTLINE, pts, 1)
 
     def _video_tick(self, overlay: Overlay, now: float | None) -> int | None:

@@ -5,6 +5,12 @@ the log; pictures are read from the ``pictures/`` folder beside it when it is th
 Positions are logged once a second per robot, so replayed robots move in 1 s steps. Scores
 are folded from the log's ``score.change`` lines and final ``match.phase`` (:class:`ScoreFold`)
 where it has no score tables of its own (a league match's log).
+
+The story (ticker lines, the victims revealed at the finish) is told once, from the whole log,
+when the replay opens (:class:`~robo_comp.view.story.Story`, as the web page's replay tells it);
+the wall shows the lines up to the replay's position. Seeking back plays the log again from its
+start into the model (:meth:`ReplaySource.jump`), so robots, trails, finds and the clock are
+those of that moment.
 """
 from __future__ import annotations
 
@@ -16,6 +22,7 @@ from robo_comp.protocol.logfile import LogRecord, read_log
 from robo_comp.errors import FieldError
 from robo_comp.view.model import MatchView
 from robo_comp.view.score import ScoreFold
+from robo_comp.view.story import Story
 
 
 class ReplaySource:
@@ -37,7 +44,29 @@ class ReplaySource:
         self.next = 0
         self.started: float | None = None
         self.offset = 0.0
+        self.paused = False
+        self.shown = 0.0  # the recording's time the model shows
         self.scores = ScoreFold()
+        self.story = self.tell()
+
+    def tell(self) -> Story:
+        """The whole recording's story, on its timeline (seconds from the first record)."""
+        story = Story(limit=None)
+        now = [0.0]
+        model = MatchView(clock=lambda: now[0])  # for the match clock only: no poses
+        model.replay = True
+        fold = ScoreFold()
+        for rec in self.records:
+            if rec.topic == "robot.positions":
+                continue
+            now[0] = t = rec.t - self.t0
+            model.apply(rec.topic, rec.data)
+            story.follow(model, rec.topic, rec.data, t)
+            table = fold.feed(rec.topic, rec.data)
+            if table is not None:
+                model.apply("score", table)
+                story.follow(model, "score", table, t)
+        return story
 
     @property
     def duration(self) -> float:
@@ -50,10 +79,11 @@ class ReplaySource:
         return self.next >= len(self.records)
 
     def replay_time(self) -> float:
-        """Seconds of the recording shown so far (the model's clock during a replay)."""
-        if self.started is None:
-            return self.offset
-        return self.offset + (self.clock() - self.started) * self.speed
+        """Seconds of the recording shown so far (the model's clock during a replay); it stops
+        at the recording's end, and while paused."""
+        if self.started is None or self.paused:
+            return min(self.offset, self.duration)
+        return min(self.offset + (self.clock() - self.started) * self.speed, self.duration)
 
     def attach(self, model: MatchView) -> None:
         """Make the model's clock the replay's (so the match timer runs at replay speed)."""
@@ -67,9 +97,15 @@ class ReplaySource:
         return self.seek(model, self.replay_time())
 
     def seek(self, model: MatchView, at: float) -> int:
-        """Apply every record up to ``at`` seconds into the recording (forward only)."""
+        """Show the recording at ``at`` seconds: apply every record up to there (from the start
+        again, into a reset model, when ``at`` is before what the model shows); return how many."""
         n = 0
         recs = self.records
+        if at < self.shown - 1e-9:
+            model.reset()
+            self.next = 0
+            self.scores = ScoreFold()
+        self.shown = at
         while self.next < len(recs) and recs[self.next].t - self.t0 <= at:
             rec = recs[self.next]
             model.apply(rec.topic, rec.data)
@@ -81,6 +117,26 @@ class ReplaySource:
         if self.started is None:
             self.offset = at
         return n
+
+    def jump(self, model: MatchView, at: float) -> float:
+        """The user seeks: go on from ``at`` seconds (kept within the recording), playing or
+        paused as before; returns where."""
+        at = min(max(0.0, at), self.duration)
+        self.seek(model, at)
+        self.offset = at
+        if self.started is not None:
+            self.started = self.clock()
+        return at
+
+    def toggle_pause(self) -> bool:
+        """Pause or play on; returns True when now paused."""
+        if self.paused:
+            self.paused = False
+            self.started = self.clock()
+        else:
+            self.offset = self.replay_time()
+            self.paused = True
+        return self.paused
 
     def picture(self, pid: int) -> bytes:
         """A picture from the ``pictures/`` folder beside the log."""

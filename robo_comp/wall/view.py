@@ -72,11 +72,14 @@ class ViewState:
     debug: bool = True
     debug_off_teams: list[str] = field(default_factory=list)
     debug_off_robots: list[int] = field(default_factory=list)
+    #: The legend over the map's lower left corner (key l).
+    legend: bool = True
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data (sent by a master tile)."""
         return {"zoom": self.zoom, "pan": [self.pan_x, self.pan_y], "monitors": list(self.monitors),
-                "info": self.info, "debug": [self.debug, list(self.debug_off_teams), list(self.debug_off_robots)]}
+                "info": self.info, "debug": [self.debug, list(self.debug_off_teams), list(self.debug_off_robots)],
+                "legend": self.legend}
 
     def update(self, d: dict[str, Any]) -> None:
         """Take over a master tile's state."""
@@ -85,6 +88,7 @@ class ViewState:
         self.pan_x, self.pan_y = float(pan[0]), float(pan[1])
         self.monitors = [int(t) for t in d.get("monitors") or []]
         self.info = d.get("info")
+        self.legend = bool(d.get("legend", self.legend))
         debug = d.get("debug")
         if isinstance(debug, list) and len(debug) == 3:
             self.debug = bool(debug[0])
@@ -115,10 +119,12 @@ class Layout:
         """``v`` pixels of a 1400×800 screen on this canvas (at least 1)."""
         return max(1, rnd(v * self.ui))
 
-    def panel_boxes(self, teams: int, info: bool, monitors: list[int]) -> dict[Any, Rect]:
-        """Boxes in the panel, kept apart by a gap: ``"score"``, ``"info"``, then one per monitor tag.
+    def panel_boxes(self, teams: int, info: bool, monitors: list[int], ticker: bool = True) -> dict[Any, Rect]:
+        """Boxes in the panel, kept apart by a gap: ``"score"``, ``"info"``, one per monitor tag,
+        then ``"ticker"`` (the match's events) in the rest of the panel.
 
         Monitors that do not fit are left out (the oldest stay): panels never cover the map.
+        The ticker is left out when fewer than three of its lines fit below them.
         """
         x, y, w, h = self.panel
         gap = self.px(8)
@@ -137,6 +143,8 @@ class Layout:
                 break
             boxes[("monitor", tag)] = (x + gap, top, w - 2 * gap, mh)
             top += mh + gap
+        if ticker and y + h - gap - top >= self.px(24) + 3 * self.px(18) + gap:
+            boxes["ticker"] = (x + gap, top, w - 2 * gap, y + h - gap - top)
         return boxes
 
 

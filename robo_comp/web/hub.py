@@ -42,7 +42,7 @@ from robo_comp.errors import FieldError, RoboCompError
 from robo_comp.link import CoreLink, LinkState
 from robo_comp.view.model import MatchView
 from robo_comp.web.state import TaskNames, jsonable, map_png, public_snapshot, state_json
-from robo_comp.web.story import Story
+from robo_comp.view.story import Story
 from robo_comp.web.wire import Wire, frame_text
 from robo_comp.world.mapservice import unpack_costs
 
@@ -251,11 +251,6 @@ class Hub:
         """The text of :meth:`state_frame`."""
         return self.state_frame().text
 
-    def _match_clock(self) -> float | None:
-        """The match clock now (None while the core reports no phases)."""
-        m = self.model.match
-        return m.now(self.model.clock())[0] if m.phase else None
-
     def adopt_story(self, other: Hub) -> None:
         """Start this view's story from another view's (a team view opened mid-match starts
         with what the public view told so far, on the same timeline)."""
@@ -305,9 +300,8 @@ class Hub:
         for topic, data in events:
             self.model.apply(topic, data)
             self.tasks.apply(topic, data)
-            if topic != "robot.positions":
-                for it in self.story.apply(topic, data, now, self._match_clock()):
-                    told[it.id] = it.to_dict()
+            for it in self.story.follow(self.model, topic, data, now):
+                told[it.id] = it.to_dict()
             resync |= topic == "core.started"
         if resync:  # a new arena: everyone starts again from a state
             self.resync_all()

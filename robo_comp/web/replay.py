@@ -26,7 +26,7 @@ from robo_comp.protocol.logfile import read_recording
 from robo_comp.view.model import MatchView
 from robo_comp.view.score import ScoreFold
 from robo_comp.web.state import TaskNames, jsonable, map_png, state_json
-from robo_comp.web.story import Story
+from robo_comp.view.story import Story
 
 #: Seconds of recording between two keyframes.
 KEYFRAME_EVERY = 10.0
@@ -148,14 +148,13 @@ class Recording:
             if data is not None:
                 model.apply(rec.topic, data)
                 tasks.apply(rec.topic, data)
-                if rec.topic != "robot.positions":
-                    story.apply(rec.topic, data, t, model.match.now(t)[0] if model.match.phase else None)
+                story.follow(model, rec.topic, data, t)
                 if rec.topic != "core.started":  # the page gets the arena from a keyframe
                     v.times.append(t)
                     v.frags.append(_dump([rec.topic, data, round(t, 3)]))
             if table is not None:
                 model.apply("score", table)
-                story.apply("score", table, t, model.match.now(t)[0] if model.match.phase else None)
+                story.follow(model, "score", table, t)
                 v.times.append(t)
                 v.frags.append(_dump(["score", table, round(t, 3)]))
         while model.arena is not None and (not v.key_times or next_key <= self.duration):

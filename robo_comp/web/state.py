@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from robo_comp.protocol.topics import public_event
+from robo_comp.view.legend import legend_colours
 from robo_comp.view.model import MatchView, find_state
 
 # The map is drawn in the wall's colours, from its pygame module: without pygame's greeting on stdout.
@@ -41,19 +42,6 @@ def public_snapshot(snap: dict[str, Any]) -> dict[str, Any]:
                     for f in snap.get("finds") or []]
     out["videos"] = [public_event("video", v) for v in snap.get("videos") or []]
     return out
-
-
-def legend(model: MatchView) -> dict[str, Any]:
-    """What the page's legend explains, in the colours the map and the wall use: the find
-    states, the zone kinds on this map, start zones, walls and costly cells."""
-    from robo_comp.view import colours as R
-
-    hexa = lambda c: "#%02x%02x%02x" % tuple(int(v) for v in c)  # noqa: E731
-    zones = sorted({str(z.get("kind")) for z in (model.arena.zones if model.arena else [])})
-    return {"finds": {k: hexa(v) for k, v in R.FIND_COLOURS.items()},
-            "zones": {k: hexa(R.ZONE_COLOURS.get(k, R.ZONE_DEFAULT)) for k in zones},
-            "wall": hexa(R.WALL), "floor": hexa(R.FLOOR), "costly": hexa(R.NEAR_WALL),
-            "discovery": hexa(R.DISCOVERY), "lost": hexa(R.LOST_MARK)}
 
 
 def _task_name(task: Any) -> dict[str, Any] | None:
@@ -116,7 +104,7 @@ def state_json(model: MatchView, now: float, *, map_url: str | None = None,
     m = model.match
     elapsed, remaining = m.now(now)
     return jsonable({"arena": arena, "robots": robots, "things": things, "score": model.score,
-                     "legend": legend(model) if a is not None else None,
+                     "legend": legend_colours(model) if a is not None else None,
                      "match": {"phase": m.phase, "elapsed": elapsed, "remaining": remaining},
                      "debug": [[tag, frame] for tag, frame in sorted(model.debug.items())],
                      "messages": [{"text": x.text, "level": x.level} for x in model.visible_messages(now)]})

@@ -689,3 +689,7 @@ def trace_tiled(s, t, w, pdir):
         i -= 1
         out[i] = v
     return out
+
+
+# 8-connected queries on uniform-cost maps run on jump point search (its own module).
+from robo_comp.world._jps import jps, trace as trace_jumps  # noqa: E402

@@ -29,6 +29,7 @@ def warm_up() -> float:
     walls[1, 1:3] = True
     Planner(walls).find((0, 0), (3, 3))
     Planner(walls, diagonal=True, costs=np.ones((4, 4))).find((0, 0), (3, 3))
+    Planner(walls, diagonal=True).find((0, 0), (3, 3))
     p = Planner(walls, hierarchical=True, block=2)
     p.find((0, 0), (3, 3))
     p.reachable((0, 0), (3, 3))
@@ -126,6 +127,8 @@ class Planner:
         self._pdir = _lazy_zeros(n, np.int8)
         self._epoch = 0
         self._rev: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        # 8 directions, uniform cost: the jump point each jump point was reached from (_jps).
+        self._parent: np.ndarray | None = None
         # Uniform cost, 4 directions: the bucket kernel's tiled work arrays (state, pdir)
         # forward and reverse, made on its first query.
         self._uni: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
@@ -153,8 +156,12 @@ class Planner:
             if self.hierarchical:
                 self._hierarchy()
             # Fault the work arrays in now so the first query does not pay for it.
-            arrays = self._uni_arrays() if self._uniform() else (
-                self._g, self._stamp, self._pdir, *self._reverse_arrays())
+            if self._uniform():
+                arrays: tuple[np.ndarray, ...] = self._uni_arrays()
+            elif self._jumps():
+                arrays = (self._g, self._stamp, self._parent_array())
+            else:
+                arrays = (self._g, self._stamp, self._pdir, *self._reverse_arrays())
             for arr in arrays:
                 arr.fill(0)
         return self
@@ -236,6 +243,9 @@ class Planner:
         has not finished within a few times the straight-line distance, a reverse search
         joins it and the two take turns, each resuming where it stopped; the first to
         finish answers (both are exact). See ``_kernels.astar_both``.
+
+        Unrestricted queries with 8 directions and cost 1 everywhere run on jump point search
+        instead (``_jps``, exact too): it needs neither the probe nor the reverse search.
         """
         epoch = self._next_epoch()
         if first is None:
@@ -243,6 +253,8 @@ class Planner:
                               + abs(s // self.width - t // self.width))
         if self._uniform():
             return self._search_uniform(s, t, allow, bsize, bw, epoch, first, probe)
+        if self._jumps() and allow.shape[0] == 0:
+            return self._search_jumps(s, t, epoch)
         g2, stamp2, pdir2 = self._reverse_arrays()
         cost, expanded, rev = _k().astar_both(
             self._free, self._cost, self.width, self.height, s, t, self.diagonal,
@@ -288,6 +300,28 @@ class Planner:
             flat = trace(s, t, self.width, pdir)
         w = self.width
         return float(cost), int(expanded), list(zip((flat % w).tolist(), (flat // w).tolist()))
+
+    def _search_jumps(self, s: int, t: int, epoch: int) -> tuple[float, int, list[Cell] | None]:
+        """Jump point search (8 directions, uniform cost, no restriction): exact, and it
+        expands so few cells that it needs no probe nor a reverse search (``_jps``)."""
+        parent = self._parent_array()
+        cost, expanded = _k().jps(self._free, self.width, self.height, s, t, self._g, self._stamp,
+                                  parent, epoch)
+        cost = float(cost)
+        if math.isinf(cost):
+            return cost, int(expanded), None
+        flat = _k().trace_jumps(s, t, self.width, parent)
+        w = self.width
+        return cost, int(expanded), list(zip((flat % w).tolist(), (flat // w).tolist()))
+
+    def _jumps(self) -> bool:
+        """Whether unrestricted queries run on jump point search (8 directions, cost 1 everywhere)."""
+        return self.diagonal and self._cost.shape[0] == 0
+
+    def _parent_array(self) -> np.ndarray:
+        if self._parent is None:
+            self._parent = _lazy_zeros(self.width * self.height, np.int32)
+        return self._parent
 
     def _reverse_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         if self._rev is None:

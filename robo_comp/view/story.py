@@ -1,5 +1,8 @@
-"""The story of a match for spectators: the ticker's lines, the timeline's markers and the
-score over time, made from the events a view sees.
+"""The story of a match for spectators: the ticker's lines, the timeline's markers, the score
+over time, the match clock's text and the winner banner, made from the events a view sees.
+
+Every viewer tells the same story from here: the web gateway (its live hubs and its
+recordings) sends the items to the page, the wall (:mod:`robo_comp.wall`) draws them itself.
 
 One :class:`Story` per view (live hub or recording view) follows the same events as the view's
 model. Each notable event becomes a :class:`StoryItem` (a find, a penalty, a bump, a lost robot,
@@ -13,9 +16,13 @@ the gateway started following a live core), which a replay seeks to, and ``c``, 
 """
 from __future__ import annotations
 
+import bisect
+import math
 from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
+
+from robo_comp.view.model import MatchView
 
 #: Items a live story keeps (a replay keeps every item of its recording).
 LIVE_ITEMS = 500
@@ -67,19 +74,35 @@ class Story:
     scores: list[tuple[float, float | None, dict[str, float]]] = field(default_factory=list)
     next_id: int = 1
     victims: list[dict[str, Any]] = field(default_factory=list)  # revealed when the match finished
+    #: Changes whenever an item is added or changed or the victims change (a viewer redraws on it).
+    version: int = 0
     _last: dict[tuple[str, str | None, int | None], StoryItem] = field(default_factory=dict)
     _board: dict[str, float] = field(default_factory=dict)
 
     def apply(self, topic: str, d: dict[str, Any], t: float, c: float | None) -> list[StoryItem]:
         """Follow one event at timeline time ``t`` and match clock ``c``; returns the items it
         added or changed (a changed item keeps its ``id``)."""
+        items = self._apply(topic, d, t, c)
+        if items or topic == "match.phase":
+            self.version += 1
+        return items
+
+    def follow(self, model: MatchView, topic: str, d: dict[str, Any], t: float) -> list[StoryItem]:
+        """Follow one event a view's ``model`` has just applied, at timeline time ``t``, with
+        the match clock as the model hears it now (None while the match has no phases); poses
+        tell no story."""
+        if topic == "robot.positions":
+            return []
+        return self.apply(topic, d, t, model.match.now(model.clock())[0] if model.match.phase else None)
+
+    def _apply(self, topic: str, d: dict[str, Any], t: float, c: float | None) -> list[StoryItem]:
         team = d.get("team") if isinstance(d.get("team"), str) else None
         tag = d.get("tag") if isinstance(d.get("tag"), int) else None
         if topic == "find.reported":
             state = str(d.get("state") or "reported")
             kind = str(d.get("kind") or "victim")
-            return [self._add("find", t, c, f"{team} robot {tag} reported {_a(kind)} at ({_n(d.get('x'))}, "
-                                             f"{_n(d.get('y'))}): {state}", team, tag, d, state=state)]
+            return [self._add("find", t, c, f"{team} robot {tag} reported {_a(kind)} at ({number_text(d.get('x'))}, "
+                                             f"{number_text(d.get('y'))}): {state}", team, tag, d, state=state)]
         if topic == "robot.bump":
             last = self._last.get(("bump", team, tag))
             if last is not None and t - last.t <= BUMP_MERGE:
@@ -129,8 +152,8 @@ class Story:
                 it.points += points
                 return [it]
         sign = "+" if points >= 0 else "−"
-        return [self._add("score", t, c, f"{team} {sign}{_n(abs(points))}: {d.get('reason', '')}", team, None, d,
-                          points=points)]
+        text = f"{team} {sign}{number_text(abs(points))}: {d.get('reason', '')}"
+        return [self._add("score", t, c, text, team, None, d, points=points)]
 
     def _add(self, kind: str, t: float, c: float | None, text: str, team: str | None, tag: int | None,
              d: dict[str, Any], *, state: str = "", points: float = 0.0) -> StoryItem:
@@ -145,6 +168,14 @@ class Story:
             self.items.popleft()
         return it
 
+    def upto(self, now: float | None, lines: int) -> list[StoryItem]:
+        """The ticker at timeline time ``now``: the newest ``lines`` items told by then, newest
+        first (``now`` None: every item, as live). A replay seeking back shows only the lines up
+        to its position (the page's rule, ``static/app.js``)."""
+        items = self.items
+        hi = len(items) if now is None else bisect.bisect_right(items, now + 1e-6, key=lambda it: it.t)
+        return [items[i] for i in range(hi - 1, max(0, hi - lines) - 1, -1)]
+
     def to_json(self) -> dict[str, Any]:
         """The whole story as the page's ``story`` object."""
         return {"items": [it.to_dict() for it in self.items],
@@ -152,7 +183,80 @@ class Story:
                 "victims": self.victims}
 
 
-def _n(v: Any) -> str:
+def clock_text(seconds: float | None) -> str:
+    """The match clock as every view shows it: ``m:ss``, ``h:mm:ss`` from an hour (the page's
+    ``fmt``); empty for none."""
+    if seconds is None or seconds != seconds:
+        return ""
+    s = max(0, math.floor(seconds))
+    h, m = s // 3600, s // 60 % 60
+    return (f"{h}:{m:02d}" if h else f"{m}") + f":{s % 60:02d}"
+
+
+@dataclass(frozen=True)
+class ClockLine:
+    """The header's one match clock: the phase word, the elapsed time, and the time left while
+    the match has a limit and is not finished (``"(2:35 left)"``, else empty)."""
+
+    phase: str
+    elapsed: str
+    remaining: str
+
+    def __str__(self) -> str:
+        return "   ".join(p for p in (self.phase, self.elapsed, self.remaining) if p)
+
+
+def clock_line(phase: str | None, elapsed: float, remaining: float | None, *, replay: bool,
+               recording_t: float | None = None) -> ClockLine:
+    """The match clock as the page's header shows it: the core's match clock, or the
+    recording's time (``recording_t``) in a replay of a match without phases; no time left
+    once the match is finished (a finished match does not read "3:14 left")."""
+    if not phase and replay and recording_t is not None:
+        elapsed = recording_t
+    left = f"({clock_text(remaining)} left)" if remaining is not None and math.isfinite(remaining) \
+        and phase != "finished" else ""
+    return ClockLine(phase or ("replay" if replay else "live"), clock_text(elapsed), left)
+
+
+@dataclass(frozen=True)
+class Banner:
+    """The winner banner of a finished match: the title (``red wins``, ``A draw`` or ``Match
+    over``), the winner (None for a draw), and the detail line (the scores, and how many of the
+    hidden victims were found)."""
+
+    title: str
+    winner: str | None
+    detail: str
+    found: int = 0
+    victims: int = 0
+
+
+def banner(phase: str | None, score: list[dict[str, Any]], victims: list[dict[str, Any]]) -> Banner | None:
+    """The banner when the match is finished (None before). The winner is the best-ranked team
+    not disqualified, unless the next one has the same score and victims (a draw)."""
+    if phase != "finished":
+        return None
+    def rank(r: dict[str, Any]) -> float:
+        v = r.get("rank")
+        return float(v) if isinstance(v, (int, float)) else 99.0
+
+    rows = sorted((r for r in score if not r.get("disqualified")), key=rank)
+    title, winner = "Match over", None
+    if rows and (len(rows) < 2 or rows[0].get("score") != rows[1].get("score")
+                 or rows[0].get("victims") != rows[1].get("victims")):
+        winner = str(rows[0].get("team"))
+        title = f"{winner} wins"
+    elif len(rows) >= 2:
+        title = "A draw"
+    found = sum(1 for v in victims if v.get("found_by"))
+    detail = " · ".join(f"{r.get('team')} {number_text(r.get('score', 0))}" for r in rows)
+    if victims:
+        detail += f" — {found} of {len(victims)} victims found (shown on the map)"
+    return Banner(title, winner, detail, found, len(victims))
+
+
+def number_text(v: Any) -> str:
+    """A number as the page writes it (``fmtNum``): whole numbers without a point, else one decimal."""
     if isinstance(v, float) and v.is_integer():
         return str(int(v))
     if isinstance(v, float):
@@ -164,4 +268,4 @@ def _a(kind: str) -> str:
     return ("an " if kind[:1].lower() in "aeiou" else "a ") + kind
 
 
-__all__ = ["Story", "StoryItem"]
+__all__ = ["Banner", "ClockLine", "Story", "StoryItem", "banner", "clock_line", "clock_text", "number_text"]
