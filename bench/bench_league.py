@@ -6,11 +6,13 @@
 1. **Throughput.** ``--matches`` league matches of 5 simulated minutes, 8 robots (two teams of
    four, frontier against explorer and the other reference teams) on ``office``, played by a
    real league (SQLite store, ratings) with one local worker, then two local workers, then on a
-   local Ray cluster of two nodes (two raylets of one CPU each, as ``ray start --head`` and a
-   second ``ray start`` make). Printed: matches per hour per core, the speed-up over one
-   worker and the scaling efficiency (speed-up ÷ workers), and whether every match gave the
-   same result (digest of its event log) everywhere. Then, on paper: what a 500-team
-   scrimmage season needs.
+   local Ray cluster of two nodes (two raylets of one CPU each, started by ``ray start --head``
+   and a second ``ray start``, each node a session of its own as on two machines). Printed:
+   matches per hour per core, the speed-up over one worker and the scaling efficiency
+   (speed-up ÷ workers), the CPU time a match cost (worker and sandboxes: the same on a loaded
+   machine) and how many cores the run kept busy, the load average, and whether every match
+   gave the same result (digest of its event log) everywhere. ``--rounds N`` plays it N times
+   over (1, 2 workers, Ray in turn). Then, on paper: what a 500-team scrimmage season needs.
 2. **Overhead.** Per match, the league's own time (building specs, scheduling, storing,
    rating) against the match's time, from the one-worker run.
 3. **Rating quality.** 16 entrants of known strength order (``ref-00`` .. ``ref-15``: the
@@ -48,20 +50,56 @@ from robo_comp.league.runner import LocalRunner, RayRunner  # noqa: E402
 from robo_comp.league.store import LeagueStore  # noqa: E402
 
 
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
 @contextlib.contextmanager
 def two_node_ray() -> Iterator[RayRunner]:
-    """A runner on a two-node Ray cluster of one CPU each on this machine, shut down afterwards."""
-    from ray.cluster_utils import Cluster
+    """A runner on a two-node Ray cluster of one CPU each on this machine, as ``ray start --head``
+    and a second ``ray start`` make it, on loopback, each node a session of its own as on two
+    machines: under Linux's autogroup scheduling the processes of one session share one CPU
+    share, so two nodes started from this process (``ray.cluster_utils.Cluster``) played as one
+    CPU on a machine shared with others (1.05x for 1 -> 2 nodes in one run). Its processes are
+    ended afterwards (by their process groups: never ``ray stop``, which ends every Ray here)."""
+    import os
+    import signal
+    import subprocess
 
-    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1, "include_dashboard": False})
-    cluster.add_node(num_cpus=1)
-    cluster.wait_for_nodes()
-    runner = RayRunner(cluster.address)
+    ray_cli = str(pathlib.Path(sys.executable).with_name("ray"))
+    address = f"127.0.0.1:{_free_port()}"
+    groups: list[int] = []
+
+    def start(*args: str) -> None:
+        ports = [a for name in ("--dashboard-agent-listen-port", "--dashboard-agent-grpc-port",
+                                "--metrics-export-port", "--runtime-env-agent-port") for a in (name, str(_free_port()))]
+        p = subprocess.Popen([ray_cli, "start", *args, "--num-cpus", "1", "--node-ip-address", "127.0.0.1",
+                              "--disable-usage-stats", *ports], start_new_session=True,
+                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        groups.append(p.pid)  # the node's daemons stay in this process group
+        _, err = p.communicate(timeout=300)
+        if p.returncode != 0:
+            raise RuntimeError(f"ray start {' '.join(args)} failed: {err[-2000:]}")
+
     try:
-        yield runner
+        start("--head", "--port", address.rsplit(":", 1)[1], "--include-dashboard", "false")
+        start("--address", address)
+        runner = RayRunner(address)
+        try:
+            yield runner
+        finally:
+            runner.close()
     finally:
-        runner.close()
-        cluster.shutdown()
+        for sig in (signal.SIGTERM, signal.SIGKILL):
+            for g in groups:
+                with contextlib.suppress(ProcessLookupError, PermissionError):
+                    os.killpg(g, sig)
+            time.sleep(2.0)
+
 
 FULL = {"scenarios": ["office"], "robots": 4, "seconds": 300}
 SHORT = {"scenarios": ["demo_room"], "robots": 2, "seconds": 60}
@@ -81,9 +119,12 @@ def throughput(root: pathlib.Path, runner, matches: int, label: str) -> dict:
         ids = ids[:matches]
         sched = time.perf_counter() - t0
         fig = season.play(store, runner, ids, stream=open("/dev/null", "w"))
-        digests = {m.id: m.result["digest"] for m in store.matches() if m.result}
+        done = [m for m in store.matches() if m.result]
+        digests = {m.id: m.result["digest"] for m in done}
+        cpu = [float(m.result.get("cpu_seconds", 0.0)) for m in done]
     fig["schedule_seconds"] = sched
     fig["digests"] = digests
+    fig["cpu_per_match"] = sum(cpu) / max(1, len(cpu))
     return fig
 
 
@@ -155,8 +196,9 @@ def fair_figures(root: pathlib.Path, args: argparse.Namespace) -> None:
     for i in range(10):
         spec = hostile_spec(i, root)
         here.append(play_match(spec)["digest"])
-    ways = {"in one process": here, "1 worker": replays(LocalRunner(1), root, "one"),
-            "2 workers": replays(LocalRunner(2), root, "two")}
+    with LocalRunner(2) as two:
+        ways = {"in one process": here, "1 worker": replays(LocalRunner(1), root, "one"),
+                "2 workers": replays(two, root, "two")}
     if not args.skip_ray:
         with two_node_ray() as runner:
             ways["Ray, 2 nodes"] = replays(runner, root, "ray")
@@ -177,7 +219,8 @@ def fair_figures(root: pathlib.Path, args: argparse.Namespace) -> None:
         store.configure(**SHORT)
         season.submit_reference(store, 3)
         store.add_submission("flood", {"play.py": (ENTRANTS / "flood.py").read_text()}, "bench")
-        fig = season.run_format(store, LocalRunner(2), "round-robin", stream=open("/dev/null", "w"))
+        with LocalRunner(2) as runner:
+            fig = season.run_format(store, runner, "round-robin", stream=open("/dev/null", "w"))
         done = sum(1 for m in store.matches() if m.status == "done")
         print(f"round robin with the flooding entrant: {done} of {int(fig['matches'])} matches played, "
               f"{int(fig['failed'])} failed; table: {' > '.join(season.standing(store))}")
@@ -202,36 +245,63 @@ def quality(root: pathlib.Path, rounds: int, workers: int, fmt: str = "scrimmage
         for k in range(16):  # ref-00 (no handicap) is the strongest
             store.add_submission(f"ref-{k:02d}", {"play.py": reference.handicapped(base, k)}, "bench")
             truth.append(f"ref-{k:02d}")
-        runner = LocalRunner(workers)
         played = 0
-        for i in range(rounds):
-            chosen = "swiss" if fmt == "swiss" and i > 0 else "scrimmage"
-            fig = season.run_format(store, runner, chosen, rounds=1, stream=open("/dev/null", "w"))
-            played += int(fig["matches"])
-            curve.append((played, kendall_tau(season.standing(store), truth)))
+        with LocalRunner(workers) as runner:
+            for i in range(rounds):
+                chosen = "swiss" if fmt == "swiss" and i > 0 else "scrimmage"
+                fig = season.run_format(store, runner, chosen, rounds=1, stream=open("/dev/null", "w"))
+                played += int(fig["matches"])
+                curve.append((played, kendall_tau(season.standing(store), truth)))
         bt = bradley_terry([m.result["ranks"] for m in store.matches() if m.result])
         bt_tau = kendall_tau(sorted(bt, key=lambda t: -bt[t][0]), truth)
     return curve, bt_tau
 
 
+def _load() -> str:
+    import os
+
+    return "/".join(f"{x:.1f}" for x in os.getloadavg())
+
+
+def _cpu_line(fig: dict, workers: int) -> str:
+    """CPU a match (worker and sandboxes), how many cores the run kept busy on average, and how
+    much of the workers' time went to playing (the rest: starting, waiting for the last match)."""
+    busy = fig["cpu_per_match"] * fig["matches"] / fig["wall_seconds"]
+    playing = fig["match_seconds"] / (workers * fig["wall_seconds"])
+    return f"CPU {fig['cpu_per_match']:.2f} s a match, {busy:.2f} cores busy, workers playing {playing:.0%} of the run"
+
+
 def throughput_figures(root: pathlib.Path, args: argparse.Namespace) -> None:
     """Throughput on 1 and 2 local workers (and Ray), the season on paper, and the overhead."""
-    print(f"== throughput: {args.matches} matches of 300 s, 2 teams x 4 robots, office")
-    one = throughput(root, LocalRunner(1), args.matches, "one")
-    rate1 = 3600 * one["matches"] / one["wall_seconds"]
-    print(f"1 worker : {one['wall_seconds']:.1f} s, {rate1:.0f} matches/hour/core "
-          f"({one['match_seconds'] / one['matches']:.2f} s a match)")
-    two = throughput(root, LocalRunner(2), args.matches, "two")
-    rate2 = 3600 * two["matches"] / two["wall_seconds"]
-    print(f"2 workers: {two['wall_seconds']:.1f} s, {rate2:.0f} matches/hour, speed-up {rate2 / rate1:.2f}x, "
-          f"efficiency {rate2 / rate1 / 2:.0%}; same results: {two['digests'] == one['digests']}")
-    if not args.skip_ray:
-        with two_node_ray() as runner:
-            ray_fig = throughput(root, runner, args.matches, "ray")
-        rate_r = 3600 * ray_fig["matches"] / ray_fig["wall_seconds"]
-        print(f"Ray, 2 nodes x 1 CPU: {ray_fig['wall_seconds']:.1f} s, {rate_r:.0f} matches/hour, speed-up "
-              f"{rate_r / rate1:.2f}x, efficiency {rate_r / rate1 / 2:.0%}; same results: "
-              f"{ray_fig['digests'] == one['digests']}")
+    speedups: dict[str, list[float]] = {"2 workers": [], "Ray, 2 nodes": []}
+    for rnd in range(args.rounds):
+        tag = f"[{rnd + 1}/{args.rounds}] " if args.rounds > 1 else ""
+        print(f"== {tag}throughput: {args.matches} matches of 300 s, 2 teams x 4 robots, office (load {_load()})")
+        one = throughput(root, LocalRunner(1), args.matches, f"one-{rnd}")
+        rate1 = 3600 * one["matches"] / one["wall_seconds"]
+        print(f"1 worker : {one['wall_seconds']:.1f} s, {rate1:.0f} matches/hour/core "
+              f"({one['match_seconds'] / one['matches']:.2f} s a match), {_cpu_line(one, 1)} (load {_load()})")
+        with LocalRunner(2) as runner:
+            two = throughput(root, runner, args.matches, f"two-{rnd}")
+        rate2 = 3600 * two["matches"] / two["wall_seconds"]
+        speedups["2 workers"].append(rate2 / rate1)
+        print(f"2 workers: {two['wall_seconds']:.1f} s, {rate2:.0f} matches/hour, speed-up {rate2 / rate1:.2f}x, "
+              f"efficiency {rate2 / rate1 / 2:.0%}, {_cpu_line(two, 2)}, CPU a match "
+              f"{two['cpu_per_match'] / one['cpu_per_match']:.2f}x one worker's; same results: "
+              f"{two['digests'] == one['digests']} (load {_load()})")
+        if not args.skip_ray:
+            with two_node_ray() as ray_runner:
+                ray_fig = throughput(root, ray_runner, args.matches, f"ray-{rnd}")
+            rate_r = 3600 * ray_fig["matches"] / ray_fig["wall_seconds"]
+            speedups["Ray, 2 nodes"].append(rate_r / rate1)
+            print(f"Ray, 2 nodes x 1 CPU: {ray_fig['wall_seconds']:.1f} s, {rate_r:.0f} matches/hour, speed-up "
+                  f"{rate_r / rate1:.2f}x, efficiency {rate_r / rate1 / 2:.0%}, {_cpu_line(ray_fig, 2)}; same "
+                  f"results: {ray_fig['digests'] == one['digests']} (load {_load()})")
+    if args.rounds > 1:
+        for way, got in speedups.items():
+            if got:
+                print(f"{way}: speed-up over 1 worker {min(got):.2f}x .. {max(got):.2f}x (median "
+                      f"{sorted(got)[len(got) // 2]:.2f}x) over {len(got)} runs")
     per_match = one["match_seconds"] / one["matches"]
     season_matches = 500 * 40 // 2
     print(f"on paper: a 500-team scrimmage season, 40 matches a team = {season_matches:,} matches x "
@@ -247,6 +317,7 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--matches", type=int, default=16, help="full matches per throughput run (default 16)")
     ap.add_argument("--skip-ray", action="store_true", help="no Ray cluster run")
+    ap.add_argument("--rounds", type=int, default=1, help="throughput runs (1 worker, 2 workers, Ray in turn)")
     ap.add_argument("--skip-throughput", action="store_true", help="only the rating-quality run")
     ap.add_argument("--quality-rounds", type=int, default=30, help="rounds of the rating-quality run")
     ap.add_argument("--quality-format", choices=("scrimmage", "swiss"), default="scrimmage",

@@ -320,19 +320,51 @@ def test_the_report_escapes_what_teams_name_and_says_when_nothing_was_played(lea
 
 # ------------------------------------------------------------------ runners
 def test_two_local_workers_give_the_results_of_one(tmp_path):
+    """And the workers stay up, warm, for the runner's next run (a Swiss season plays a run a
+    round): the same processes play it, each match once; they end with the runner."""
     specs = [dict(spec(tmp_path, a, b, log=f"{a}-{b}.log"), id=i)
              for i, (a, b) in enumerate([("frontier", "sitter"), ("explorer", "random_walker")])]
     one: dict = {}
     LocalRunner(1).run(specs, lambda s, r: one.__setitem__(s["id"], r), pytest.fail)
     digests = {i: r["digest"] for i, r in one.items()}
     two: dict = {}
-    LocalRunner(2).run(specs, lambda s, r: two.__setitem__(s["id"], r), pytest.fail)
+    played: list = []
+
+    def took(s: dict, r: dict) -> None:
+        played.append(s["id"])
+        two[s["id"]] = r
+
+    errors: list[str] = []
+    with LocalRunner(2) as runner:
+        runner.run(specs, took, pytest.fail)
+        workers = [w.proc for w in runner._pool]
+        assert len(workers) == 2 and all(w.is_alive() for w in workers)
+        runner.run([dict(specs[0], scenario="nowhere", id=9)] * 2, pytest.fail, lambda s, m: errors.append(m))
+        assert [w.proc for w in runner._pool] == workers  # the same warm workers played the second run
+    assert not any(w.is_alive() for w in workers)
+    assert sorted(played) == [0, 1]  # each match played once
     assert {i: r["digest"] for i, r in two.items()} == digests
     assert {i: r["scores"] for i, r in two.items()} == {i: r["scores"] for i, r in one.items()}
-    errors: list[str] = []
-    LocalRunner(2).run([dict(specs[0], scenario="nowhere", id=9)] * 2, pytest.fail,
-                       lambda s, m: errors.append(m))
     assert len(errors) == 2 and all("Traceback" in m and "nowhere" in m.splitlines()[-1] for m in errors), errors
+    assert all(r["cpu_seconds"] > 0 for r in two.values())
+
+
+def test_longest_first_orders_by_the_teams_earlier_matches():
+    from robo_comp.league.schedule import longest_first
+
+    def row(mid: int, teams: list[str], cpu: float, scenario: str = "office") -> tuple:
+        return teams, scenario, {"cpu_seconds": cpu, "sim_seconds": 100.0}
+
+    def sp(mid: int, a: str, b: str, scenario: str = "office") -> dict:
+        return {"id": mid, "scenario": scenario, "seconds": 100,
+                "entrants": [{"team": a}, {"team": b}]}
+
+    specs = [sp(1, "quick", "quicker"), sp(2, "slow", "quick"), sp(3, "new", "quick"), sp(4, "slow", "slow")]
+    assert longest_first(specs, []) == specs  # no history: the order stays
+    history = [row(10, ["slow", "quick"], 12.0), row(11, ["quick", "quicker"], 2.0), row(12, ["slow", "slow"], 20.0)]
+    assert [s["id"] for s in longest_first(specs, history)] == [4, 2, 3, 1]
+    # what a team's matches on another scenario cost does not count for this one
+    assert longest_first(specs, [row(13, ["slow", "quick"], 50.0, "demo_room")]) == specs
 
 
 @pytest.fixture(scope="module")

@@ -15,7 +15,7 @@ from robo_comp.sandbox.parent import (
     PENDING, Limits, LogLine, Loaded, RpcCall, Sandbox, SandboxStopped, TaskDone, TaskFailed,
     poll_many,
 )
-from robo_comp.sandbox.child import FrameError, FrameReader, pack
+from robo_comp.sandbox.child import RECV_BYTES, FrameError, FrameReader, pack
 
 ROOT = pathlib.Path(__file__).parent.parent
 SQUARE = (ROOT / "team_templates" / "extensions" / "square.py").read_text()
@@ -304,6 +304,75 @@ def test_two_robots_run_concurrently():
         assert sorted(c[0] for c in moves) == [1] * 4 + [2] * 4
 
 
+COUNTED = module("ct", """
+def work(robot, n):
+    for i in range(n):
+        tag, k = robot.position()
+        if tag != robot.tag or k != i:
+            raise ValueError(f"robot {robot.tag} got the answer {[tag, k]} to its call {i}")
+    return n
+""", tasks='"work": {"args": [{"name": "n", "type": "int"}]}')
+
+
+def test_answers_reach_their_own_run_when_runs_call_at_once():
+    """Three runs calling in tight loops at once: each answer reaches the worker that made the
+    call, in order (the waiting workers take turns reading the answers' socket, and one reads the
+    others' answers for them: sandbox/child.py, _Replies)."""
+    counts: dict[int, int] = {}
+
+    def handler(tag: int, name: str, args: list) -> list[int]:
+        counts[tag] = counts.get(tag, -1) + 1
+        return [tag, counts[tag]]
+
+    with Sandbox("red", [1, 2, 3], handler, FAST) as box:
+        box.load("ct.py", COUNTED)
+        runs = {box.start_task(tag, "work", [400]): tag for tag in (1, 2, 3)}
+        done: dict[int, TaskDone | TaskFailed] = {}
+        end = time.monotonic() + 60
+        while len(done) < 3 and time.monotonic() < end:
+            for r in box.poll(0.05):
+                if isinstance(r, (TaskDone, TaskFailed)):
+                    done[r.run_id] = r
+        assert {rid: getattr(r, "result", r) for rid, r in done.items()} == dict.fromkeys(runs, 400)
+        assert counts == {1: 399, 2: 399, 3: 399}
+
+
+def test_answers_the_child_has_no_room_for_wait_and_go_out_in_order():
+    """The answers' socket full (the child not reading): answers queue in the parent, deadline()
+    asks the host loop back within REPLY_RETRY, and they go out whole and in order once there is
+    room (real sockets; no child process)."""
+    import socket as _socket
+
+    from robo_comp.sandbox.parent import REPLY_RETRY, _Run
+
+    box = Sandbox("red", [1], Host(), FAST, start=False)
+    ours, theirs = _socket.socketpair()
+    ours.setblocking(False)
+    box._rsock = ours
+    box._runs[1] = _Run(1, "task", 1, "work", None, "")
+    big = "x" * 60_000
+    try:
+        for c in range(1, 41):
+            box._calls[c] = 1
+            box._answer(c, ok=True, value=[c, big])
+        assert box._rout  # more than the socket holds
+        due = box.deadline()
+        assert due is not None and due <= time.monotonic() + REPLY_RETRY
+        reader, got = FrameReader(1 << 20), []
+        while len(got) < 40:
+            try:
+                got += reader.feed(theirs.recv(1 << 16))
+            except BlockingIOError:
+                pass
+            box.check_timers()
+            theirs.setblocking(not box._rout)
+        assert [m["v"][0] for m in got] == list(range(1, 41)) and all(m["v"][1] == big for m in got)
+        assert not box._rout and box.deadline() == box._runs[1].deadline  # only the run's own clock now
+    finally:
+        ours.close()
+        theirs.close()
+
+
 def test_respawn_keeps_good_modules():
     src = module("loop", "def spin(robot):\n    while True:\n        pass",
                  tasks='"spin": {"args": []}')
@@ -417,19 +486,108 @@ def test_policy_compile_errors_have_line_and_rule():
     assert ei.value.rule == "syntax"
 
 
-def test_rpc_rate_limit_delays_but_does_not_refuse():
-    limits = Limits(cpu_seconds=1, wall_seconds=1.0, rpc_per_second=100.0, rpc_burst=5)
-    src = module("fl", "def work(robot):\n    for i in range(25):\n        robot.sense()\n    return 25")
-    host = Host()
-    with Sandbox("red", [1], host, limits) as box:
-        box.load("fl.py", src)
-        t0 = time.monotonic()
-        rec = box.run_task(1, "work")
-        took = time.monotonic() - t0
-        assert isinstance(rec, TaskDone) and rec.result == 25
-        assert took >= 0.18  # 20 calls over the burst at 100/s
-        assert len([c for c in host.calls if c[1] == "sense"]) == 25
+LOOP = module("lp", "def work(robot, n):\n    for i in range(n):\n        robot.sense()\n    return n",
+              tasks='"work": {"args": [{"name": "n", "type": "int"}]}')
 
+
+def test_the_call_limiter_never_paces_a_single_loop():
+    """One run calling in a tight loop is never held back, whatever the CPU: the limiter's rate
+    follows the fastest loop it has measured (``Limits.rpc_loops`` times its calls per second), so
+    every turn of the loop earns more than the token it spends. A least rate of 50 calls/s and a
+    burst of 1 show it (before, the fixed rate paced every loop faster than it: 500 calls took
+    10 s here)."""
+    host = Host()
+    with Sandbox("red", [1], host, Limits(rpc_per_second=50.0, rpc_burst=1)) as box:
+        box.load("lp.py", LOOP)
+        rec = box.run_task(1, "work", [500])
+        assert isinstance(rec, TaskDone) and rec.result == 500
+        assert len(host.calls) == 500
+        assert box.paced_calls == 0
+        assert box.call_rate() == Limits().rpc_loops / box.fastest_loop > 50.0
+
+
+def test_the_default_call_limiter_does_not_pace_a_loop():
+    with Sandbox("red", [1], Host(), Limits()) as box:
+        box.load("lp.py", LOOP)
+        rec = box.run_task(1, "work", [3000])
+        assert isinstance(rec, TaskDone) and rec.result == 3000
+        assert box.paced_calls == 0
+
+
+FLOOD_CALLS = 40
+FLOOD = module("fl", """
+def work(robot):
+    # below the policy (the planted hole gives the real os): call frames written to the sandbox's
+    # own socket, without waiting for any answer
+    for fd in range(3, 32):
+        try:
+            if os.fstat(fd).st_mode & 0o170000 == 0o140000:  # the first socket: the one calls go on
+                os.write(fd, FRAMES)
+                break
+        except OSError:
+            pass
+    return robot.sense()   # answered after the forged calls, which the limiter holds back
+""")
+
+
+def test_the_call_limiter_holds_back_a_flood():
+    """Calls sent without waiting for their answers (forged by team code through the planted hole
+    in the policy, written straight to the sandbox's socket) are held to the limiter's rate after
+    the burst, answered later and never refused; and, sent together, they are no loop: the rate
+    does not rise (docs/sandbox.md, "The call limiter")."""
+    rate, burst = 100.0, 2
+    frames = b"".join(pack({"t": "call", "c": 10**6 + i, "r": 2, "g": 1, "n": "sense", "a": []})
+                      for i in range(FLOOD_CALLS))
+    src = FLOOD.replace("def work", f"FRAMES = {frames!r}\n\n\ndef work", 1)
+    seen: list[float] = []
+
+    def handler(tag: int, name: str, args: list) -> bool:
+        seen.append(time.monotonic())
+        return True
+
+    with Sandbox("red", [1], handler, Limits(rpc_per_second=rate, rpc_burst=burst, test_policy_hole=True)) as box:
+        box.load("fl.py", src)
+        rec = box.run_task(1, "work", timeout=30.0)
+        assert rec is not None and rec.run_id == 2  # the run the frames name
+        assert isinstance(rec, TaskDone) and rec.result is True, rec
+        assert len(seen) == FLOOD_CALLS + 1  # every call answered, none refused
+        assert box.paced_calls >= FLOOD_CALLS // 2
+        assert box.fastest_loop == float("inf") and box.call_rate() == rate
+        for k, t in enumerate(seen):  # the token bucket: never more than the burst plus the rate
+            assert k + 1 <= burst + rate * (t - seen[0]) + 1
+
+
+
+def test_calls_sent_without_waiting_do_not_raise_the_limiter_whatever_read_they_come_in():
+    """A flood bigger than one read of the socket (64 KiB): the calls come in several reads, each
+    after the answers to the calls of the read before had gone out, so a read alone cannot tell
+    them from a loop's. Only a call that names the key of its run's last answer (which it can know
+    only by reading that answer) counts as a turn of a loop: the rate stays where it was. (Before,
+    the first call of a later read counted as a loop of some tens of microseconds: fastest_loop
+    67 us, the rate 100 -> 30,000 calls a second.)"""
+    rate, calls = 100.0, 200
+    # the frames are made in team code (the module's source is at most 60 KB): each is one call
+    # frame with its id (a msgpack uint32, 0xce and four bytes) changed
+    frame = pack({"t": "call", "c": 10**6, "r": 2, "g": 1, "n": "sense", "a": ["x" * 1000]})
+    at = frame.index(b"\xa1c\xce") + 2
+    head, tail = frame[:at], frame[at + 5:]
+    assert calls * len(frame) > 2 * RECV_BYTES
+    src = FLOOD.replace("def work", f"HEAD = {head!r}\nTAIL = {tail!r}\nFRAMES = b''.join(\n"
+                        f"    HEAD + b'\\xce' + (10**6 + i).to_bytes(4, 'big') + TAIL for i in range({calls}))"
+                        "\n\n\ndef work", 1)
+    seen: list[list] = []
+
+    def handler(tag: int, name: str, args: list) -> bool:
+        seen.append(args)
+        return True
+
+    with Sandbox("red", [1], handler, Limits(rpc_per_second=rate, rpc_burst=2 * calls,
+                                             test_policy_hole=True)) as box:
+        box.load("fl.py", src)
+        rec = box.run_task(1, "work", timeout=30.0)
+        assert isinstance(rec, TaskDone) and rec.result is True, rec
+        assert len(seen) == calls + 1 and box.paced_calls == 0  # all within the burst, none refused
+        assert box.fastest_loop == float("inf") and box.call_rate() == rate
 
 def test_child_runs_under_limits():
     with Sandbox("red", [1], Host(), FAST) as box:

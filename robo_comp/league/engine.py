@@ -101,7 +101,9 @@ def play_match(spec: dict[str, Any]) -> dict[str, Any]:
 
     The result: ``id``, ``scores`` (team → score), ``ranks`` (team → 1 for the best; equal
     scores share a rank), ``victims`` (team → victims confirmed), ``bumps`` (team → count),
-    ``sim_seconds``, ``wall_seconds``, ``events``, ``log`` and ``digest`` (SHA-256 of the log),
+    ``sim_seconds``, ``wall_seconds``, ``cpu_seconds`` (the CPU time the match cost: this process's
+    and its entrants' sandbox processes'; the same whatever the machine's load), ``events``, ``log``
+    and ``digest`` (SHA-256 of the log),
     ``crashes`` (where team code raised: robot, task, last robot call, line, traceback, match
     time; :func:`robo_comp.league.forensics.crashes`), ``forfeit`` (None, or ``{"team", "limit", "message"}``: the entrant that went over a
     match limit; it ranks last whatever its score, the others rank by score) and ``limits``
@@ -111,6 +113,7 @@ def play_match(spec: dict[str, Any]) -> dict[str, Any]:
     from robo_comp.engine.bench import Bench
 
     t0 = time.perf_counter()
+    cpu0 = _process_cpu()
     teams = [e["team"] for e in spec["entrants"]]
     if len(set(teams)) != len(teams):
         raise FieldError(f"match {spec.get('id')}: a team cannot play itself ({', '.join(teams)})")
@@ -162,11 +165,21 @@ def play_match(spec: dict[str, Any]) -> dict[str, Any]:
                                                       "message": bench.forfeit.message, "t": bench.forfeit.t}
         limits = {t: limits_hit(out.events, t, bench.used.get(t, {}), budget) for t in teams}
         crashed = [c.plain() for c in crashes(out.events)]
+        sandbox_cpu = sum(sb.cpu_seconds() for sb in bench.sandboxes.values())
     return {"id": spec.get("id"), "scores": scores, "ranks": ranks_of(scores, forfeit["team"] if forfeit else None),
             "victims": victims, "bumps": bumps, "sim_seconds": out.sim_seconds,
             "wall_seconds": round(time.perf_counter() - t0, 4), "events": len(out.events),
+            "cpu_seconds": round(_process_cpu() - cpu0 + sandbox_cpu, 4),
             "log": str(log) if log else None, "digest": digest, "forfeit": forfeit, "limits": limits,
             "crashes": crashed}
+
+
+def _process_cpu() -> float:
+    """CPU seconds (user and system) this process has used so far."""
+    import resource
+
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return r.ru_utime + r.ru_stime
 
 
 def debug_replay(value: Any) -> str:

@@ -7,7 +7,11 @@ order they end. A match is deterministic, so where it ran does not change its re
 * :class:`LocalRunner` — ``workers`` processes of the run's own (one worker: played in this
   process). The workers are started with ``spawn`` (no inherited threads or sockets), so a
   script that uses more than one needs the usual ``if __name__ == "__main__":`` guard; a
-  worker that dies costs only its own match, which is played again;
+  worker that dies costs only its own match, which is played again. Each worker is a session
+  of its own (Linux gives each session an equal share of the CPU, so workers that shared the
+  run's session would share one share between them), warms up (imports, compiled planner
+  kernels) as soon as it starts, and stays up for the runner's next run until :meth:`close`
+  (a Swiss season plays a run a round);
 * :class:`RayRunner` — each match a Ray task of 1 CPU on a Ray cluster (``ray.init(address)``:
   ``"auto"`` joins the cluster this machine belongs to, ``"local"`` starts one here). A task
   whose worker dies mid-match (a node lost, a ``kill -9``) is run again by Ray
@@ -50,7 +54,9 @@ class Stopped(Exception):
 def _worker_main(conn: Any) -> None:
     """A local worker: plays the specs it is sent, one at a time, and sends back
     ``("ok", result)`` or ``("error", traceback)``. It dies with the run (PR_SET_PDEATHSIG) and
-    leaves Ctrl-C to the run, which stops it."""
+    leaves Ctrl-C to the run, which stops it. A session of its own (see the module docstring);
+    it warms up before its first match."""
+    import os
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # already ignored since its start (see _Worker)
@@ -60,6 +66,11 @@ def _worker_main(conn: Any) -> None:
         ctypes.CDLL(None).prctl(1, signal.SIGKILL, 0, 0, 0)  # PR_SET_PDEATHSIG: no orphan after a kill -9 of the run
     except Exception:
         pass
+    try:
+        os.setsid()  # its own CPU share under the kernel's autogroup scheduling
+    except OSError:
+        pass
+    warm_up()
     while True:
         try:
             spec = conn.recv()
@@ -71,6 +82,20 @@ def _worker_main(conn: Any) -> None:
             conn.send(("ok", play_match(spec)))
         except Exception:
             conn.send(("error", traceback.format_exc(limit=5)))
+
+
+def warm_up() -> None:
+    """What every match needs before it plays, done once per worker: the engine's imports and
+    the planner's compiled kernels (loaded from numba's cache on disk)."""
+    try:
+        import numpy as np
+
+        import robo_comp.engine.bench  # noqa: F401  (the engine and what it imports)
+        from robo_comp.world.planner import find_path
+
+        find_path(np.zeros((8, 8), dtype=bool), (0, 0), (7, 7))
+    except Exception:  # a match that needs them fails with the real error
+        pass
 
 
 class _Worker:
@@ -120,12 +145,17 @@ class LocalRunner:
     ``kill -9``, the OOM killer) costs only the match it played, which is played again on a
     fresh worker, up to :data:`LOCAL_RETRIES` times, with the same result; the other matches
     go on. Workers die with the run (no orphans after any kill of ``league run``), ignore
-    Ctrl-C, and are killed at once when the run is stopped (:class:`Stopped`)."""
+    Ctrl-C, and are killed at once when the run is stopped (:class:`Stopped`). Otherwise they
+    stay up, warm, for the next :meth:`run` until :meth:`close`."""
 
     def __init__(self, workers: int = 1) -> None:
         self.workers = max(1, int(workers))
         #: Matches played again after their worker died (match id → times).
         self.replayed: dict[Any, int] = {}
+        #: What the matches played here cost: ``(teams, scenario, result)``; a free worker takes
+        #: the longest expected match left (:func:`robo_comp.league.schedule.longest_first`).
+        self.history: list[tuple[list[str], str, dict[str, Any]]] = []
+        self._pool: list[_Worker] = []
 
     @property
     def slots(self) -> int:
@@ -149,16 +179,18 @@ class LocalRunner:
 
         ctx = multiprocessing.get_context("spawn")  # a clean interpreter: no inherited threads or sockets
         todo = list(specs)
-        pool: list[_Worker] = []
+        pool = self._pool
+        done = False
         try:
-            pool = [_Worker(ctx) for _ in range(min(self.workers, len(todo)))]
+            while len(pool) < min(self.workers, len(todo)):
+                pool.append(_Worker(ctx))
             while todo or any(w.spec is not None for w in pool):
                 for k, w in enumerate(pool):
                     if w.spec is None and todo:
                         if not w.proc.is_alive():  # died while idle: nothing of ours was lost
                             w.stop()
                             pool[k] = w = _Worker(ctx)
-                        w.spec = todo.pop(0)
+                        w.spec = self._next(todo)
                         try:
                             w.conn.send(w.spec)
                         except OSError:  # it died just now: the next wait sees it and plays the match again
@@ -194,18 +226,41 @@ class LocalRunner:
                         continue
                     w.spec = None
                     if kind == "ok":
+                        self.history.append(([e["team"] for e in played.get("entrants", ())],
+                                             str(played.get("scenario")), value))
                         on_result(played, value)
                     else:
                         on_error(played, str(value))
+            done = True
         except KeyboardInterrupt:
             running = sum(1 for w in pool if w.spec is not None)
             raise Stopped(running, len(todo)) from None
         finally:
-            for w in pool:
-                w.stop()
+            if not done:  # stopped (or broken): no worker outlives it
+                self.close()
+
+    def _next(self, todo: list[dict[str, Any]]) -> dict[str, Any]:
+        """The spec a free worker plays next: the longest expected from what this runner's matches
+        cost so far (in the given order until it knows)."""
+        if self.history and len(todo) > 1:
+            from robo_comp.league.schedule import longest_first
+
+            first = longest_first(todo, self.history)[0]
+            todo.remove(first)
+            return first
+        return todo.pop(0)
 
     def close(self) -> None:
-        """Nothing to release (the workers end with each run)."""
+        """End the workers (they stay up between runs)."""
+        pool, self._pool = self._pool, []
+        for w in pool:
+            w.stop()
+
+    def __enter__(self) -> "LocalRunner":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
 
 
 def play_match_returning_log(spec: dict[str, Any]) -> tuple[dict[str, Any], bytes | None]:

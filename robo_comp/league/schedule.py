@@ -289,5 +289,34 @@ def champion(seeds: list[str], losses: dict[str, int]) -> str | None:
     return alive[0] if len(alive) == 1 else None
 
 
-__all__ = ["FORMATS", "balance", "champion", "elimination_round", "round_robin", "scrimmage", "side_lean",
-           "swiss_round"]
+def longest_first(specs: list[dict[str, Any]],
+                  played: Iterable[tuple[list[str], str, dict[str, Any]]]) -> list[dict[str, Any]]:
+    """Match specs in the order that ends a run on several workers soonest: the longest expected
+    first, so that the short ones fill the end while the last long one plays (each worker takes
+    the next spec as it frees up). A match is expected to cost what its teams' earlier matches on
+    the same scenario cost per simulated second (their ``cpu_seconds``: the same on a loaded
+    machine; ``wall_seconds`` for results without it), shared among their teams, times its
+    length; a team with no such match counts the mean of those that have one. ``played``: the
+    earlier matches as ``(teams, scenario, result)``. Without any history, or for equal
+    expectations, the order stays as given."""
+    rates: dict[tuple[str, str], list[float]] = {}
+    for teams, scenario, result in played:
+        spent, sim = result.get("cpu_seconds") or result.get("wall_seconds"), result.get("sim_seconds")
+        if not spent or not sim or not teams:
+            continue
+        for team in teams:
+            rates.setdefault((team, scenario), []).append(float(spent) / float(sim) / len(teams))
+    if not rates:
+        return list(specs)
+    mean = {k: sum(v) / len(v) for k, v in rates.items()}
+    overall = sum(mean.values()) / len(mean)
+
+    def expected(spec: dict[str, Any]) -> float:
+        teams = [e["team"] for e in spec["entrants"]]
+        return float(spec.get("seconds", 300)) * sum(mean.get((t, spec["scenario"]), overall) for t in teams)
+
+    return sorted(specs, key=expected, reverse=True)  # (a stable sort: equal ones keep their order)
+
+
+__all__ = ["FORMATS", "balance", "champion", "elimination_round", "longest_first", "round_robin", "scrimmage",
+           "side_lean", "swiss_round"]

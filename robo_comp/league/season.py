@@ -166,13 +166,17 @@ class Progress:
 def play(store: LeagueStore, runner: Any, ids: list[int] | None = None, *, stream: TextIO | None = None,
          on_match: Callable[[MatchRow], None] | None = None) -> dict[str, float]:
     """Play matches ``ids`` (default: every scheduled or failed one, and any left running by a
-    run that was killed) on ``runner``, store their results and move the ratings. A match
+    run that was killed) on ``runner``, the longest expected first (:func:`schedule.longest_first`),
+    store their results and move the ratings. A match
     still running when this run stops (Ctrl-C) is marked failed, to be played again. Returns
     timing figures: ``matches``, ``wall_seconds``, ``match_seconds`` (the matches' own time,
     summed) and ``league_seconds`` (storing and rating, summed)."""
     todo = ids if ids is not None else [m.id for m in store.matches()
                                         if m.status in ("scheduled", "failed", "running")]
-    specs = [store.spec(mid) for mid in todo]
+    # the longest expected first (from the teams' earlier matches): the run ends soonest on
+    # several workers; results are rated in match order whatever order they end in
+    played = [(m.teams, m.scenario, m.result) for m in store.matches() if m.status == "done" and m.result]
+    specs = schedule.longest_first([store.spec(mid) for mid in todo], played)
     progress = Progress(len(specs), stream)
     t0 = time.perf_counter()
     figures = {"matches": float(len(specs)), "match_seconds": 0.0, "league_seconds": 0.0, "failed": 0.0}

@@ -3,7 +3,7 @@
 Started by :class:`robo_comp.sandbox.parent.Sandbox` as::
 
     python -s -P -B -c "...; seal_child(); from robo_comp.sandbox.child import main; main()" \
-        --fd N --limits <msgpack hex>
+        --fd N --replies M --limits <msgpack hex>
 
 (``-I`` but for ``-E``: the parent gives the whole environment, and ``PYTHONHASHSEED`` in it
 fixes ``hash()`` per match; :func:`robo_comp.sandbox.determinism.seal_child` first takes
@@ -13,10 +13,13 @@ again once with address randomisation off, see :func:`_without_aslr`.)
 Order of start-up (everything that needs files or new threads happens *before* the limits):
 import all we need → die-with-parent → drop root to ``nobody`` (if root) → start the worker
 threads → inside the OS layer, the seccomp filter that refuses new programs → rlimits (CPU,
-address space, no new processes, no new files, no file writes, no core) → send ``ready``. Then the main thread only reads messages from the parent and dispatches
-them; team code (module bodies, ``init``, tasks) runs in the worker threads, one run each.
+address space, no new processes, no new files, no file writes, no core) → send ``ready``. Then the
+main thread only reads messages from the parent and dispatches them; team code (module bodies,
+``init``, tasks) runs in the worker threads, one run each. The answers to robot-API calls come
+on a second socket (``--replies``), which the worker waiting for an answer reads itself
+(:class:`_Replies`): no thread hands a call's answer to another.
 
-Wire format (both directions): 4-byte big-endian length + a msgpack map with key ``t``.
+Wire format (both directions, both sockets): 4-byte big-endian length + a msgpack map with key ``t``.
 This module also holds the framing helpers the parent uses.
 """
 from __future__ import annotations
@@ -27,6 +30,7 @@ import math
 import os
 import queue
 import resource
+import select
 import signal
 import socket
 import struct
@@ -48,6 +52,10 @@ EXIT_PROTOCOL = 76
 _MOVEMENT = frozenset({"move", "turn", "go_to"})
 EXIT_INTERNAL = 77
 MAX_TEXT = 2000
+#: Bytes asked of one ``recv``. Python allocates that much for each call before it knows how much
+#: came: below glibc's mmap threshold (128 KiB) that is a cheap heap allocation, above it a new
+#: mapping each time (measured: 50 us more a call, with its page faults).
+RECV_BYTES = 1 << 16
 
 
 # --------------------------------------------------------------------------- framing
@@ -71,9 +79,15 @@ def _not_plain(task: str, exc: BaseException) -> str:
             "numbers, text, True/False/None, or lists and dicts of them")
 
 
+_PACKER = msgpack.Packer(use_bin_type=True, strict_types=True, default=_default)
+_PACK_LOCK = threading.Lock()  # one packer for all threads (it resets itself after an error)
+_unpackb = msgpack.unpackb
+
+
 def pack(msg: dict) -> bytes:
     """Encode one message (length prefix + msgpack); raises TypeError/ValueError if not plain."""
-    body = msgpack.packb(msg, use_bin_type=True, strict_types=True, default=_default)
+    with _PACK_LOCK:
+        body = _PACKER.pack(msg)
     return HEADER.pack(len(body)) + body
 
 
@@ -90,25 +104,34 @@ class FrameReader:
 
     def feed(self, data: bytes) -> list[dict]:
         """Add received bytes; return the complete messages (raises :class:`FrameError`)."""
-        self.buf += data
+        if self.buf:  # a frame began in an earlier piece: go on from the buffer
+            self.buf += data
+            view: bytes | bytearray = self.buf
+        else:  # most often whole frames: read them from ``data`` without copying it first
+            view = data
         out = []
-        while len(self.buf) >= 4:
-            (n,) = HEADER.unpack_from(self.buf)
-            if n > self.cap:
-                raise FrameError(f"message too large ({n} bytes > {self.cap} bytes)")
-            if len(self.buf) < 4 + n:
+        pos, end = 0, len(view)
+        cap = self.cap
+        while end - pos >= 4:
+            (n,) = HEADER.unpack_from(view, pos)
+            if n > cap:
+                raise FrameError(f"message too large ({n} bytes > {cap} bytes)")
+            stop = pos + 4 + n
+            if stop > end:
                 break
-            body = bytes(self.buf[4:4 + n])
-            del self.buf[:4 + n]
             try:
-                msg = msgpack.unpackb(body, raw=False, strict_map_key=False, use_list=True)
+                msg = _unpackb(view[pos + 4:stop], strict_map_key=False)
             except Exception as exc:
                 raise FrameError(f"undecodable message ({type(exc).__name__})") from None
             if type(msg) is not dict or type(msg.get("t")) is not str:
                 raise FrameError("message is not a map with a type")
             out.append(msg)
+            pos = stop
+        if view is self.buf:
+            del self.buf[:pos]
+        elif pos < end:
+            self.buf += memoryview(data)[pos:]
         return out
-
 
 
 _FACTORY: Callable[..., dict[str, Any]] | None = None
@@ -131,7 +154,7 @@ def _trim(text: str, n: int = MAX_TEXT) -> str:
 class _Run:
     """One run (a task or a module load) executing in a worker."""
 
-    __slots__ = ("id", "tag", "file", "output", "violation", "cancelled", "drawing")
+    __slots__ = ("id", "tag", "file", "output", "violation", "cancelled", "drawing", "key")
 
     def __init__(self, run_id: int, tag: Any, file: str) -> None:
         self.id = run_id
@@ -142,6 +165,9 @@ class _Run:
         self.cancelled = False
         #: The shapes drawn since the last movement call (sent with it: docs/sandbox.md, "Debug drawing").
         self.drawing: list | None = None
+        #: The key of the last answer to this run's calls, named by its next call: the parent takes
+        #: the time between them as one turn of a loop (its call limiter; sandbox/parent.py).
+        self.key = 0
 
 
 class _Module:
@@ -161,11 +187,13 @@ class _Module:
 class Child:
     """The child's state and its message loop (one instance per process)."""
 
-    def __init__(self, sock: socket.socket, limits: dict) -> None:
+    def __init__(self, sock: socket.socket, limits: dict, replies: socket.socket) -> None:
         from robo_comp.sandbox import contract, policy as restricted  # imported before the limits
         self.contract = contract
         self.restricted = restricted
         self.sock = sock
+        #: Answers to robot-API calls come on a socket of their own (:class:`_Replies`).
+        self.replies = _Replies(replies, max(limits["message_bytes"], 1 << 20))
         self.limits = limits
         self.send_lock = threading.Lock()
         self.state_lock = threading.Lock()
@@ -178,7 +206,10 @@ class Child:
         self.sources: dict[str, list[str]] = {}
         self.policy = restricted.Policy(int(limits.get("seed", 0)), self._print_sink)
         self.workers = [_Worker(self, i) for i in range(int(limits["workers"]))]
+        #: The workers by thread id (an int: hashed by value, see current_worker).
+        self.by_thread = {w.ident: w for w in self.workers}
         self.cpu_soft = -1
+        self.cpu_recheck = 0.0  # time.monotonic() after which refresh_cpu reads the CPU time again
         self.stderr_left = 16384
 
     # ------------------------------------------------------------------ sending
@@ -192,25 +223,32 @@ class Child:
             self.sock.sendall(data)
 
     def refresh_cpu(self) -> None:
-        """Give team code ``cpu_seconds`` more CPU from now (the rlimit is a backstop)."""
-        want = int(math.ceil(time.process_time() + float(self.limits["cpu_seconds"])))
+        """Give team code ``cpu_seconds`` more CPU from now (the rlimit is a backstop).
+
+        Reading the process's CPU time is a system call; it is read again only once the process
+        could have used up the second's rest the soft limit was rounded up by (its threads together
+        use at most one CPU second per thread each second), so team code still has at least
+        ``cpu_seconds`` from every call."""
+        now = time.monotonic()
+        if now < self.cpu_recheck:
+            return
+        budget = float(self.limits["cpu_seconds"])
+        used = time.process_time()
+        want = int(math.ceil(used + budget))
         if want != self.cpu_soft:
             try:
                 resource.setrlimit(resource.RLIMIT_CPU, (want, resource.RLIM_INFINITY))
                 self.cpu_soft = want
             except (ValueError, OSError):
-                pass
+                return
+        self.cpu_recheck = now + (want - used - budget) / (len(self.workers) + 1)
 
     # ------------------------------------------------------------------ team output
     def current_worker(self) -> _Worker | None:
         """The worker whose thread this is (None on the main thread). Not a threading.local: its
         per-thread record is hashed the first time a thread uses it, which would take a serial
         number (sandbox/determinism.py) at a moment that depends on which worker is free."""
-        ident = threading.get_ident()
-        for w in self.workers:
-            if w.ident == ident:
-                return w
-        return None
+        return self.by_thread.get(threading.get_ident())
 
     def current_run(self) -> _Run | None:
         w = self.current_worker()
@@ -248,10 +286,11 @@ class Child:
 
     # ------------------------------------------------------------------ robot API
     def rpc(self, tag: Any, name: str, args: list) -> Any:
-        """One robot-API call from team code: send it, block this worker until the answer."""
+        """One robot-API call from team code: send it, then read the answer from the reply socket
+        in this worker itself (:class:`_Replies`)."""
         R = self.restricted
-        run = self.current_run()
         worker = self.current_worker()
+        run = None if worker is None else worker.current
         if run is None or worker is None:
             raise R.RobotError("the robot API is only usable while a task or init runs")
         if run.cancelled:
@@ -260,26 +299,42 @@ class Child:
             raise R.RobotError(f"{name}: no robot is attached (init without a robot)")
         if name in _MOVEMENT:
             self.flush_drawing(run)
-        with self.state_lock:
-            call_id = self.next_call
-            self.next_call += 1
-            self.calls[call_id] = worker
+        call_id = -1
         try:
-            self.send({"t": "call", "c": call_id, "r": run.id, "g": tag, "n": name, "a": args})
-        except R.LimitExceeded as exc:
+            with self.state_lock:
+                call_id = self.next_call
+                self.next_call += 1
+                self.calls[call_id] = worker
+                # From here the main thread raises no TaskCancelled in this thread (it could cut a
+                # frame in half while this thread reads the socket): the parent answers a call of a
+                # cancelled run with "cancelled" instead. One raised just before is taken back.
+                worker.waiting = True
+                raised, worker.raised = worker.raised, False
+            if raised:
+                _take_back_async_exc(worker.ident)
+            self.send({"t": "call", "c": call_id, "r": run.id, "g": tag, "n": name, "a": args, "k": run.key})
+        except BaseException as exc:
             with self.state_lock:
                 self.calls.pop(call_id, None)
-            self.violate(run, str(exc))
-        except (TypeError, ValueError, OverflowError) as exc:
-            with self.state_lock:
-                self.calls.pop(call_id, None)
-            raise R.RobotError(f"{name}: arguments are not plain data: {_trim(str(exc), 200)}") from None
-        reply = worker.replies.get()
+                worker.waiting = False
+            if isinstance(exc, R.LimitExceeded):
+                self.violate(run, str(exc))
+            if isinstance(exc, (TypeError, ValueError, OverflowError)):
+                raise R.RobotError(f"{name}: arguments are not plain data: {_trim(str(exc), 200)}") from None
+            raise
+        reply = self.replies.wait(call_id, self.calls)
+        key = reply.get("k")
+        run.key = key if type(key) is int else 0
+        with self.state_lock:
+            self.calls.pop(call_id, None)
+            worker.waiting = False
+            cancelled = run.cancelled
+        self.refresh_cpu()
+        if reply.get("x") or cancelled:
+            run.cancelled = True
+            raise R.TaskCancelled(str(reply.get("e", "cancelled")) if reply.get("x") else "the task was cancelled")
         if reply.get("ok"):
             return reply.get("v")
-        if reply.get("x"):
-            run.cancelled = True
-            raise R.TaskCancelled(str(reply.get("e", "cancelled")))
         raise R.RobotError(f"{name}: {_trim(str(reply.get('e', 'refused')), 500)}")
 
     def flush_drawing(self, run: _Run, clear: bool = True) -> None:
@@ -343,8 +398,14 @@ class Child:
         """Read and dispatch parent messages until the parent goes away."""
         reader = FrameReader(max(self.limits["message_bytes"], 1 << 20))
         recv = self.sock.recv
+        # Wait in poll, not in recv: a thread asleep in recv on a UNIX socket is also woken each
+        # time the parent reads what this process sent on it (the kernel's "room to write" wake-up
+        # is not filtered for readers), i.e. at every robot-API call; poll sleeps through those.
+        poller = select.poll()
+        poller.register(self.sock.fileno(), select.POLLIN)
         while True:
-            data = recv(1 << 18)
+            poller.poll()
+            data = recv(RECV_BYTES)
             if not data:
                 os._exit(0)
             for msg in reader.feed(data):
@@ -352,13 +413,7 @@ class Child:
 
     def dispatch(self, msg: dict) -> None:
         t = msg["t"]
-        if t == "reply":
-            with self.state_lock:
-                worker = self.calls.pop(msg.get("c", -1), None)
-            if worker is not None:
-                self.refresh_cpu()
-                worker.replies.put(msg)
-        elif t == "run":
+        if t == "run":
             self.refresh_cpu()
             self._start(msg, "task")
         elif t == "load":
@@ -393,7 +448,8 @@ class Child:
             if w is None or w.run is None or w.run.id != run_id:
                 return
             w.run.cancelled = True
-            if w.in_team and _async_exc is not None and w.ident is not None:
+            if w.in_team and not w.waiting and _async_exc is not None and w.ident is not None:
+                w.raised = True
                 _async_exc(w.ident, self.restricted.TaskCancelled)
 
     def _reindex(self) -> None:
@@ -450,10 +506,11 @@ class Child:
 
 
 _async_exc: Callable[[int, type], None] | None = None
+_clear_async_exc: Callable[[int, None], Any] | None = None
 
 
 def _install_async_exc() -> None:
-    global _async_exc
+    global _async_exc, _clear_async_exc
     try:
         import ctypes
         set_exc = ctypes.pythonapi.PyThreadState_SetAsyncExc
@@ -462,8 +519,79 @@ def _install_async_exc() -> None:
         def raise_in(ident: int, exc: type) -> None:
             set_exc(ident, exc)
         _async_exc = raise_in
+        # the same function with a NULL exception: takes back one not yet raised
+        _clear_async_exc = ctypes.PYFUNCTYPE(ctypes.c_int, ctypes.c_ulong, ctypes.c_void_p)(
+            ("PyThreadState_SetAsyncExc", ctypes.pythonapi))
     except Exception:  # pragma: no cover - ctypes missing
-        _async_exc = None
+        _async_exc = _clear_async_exc = None
+
+
+def _take_back_async_exc(ident: int | None) -> None:
+    """Take back an exception the main thread set for thread ``ident`` that has not fired yet."""
+    if _clear_async_exc is not None and ident is not None:
+        _clear_async_exc(ident, None)
+
+
+class _Replies:
+    """The answers to robot-API calls, on a socket of their own, read by the workers waiting for
+    them: the worker that made a call reads its answer itself, with no hand-over from another
+    thread, so a call costs what a bare call and answer between two processes costs. One waiting
+    worker reads at a time; an answer it reads for another waiting worker is left for that one,
+    which is woken. A worker waiting here cannot be interrupted (see :meth:`Child.rpc`)."""
+
+    def __init__(self, sock: socket.socket, cap: int) -> None:
+        self.recv = sock.recv
+        self.reader = FrameReader(cap)
+        self.lock = threading.Lock()
+        self.cond = threading.Condition(self.lock)  # (entered through the lock: cheaper)
+        self.reading = False
+        self.got: dict[int, dict] = {}
+        self.waiters = 0
+
+    def wait(self, call_id: int, awaited: dict[int, Any]) -> dict:
+        """Block until the answer to ``call_id`` has come; ``awaited`` holds the call ids some
+        worker waits for (answers to other calls are dropped)."""
+        with self.lock:
+            while True:
+                mine = self.got.pop(call_id, None)
+                if mine is not None:
+                    return mine
+                if not self.reading:
+                    self.reading = True
+                    break
+                self.waiters += 1
+                self.cond.wait()
+                self.waiters -= 1
+        try:
+            while mine is None:
+                data = self.recv(RECV_BYTES)
+                if not data:
+                    os._exit(0)
+                others = {}
+                for msg in self.reader.feed(data):
+                    c = msg.get("c")
+                    if msg["t"] != "reply" or type(c) is not int:
+                        os._exit(EXIT_PROTOCOL)
+                    if c == call_id:
+                        mine = msg
+                    elif c in awaited:
+                        others[c] = msg
+                    # else: an answer to a call no worker made (one forged below the policy): dropped
+                if others:
+                    with self.lock:
+                        self.got.update(others)
+                        self.cond.notify_all()
+        except FrameError:
+            os._exit(EXIT_PROTOCOL)
+        except MemoryError:
+            os._exit(EXIT_MEMORY)
+        finally:
+            with self.lock:
+                self.reading = False
+                if self.waiters:
+                    self.cond.notify_all()  # one of them reads now
+        assert mine is not None  # (the loop above ends only with it)
+        return mine
 
 
 class _Worker:
@@ -472,12 +600,15 @@ class _Worker:
     def __init__(self, child: Child, index: int) -> None:
         self.child = child
         self.jobs: "queue.SimpleQueue[tuple]" = queue.SimpleQueue()
-        self.replies: "queue.SimpleQueue[dict]" = queue.SimpleQueue()
         self.run: _Run | None = None
         #: The run this thread executes now (set by the thread itself; ``run`` is the main
         #: thread's booking).
         self.current: _Run | None = None
         self.in_team = False
+        #: In a robot-API call, waiting for its answer (no TaskCancelled is raised in the thread then).
+        self.waiting = False
+        #: The main thread raised TaskCancelled in this thread (it may not have fired yet).
+        self.raised = False
         self.sent = False
         self.thread = threading.Thread(target=self.loop, name=f"team-{index}", daemon=True)
         self.thread.start()
@@ -536,8 +667,7 @@ class _Worker:
                             c.runs.pop(run.id, None)
                             for k in [k for k, w in c.calls.items() if w is self]:
                                 del c.calls[k]
-                        while not self.replies.empty():
-                            self.replies.get_nowait()
+                        self.waiting = False
                         self.current = None
                         break
                     except BaseException:
@@ -855,10 +985,21 @@ def _plant_hole(child: "Child") -> None:
     child.policy.make_globals = holed  # type: ignore[method-assign]
 
 
+def _lowest(fd: int) -> int:
+    """``fd`` moved to the lowest free descriptor: keeps RLIMIT_NOFILE small whatever the parent had open."""
+    low = os.dup(fd)
+    if low < fd:
+        os.close(fd)
+        return low
+    os.close(low)
+    return fd
+
+
 def main(argv: list[str] | None = None) -> None:
     """Child entry point (``python -m robo_comp.sandbox.child``)."""
     ap = argparse.ArgumentParser()
     ap.add_argument("--fd", type=int, required=True)
+    ap.add_argument("--replies", type=int, required=True, help="the socket the call answers come on")
     ap.add_argument("--limits", required=True)
     opts = ap.parse_args(argv)
     limits = msgpack.unpackb(bytes.fromhex(opts.limits), raw=False)
@@ -869,22 +1010,19 @@ def main(argv: list[str] | None = None) -> None:
         os._exit(EXIT_INTERNAL)
     if limits.get("aslr_off") and argv is None:
         _without_aslr()
-    fd = opts.fd
-    low = os.dup(fd)  # the lowest free descriptor: keeps RLIMIT_NOFILE small whatever the parent had open
-    if low < fd:
-        os.close(fd)
-        fd = low
-    else:
-        os.close(low)
+    fd = _lowest(opts.fd)
     sock = socket.socket(fileno=fd)
     sock.setblocking(True)
+    replies = socket.socket(fileno=_lowest(opts.replies))
+    replies.setblocking(True)
+    replies.shutdown(socket.SHUT_WR)  # answers only come in
     _die_with_parent()
     try:
         os.nice(int(limits.get("nice", 0)))
     except OSError:
         pass
     _install_async_exc()
-    child = Child(sock, limits)  # imports the policy and starts the workers
+    child = Child(sock, limits, replies)  # imports the policy and starts the workers
     if limits.get("test_policy_hole"):  # tests only (Limits.test_policy_hole): the real modules
         _plant_hole(child)
     _warm_up(child)
@@ -892,8 +1030,8 @@ def main(argv: list[str] | None = None) -> None:
     sys.stderr = _CappedStream(child, "stderr")
     _drop_root()
     _no_new_programs(limits.get("seccomp"), limits.get("debug", False))
-    _set_limits(limits, keep_fds=fd + 1)
-    child.cpu_soft = -1
+    _set_limits(limits, keep_fds=max(fd, replies.fileno()) + 1)
+    child.cpu_soft, child.cpu_recheck = -1, 0.0
     child.refresh_cpu()
     child.send({"t": "ready", "pid": os.getpid()})
     try:

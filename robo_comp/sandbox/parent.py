@@ -19,6 +19,7 @@ for tests, tools and simple hosts.
 """
 from __future__ import annotations
 
+import array
 import collections
 import contextlib
 import math
@@ -38,7 +39,7 @@ from robo_comp.errors import BadTaskError, NotYoursError, UnavailableError, Uplo
 from robo_comp.sandbox import contract, oswall
 from robo_comp.sandbox.contract import BUILTIN_TASKS, ModuleInfo
 from robo_comp.sandbox.child import (
-    EXIT_INTERNAL, EXIT_MEMORY, EXIT_PROTOCOL, FrameError, FrameReader, pack,
+    EXIT_INTERNAL, EXIT_MEMORY, EXIT_PROTOCOL, RECV_BYTES, FrameError, FrameReader, pack,
 )
 
 __all__ = [
@@ -57,6 +58,10 @@ class _Pending:
 
 PENDING: Any = _Pending()
 """Return this from the handler when the answer comes later (``resolve``/``reject``)."""
+
+#: Seconds between two tries to send answers the child's socket had no room for (then
+#: :meth:`Sandbox.deadline` asks the host loop to come back that soon).
+REPLY_RETRY = 0.001
 
 
 @dataclass(frozen=True)
@@ -86,11 +91,14 @@ class Limits:
     spawn_seconds: float = 10.0
     """Time the child may take to start."""
     rpc_per_second: float = 20_000.0
-    """Robot-API calls per second a sandbox may make, sustained (token bucket; 0 = unlimited).
-    Above what one task calling in a tight loop reaches (one call waits for its answer: 6,000
-    to 9,000 calls/s on a 2-core machine), so ordinary team code pays the bare round trip; it shapes
-    the bursts of many concurrent runs and bounds what a team asks of its host. Calls over the
-    rate are not refused, only answered later."""
+    """The least rate of the call limiter (a token bucket per sandbox; 0 = no limiter): robot-API
+    calls per second a sandbox may make, sustained, before any of its runs was measured. Calls over
+    the rate are not refused, only answered later (docs/sandbox.md, "The call limiter")."""
+    rpc_loops: float = 2.0
+    """The limiter's rate follows the calls: it is at least this many times the calls per second
+    of the fastest loop measured on the sandbox (the shortest time from one call of a run to its
+    next). One run waits for each answer, so no run calls faster than that, and a single loop is
+    never held back, on any CPU; all runs together get this many loops' worth."""
     rpc_burst: int = 2_000
     """Calls allowed at once before the rate applies."""
     nice: int = 10
@@ -255,6 +263,15 @@ class _Run:
     replay: bool = False
     budget: float = 0.0
     held: bool = False
+    last_call: float = 0.0  # when its last robot-API call came (time.monotonic())
+    #: The key sent with the answer to its last call; its next call names it when it was sent after
+    #: that answer was read (a turn of a loop: see Sandbox.call_rate). 0: none to name.
+    key: int = 0
+
+
+#: The shortest time between two calls of a run the limiter takes as measured (a floor against a
+#: clock that did not move).
+MIN_PERIOD = 1e-6
 
 
 class Sandbox:
@@ -278,12 +295,16 @@ class Sandbox:
         self.tags: list[int] = list(tags)
         self.handler = handler
         self.limits = limits or Limits()
+        #: The largest message the parent sends (a module's source fits whatever the limits).
+        self._send_cap = max(self.limits.message_bytes, contract.MAX_SOURCE_BYTES + 4096)
         self.seed = seed
         self.builtin_tasks = tuple(builtin_tasks)
         self.proc: subprocess.Popen | None = None
         #: Whether the child runs inside the OS layer (bubblewrap; see sandbox/oswall.py).
         self.os_sandbox = False
         self.sock: socket.socket | None = None
+        self._rsock: socket.socket | None = None  # the answers' socket (see start)
+        self._rout = bytearray()  # answers the child's socket had no room for yet
         self._reader: FrameReader | None = None
         self._outbuf = bytearray()
         self._out: list[Record] = []
@@ -296,6 +317,12 @@ class Sandbox:
         self._throttled: collections.deque[tuple] = collections.deque()
         self._tokens = float(self.limits.rpc_burst)
         self._token_time = time.monotonic()
+        #: The shortest time seen between a run's call and its next one (see Limits.rpc_loops).
+        self.fastest_loop = math.inf
+        self._rate = self.limits.rpc_per_second  # call_rate(), kept
+        self._keys: list[int] = []  # unguessable keys for the answers, drawn 512 at a time
+        #: Robot-API calls the limiter held back (answered later) so far.
+        self.paced_calls = 0
         self._good: dict[str, tuple[str, str, ModuleInfo]] = {}  # name -> (file, source, info)
         self._spawn_deadline: float | None = None
         self._respawns: collections.deque[float] = collections.deque()
@@ -315,6 +342,9 @@ class Sandbox:
     def start(self) -> None:
         """Spawn the child (returns at once; a :class:`Ready` record follows)."""
         parent, child = socket.socketpair(socket.AF_UNIX, socket.SOCK_STREAM)
+        # the answers to robot-API calls go on a socket of their own, read in the child by the
+        # worker that waits for them (sandbox/child.py, _Replies)
+        rparent, rchild = socket.socketpair(socket.AF_UNIX, socket.SOCK_STREAM)
         # the whole environment is ours (so -E is not needed, and PYTHONHASHSEED is read): hash()
         # of str/bytes and the order of their sets follow the seed, not per-process entropy
         env = {"MALLOC_ARENA_MAX": "1", "PYTHONDONTWRITEBYTECODE": "1",
@@ -330,7 +360,7 @@ class Sandbox:
                    # no address reaches team code: sealed before the modules the child needs are imported
                    "from robo_comp.sandbox.determinism import seal_child; seal_child(); "
                    "from robo_comp.sandbox.child import main; main()",
-                   "--fd", str(child.fileno()),
+                   "--fd", str(child.fileno()), "--replies", str(rchild.fileno()),
                    "--limits", msgpack.packb(dict(
                        self.limits.wire(self.seed), replayable=self.deterministic,
                        aslr_off=self.deterministic and not keep_aslr(),
@@ -342,17 +372,23 @@ class Sandbox:
                 cmd, stdin=subprocess.DEVNULL,
                 stdout=None if debug else subprocess.DEVNULL,
                 stderr=None if debug else subprocess.DEVNULL,
-                pass_fds=(child.fileno(),) if filter_fd is None else (child.fileno(), filter_fd),
+                pass_fds=(child.fileno(), rchild.fileno()) + (() if filter_fd is None else (filter_fd,)),
                 start_new_session=True, close_fds=True, env=env, cwd="/")
         except BaseException:
             parent.close()
+            rparent.close()
             raise
         finally:
             child.close()
+            rchild.close()
             if filter_fd is not None:
                 os.close(filter_fd)
         parent.setblocking(False)
+        rparent.setblocking(False)
+        rparent.shutdown(socket.SHUT_RD)  # answers only go out
         self.sock = parent
+        self._rsock = rparent
+        self._rout = bytearray()
         self._reader = FrameReader(self.limits.message_bytes)
         self._outbuf = bytearray()
         self.ready = False
@@ -403,14 +439,21 @@ class Sandbox:
 
     def deadline(self) -> float | None:
         """Earliest ``time.monotonic()`` at which :meth:`check_timers` must run (or None)."""
-        ds = [r.deadline for r in self._runs.values() if r.deadline is not None]
-        if self._spawn_deadline is not None:
-            ds.append(self._spawn_deadline)
+        due = self._spawn_deadline
+        for r in self._runs.values():  # (a loop, not a list: this runs once per host loop)
+            d = r.deadline
+            if d is not None and (due is None or d < due):
+                due = d
+        more = []
         if self._throttled and self.limits.rpc_per_second:
-            ds.append(self._token_time + max(0.0, 1.0 - self._tokens) / self.limits.rpc_per_second)
+            more.append(self._token_time + max(0.0, 1.0 - self._tokens) / self._rate)
         if self.cooldown_until is not None:
-            ds.append(self.cooldown_until)
-        return min(ds) if ds else None
+            more.append(self.cooldown_until)
+        if self._rout:  # answers wait for room in their socket: look again soon
+            more.append(time.monotonic() + REPLY_RETRY)
+        if more:
+            return min(more) if due is None else min(due, *more)
+        return due
 
     def wants_write(self) -> bool:
         """True when queued outgoing bytes wait for the socket to become writable."""
@@ -434,7 +477,7 @@ class Sandbox:
         if self.sock is None:
             return
         data = pack(msg)
-        if len(data) - 4 > max(self.limits.message_bytes, contract.MAX_SOURCE_BYTES + 4096):
+        if len(data) - 4 > self._send_cap:
             raise ValueError("message too large for the sandbox")
         self._outbuf += data
         self._flush()
@@ -442,6 +485,7 @@ class Sandbox:
     def handle_writable(self) -> list[Record]:
         """Flush queued bytes to the child (call when the socket is writable)."""
         self._flush()
+        self._flush_replies()
         return self._take()
 
     def _flush(self) -> None:
@@ -644,11 +688,14 @@ class Sandbox:
         if rid is None:
             return
         run = self._runs.get(rid)
+        msg: dict[str, Any] = {"t": "reply", "c": call_id, "ok": ok}
         if run is not None:
             run.calls.discard(call_id)
             if run.kind == "task" and not run.cancelled and not run.calls:
                 run.deadline = time.monotonic() + self.limits.wall_seconds
-        msg: dict[str, Any] = {"t": "reply", "c": call_id, "ok": ok}
+            if not self._keys:
+                self._keys = array.array("Q", os.urandom(4096)).tolist()
+            run.key = msg["k"] = self._keys.pop() or 1
         if ok:
             msg["v"] = value
         else:
@@ -656,10 +703,40 @@ class Sandbox:
             if cancelled:
                 msg["x"] = True
         try:
-            self._send(msg)
+            data = pack(msg)
+            if len(data) - 4 > self._send_cap:
+                raise ValueError("message too large for the sandbox")
         except (TypeError, ValueError, OverflowError) as exc:
-            self._send({"t": "reply", "c": call_id, "ok": False,
-                        "e": f"the host's answer is not plain data or too large ({exc})"})
+            data = pack({"t": "reply", "c": call_id, "ok": False,
+                         "e": f"the host's answer is not plain data or too large ({exc})"})
+        if self._rsock is None:
+            return
+        if not self._rout:  # most often: straight out, nothing queued
+            try:
+                n = self._rsock.send(data)
+            except (BlockingIOError, InterruptedError):
+                n = 0
+            except OSError:
+                return
+            if n == len(data):
+                return
+            data = data[n:]
+        self._rout += data
+        self._flush_replies()
+
+    def _flush_replies(self) -> None:
+        """Send the answers waiting for room in their socket (never blocks)."""
+        while self._rout and self._rsock is not None:
+            try:
+                n = self._rsock.send(self._rout)
+            except (BlockingIOError, InterruptedError):
+                break
+            except OSError:
+                self._rout.clear()
+                break
+            del self._rout[:n]
+        if len(self._rout) > 8 * 1024 * 1024:
+            self._stop("protocol", "the sandbox does not read the answers to its calls")
 
     # ------------------------------------------------------------------ the loop side
     def poll(self, timeout: float = 0.0) -> list[Record]:
@@ -693,7 +770,7 @@ class Sandbox:
             return self._take()
         while self.sock is not None:
             try:
-                data = self.sock.recv(1 << 18)
+                data = self.sock.recv(RECV_BYTES)
             except (BlockingIOError, InterruptedError):
                 break
             except OSError:
@@ -713,13 +790,15 @@ class Sandbox:
                     self._stop("protocol", f"protocol violation in a {str(msg.get('t'))[:20]!r} "
                                            "message")
                     break
-            if len(data) < (1 << 18):
+            if len(data) < RECV_BYTES:
                 break
         return self._take()
 
     def check_timers(self, now: float | None = None) -> list[Record]:
         """Enforce wall-clock limits (kill + respawn); returns records."""
         now = time.monotonic() if now is None else now
+        if self._rout:
+            self._flush_replies()
         if self.cooldown_until is not None:
             if now >= self.cooldown_until:
                 self._restart("the sandbox's cool-down is over: it runs again with your loaded modules")
@@ -729,9 +808,12 @@ class Sandbox:
         if self._spawn_deadline is not None and now >= self._spawn_deadline:
             self._stop("spawn", f"the sandbox did not start within {self.limits.spawn_seconds:g} s")
             return self._take()
-        late = [r for r in self._runs.values() if r.deadline is not None and now >= r.deadline]
-        if late:
-            run = min(late, key=lambda r: r.deadline or 0.0)
+        run = None
+        for r in self._runs.values():  # the run late the longest (a loop: this runs once per host loop)
+            d = r.deadline
+            if d is not None and now >= d and (run is None or d < (run.deadline or 0.0)):
+                run = r
+        if run is not None:
             self._stop("wall", run.violation or run.limit_text, culprit=run.id)
         return self._take()
 
@@ -841,6 +923,18 @@ class Sandbox:
         run = self._runs.get(rid)
         if run is None:
             raise KeyError(rid)
+        now = time.monotonic()
+        if run.key and msg.get("k") == run.key:
+            # the call names the key of its run's last answer: it was sent after that answer was
+            # read, so the time since that call is one turn of a loop. Calls sent without waiting
+            # cannot know the key (drawn from os.urandom), whichever read of the socket they come
+            # in: they are held to the rate and do not raise it.
+            period = max(MIN_PERIOD, now - run.last_call)
+            if period < self.fastest_loop:
+                self.fastest_loop = period
+                self._rate = self.call_rate()
+        run.key = 0
+        run.last_call = now
         run.calls.add(call_id)
         self._calls[call_id] = rid
         if run.kind == "task":
@@ -852,16 +946,26 @@ class Sandbox:
         if run.cancelled:
             self._answer(call_id, ok=False, error="task cancelled", cancelled=True)
             return
-        if self._throttled or not self._take_token():
+        if self._throttled or not self._take_token(now):
             self._throttled.append((call_id, rid, tag, name, args))  # answered when due
+            self.paced_calls += 1
             return
         self._deliver(call_id, rid, tag, name, args)
 
-    def _take_token(self) -> bool:
+    def call_rate(self) -> float:
+        """The limiter's rate now, calls per second (0: no limiter): ``rpc_per_second``, or
+        ``rpc_loops`` times the calls per second of the fastest loop measured if that is more."""
         rate = self.limits.rpc_per_second
+        if rate and self.fastest_loop < math.inf:
+            rate = max(rate, self.limits.rpc_loops / self.fastest_loop)
+        return rate
+
+    def _take_token(self, now: float | None = None) -> bool:
+        rate = self._rate
         if not rate:
             return True
-        now = time.monotonic()
+        if now is None:
+            now = time.monotonic()
         self._tokens = min(float(self.limits.rpc_burst),
                            self._tokens + (now - self._token_time) * rate)
         self._token_time = now
@@ -970,6 +1074,10 @@ class Sandbox:
             except OSError:
                 pass
             self.sock = None
+        if self._rsock is not None:
+            self._rsock.close()
+            self._rsock = None
+        self._rout.clear()
 
     def _stop(self, reason: str, message: str, culprit: int | None = None,
               already_dead: bool = False) -> None:

@@ -141,12 +141,17 @@ class Namespace:
         object.__setattr__(self, "_ns_name", name)
         object.__setattr__(self, "_ns_items", _types.MappingProxyType(dict(items)))
 
-    def __getattr__(self, name: str) -> Any:
-        items = object.__getattribute__(self, "_ns_items")
+    def __getattribute__(self, name: str) -> Any:
+        # the items first: ``robot.sense`` or ``math.sqrt`` is found at once, without the failed
+        # lookup on the class (which makes and drops an AttributeError every time, a microsecond)
         try:
-            return items[name]
+            return _ns_items(self)[name]
         except KeyError:
-            raise AttributeError(f"module {self._ns_name!r} has no attribute {name!r}") from None
+            pass
+        try:
+            return object.__getattribute__(self, name)
+        except AttributeError:
+            raise AttributeError(f"module {_ns_name(self)!r} has no attribute {name!r}") from None
 
     def __setattr__(self, name: str, value: Any) -> None:
         raise AttributeError(f"module {self._ns_name!r} is read-only")
@@ -159,6 +164,10 @@ class Namespace:
 
     def __repr__(self) -> str:
         return f"<module {self._ns_name!r} (sandbox)>"
+
+
+_ns_items: Callable[[Namespace], Any] = Namespace._ns_items.__get__  # type: ignore[attr-defined]
+_ns_name: Callable[[Namespace], str] = Namespace._ns_name.__get__  # type: ignore[attr-defined]
 
 
 def _math_namespace() -> Namespace:
