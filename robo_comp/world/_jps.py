@@ -25,6 +25,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from robo_comp.world._heap import grow as _grow
+from robo_comp.world._heap import pop as _heap_pop
+from robo_comp.world._heap import push as _heap_push
+
 SQRT2 = 1.4142135623730951
 
 
@@ -83,65 +87,6 @@ def _octile(ax, ay, bx, by):
     if dx < dy:
         return dy + (SQRT2 - 1.0) * dx
     return dx + (SQRT2 - 1.0) * dy
-
-
-@njit(cache=True, inline="always", nogil=True)
-def _less(f1, h1, k1, f2, h2, k2):
-    # by f; ties to smaller h (nearer the goal), then to the latest pushed (k decreases)
-    return f1 < f2 or (f1 == f2 and (h1 < h2 or (h1 == h2 and k1 < k2)))
-
-
-@njit(cache=True, nogil=True)
-def _heap_push(hf, hh, hv, size, f, hu, k):
-    i = size
-    while i > 0:
-        p = (i - 1) >> 1
-        if _less(f, hu, k, hf[p], hh[p], hv[p]):
-            hf[i] = hf[p]
-            hh[i] = hh[p]
-            hv[i] = hv[p]
-            i = p
-        else:
-            break
-    hf[i] = f
-    hh[i] = hu
-    hv[i] = k
-    return size + 1
-
-
-@njit(cache=True, nogil=True)
-def _heap_pop(hf, hh, hv, size):
-    """Remove the least entry (returned by the caller from index 0 beforehand); the new size."""
-    size -= 1
-    if size > 0:
-        lf = hf[size]
-        lh = hh[size]
-        lv = hv[size]
-        i = 0
-        while True:
-            c = 2 * i + 1
-            if c >= size:
-                break
-            if c + 1 < size and _less(hf[c + 1], hh[c + 1], hv[c + 1], hf[c], hh[c], hv[c]):
-                c += 1
-            if _less(hf[c], hh[c], hv[c], lf, lh, lv):
-                hf[i] = hf[c]
-                hh[i] = hh[c]
-                hv[i] = hv[c]
-                i = c
-            else:
-                break
-        hf[i] = lf
-        hh[i] = lh
-        hv[i] = lv
-    return size
-
-
-@njit(cache=True, nogil=True)
-def _grow(a, size):
-    out = np.empty(a.shape[0] * 2, dtype=a.dtype)
-    out[:size] = a[:size]
-    return out
 
 
 @njit(cache=True, nogil=True)

@@ -8,6 +8,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from robo_comp.world._heap import grow as _grow
+from robo_comp.world._heap import pop as _heap_pop
+from robo_comp.world._heap import push as _heap_push
+
 SQRT2 = 1.4142135623730951
 
 # Direction tables: 0..3 orthogonal (E, S, W, N), 4..7 diagonal (SE, SW, NW, NE).
@@ -16,14 +20,6 @@ DY = np.array([0, 1, 0, -1, 1, 1, -1, -1], dtype=np.int64)
 # For diagonal d (index d-4) the two orthogonal directions that must be free.
 DIAG_A = np.array([0, 2, 2, 0], dtype=np.int64)
 DIAG_B = np.array([1, 1, 3, 3], dtype=np.int64)
-
-
-@njit(cache=True, inline="always", nogil=True)
-def _less(f1, h1, k1, f2, h2, k2):
-    # Order by f; ties go to smaller h (deeper nodes), then to the most recently pushed
-    # entry (k packs a decreasing push counter above the cell index): on plateaus of equal
-    # f this follows one branch to its end instead of widening the whole front.
-    return f1 < f2 or (f1 == f2 and (h1 < h2 or (h1 == h2 and k1 < k2)))
 
 
 @njit(cache=True, nogil=True)
@@ -68,30 +64,8 @@ def _astar_core(free, cost, w, h, t, diagonal, hmul, allow, bsize, bw, g, stamp,
         if budget > 0 and expanded >= budget:
             # checked before popping, so a resumed search loses nothing
             return 2, -1.0, size, seq, expanded
-        # pop min
         v = hv[0] & 0xFFFFFFFF
-        size -= 1
-        if size > 0:
-            lf = hf[size]
-            lh = hh[size]
-            lv = hv[size]
-            i = 0
-            while True:
-                c = 2 * i + 1
-                if c >= size:
-                    break
-                if c + 1 < size and _less(hf[c + 1], hh[c + 1], hv[c + 1], hf[c], hh[c], hv[c]):
-                    c += 1
-                if _less(hf[c], hh[c], hv[c], lf, lh, lv):
-                    hf[i] = hf[c]
-                    hh[i] = hh[c]
-                    hv[i] = hv[c]
-                    i = c
-                else:
-                    break
-            hf[i] = lf
-            hh[i] = lh
-            hv[i] = lv
+        size = _heap_pop(hf, hh, hv, size)
         if stamp[v] == closed_mark:
             continue  # stale duplicate
         gv = g[v]
@@ -131,21 +105,7 @@ def _astar_core(free, cost, w, h, t, diagonal, hmul, allow, bsize, bw, g, stamp,
             hu = _heuristic(nx, ny, tx, ty, diagonal, hmul)
             fu = ng + hu
             seq -= 1
-            ku = (seq << 32) | u
-            i = size
-            size += 1
-            while i > 0:
-                p = (i - 1) >> 1
-                if _less(fu, hu, ku, hf[p], hh[p], hv[p]):
-                    hf[i] = hf[p]
-                    hh[i] = hh[p]
-                    hv[i] = hv[p]
-                    i = p
-                else:
-                    break
-            hf[i] = fu
-            hh[i] = hu
-            hv[i] = ku
+            size = _heap_push(hf, hh, hv, size, fu, hu, (seq << 32) | u)
     return 0, np.inf, size, seq, expanded
 
 
@@ -361,13 +321,6 @@ def _heap_init(s, t, w, diagonal, hmul, g, stamp, epoch):
     hh[0] = hf[0]
     hv[0] = (seq << 32) | s
     return hf, hh, hv, seq
-
-
-@njit(cache=True, nogil=True)
-def _grow(a, size):
-    out = np.empty(a.shape[0] * 2, dtype=a.dtype)
-    out[:size] = a[:size]
-    return out
 
 
 @njit(cache=True, nogil=True)
