@@ -399,6 +399,7 @@ def test_a_season_on_a_two_node_ray_cluster_equals_the_local_one(tmp_path, ray_c
     assert results["ray"] == results["local"]
 
 
+@pytest.mark.timeout(480)  # three plays of a 5-minute match (44 s on a quiet machine, past 120 s on a loaded one)
 def test_a_ray_worker_killed_mid_match_has_its_match_played_again(tmp_path, ray_cluster):
     from robo_comp.league.runner import RayRunner
 
