@@ -195,8 +195,9 @@ class TaskFailed(Record):
 
 @dataclass
 class Drawing(Record):
-    """A robot's new frame of debug drawing, as the child sent it: not to be trusted; the robot
-    call table checks it (:func:`robo_comp.protocol.drawing.clean_frame`) before anyone keeps it."""
+    """A robot's new frame of debug drawing, as the child sent it: not to be trusted; the
+    robot host and the engine check it (:func:`robo_comp.protocol.drawing.clean_frame`) before it is
+    recorded or sent (``robots.teamcode.DebugCanvas``)."""
 
     run_id: int
     tag: int
@@ -854,7 +855,7 @@ class Sandbox:
         elif t == "draw":
             run = self._runs.get(msg.get("r", -1))
             if run is not None and run.kind == "task":
-                shapes = msg.get("s")  # checked where it is taken: teamcode's ROBOT_CALLS["draw"] (clean_frame)
+                shapes = msg.get("s")  # checked where it is recorded: teamcode.DebugCanvas (clean_frame)
                 self._out.append(Drawing(run.id, run.tag, shapes if type(shapes) is list else []))
         elif t == "loaded":
             run = self._runs.pop(msg["r"], None)
