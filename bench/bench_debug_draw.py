@@ -9,7 +9,8 @@ robot draws a full frame (:data:`robo_comp.protocol.drawing.MAX_SHAPES` shapes: 
 4 texts of 12 characters, placed from a counter so that no two frames are the same and every
 recording tick records every robot; no robot call, so that only the drawing is measured). The plain and the drawing match alternate
 ``--reps`` times (each in a fresh process, so no cache favours the second); reported: the
-median wall time and CPU time (the match's process and its sandboxes) of each and their increase, the log size of each and its increase, and whether
+median wall time and CPU time (the match's process: the sandbox children run under bubblewrap and
+their time does not reach ``RUSAGE_CHILDREN``) of each and their increase, the log size of each and its increase, and whether
 the scores and every event but ``debug.draw`` are the same (drawing costs nothing in score or
 simulated time). The load (``uptime``) is printed before and after. Exit 1 when either
 increase is 5 % or more.
@@ -105,7 +106,7 @@ def main() -> int:
                 return 2
             r = json.loads(out.stdout.strip().splitlines()[-1])
             r["size"] = log.stat().st_size
-            # CPU of the match's process and its sandboxes (reaped children count): steadier than wall time on a loaded machine
+            # CPU of the match's process (the sandboxes' does not reach RUSAGE_CHILDREN: bubblewrap): steadier than wall time on a loaded machine
             r["cpu"] = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
             results[kind].append(r)
             print(f"rep {rep} {kind}: {r['wall_seconds']:.2f} s ({r['cpu']:.2f} s CPU), log {r['size']:,} bytes, scores {r['scores']}",
@@ -126,7 +127,7 @@ def main() -> int:
     print(f"drawn: {args.shapes} shapes a frame before every movement call; bound: {D.MAX_SHAPES} shapes a frame, one recording per robot per {D.TICK:g} s; the drawing match "
           f"recorded {len(frames)} debug.draw events, {shapes:,} shapes")
     print(f"time: plain {t_plain:.2f} s, drawing {t_draw:.2f} s (median): {100 * (t_draw / t_plain - 1):+.1f} %")
-    print(f"CPU (match process and sandboxes): plain {cpu_plain:.2f} s, drawing {cpu_draw:.2f} s (median): "
+    print(f"CPU (the match process; not its sandboxes): plain {cpu_plain:.2f} s, drawing {cpu_draw:.2f} s (median): "
           f"{100 * (cpu_draw / cpu_plain - 1):+.1f} %")
     print(f"log size: plain {size_plain:,} bytes, drawing {size_draw:,} bytes: {100 * (size_draw / size_plain - 1):+.1f} %")
     print(f"scores the same in every match: {same_scores}; every other event the same: {rest[0] == rest[1]}")
