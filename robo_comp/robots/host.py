@@ -904,7 +904,7 @@ class RobotHost:
                 pass
         t_end = None if duration is None else time.monotonic() + duration
         self._running = True
-        warm_up()  # load the compiled planner before the robots exist, not during a task
+        warm_up(jumps=False)  # load the compiled planner before the robots exist (they plan 4-connected)
         gc.collect()  # long-lived modules and kernels out of the collector's way (see Core.run)
         gc.freeze()
         gc.set_threshold(20_000, 50, 100)
