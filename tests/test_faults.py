@@ -61,6 +61,9 @@ def test_a_full_disk_refuses_changes_keeps_stops_and_resumes_by_itself(small_dis
         rows = wait_robots(red, 2)
         a, b = rows[0]["tag"], rows[1]["tag"]
         acked = [red.give(a, "goTo", [8, 8])["task_id"]]
+        # b has a queue before the disk fills, so the stop below always has something to cancel
+        # (the disk may refuse the very first task given after it fills)
+        acked += [red.give(b, "goTo", [9, 1], queue=True)["task_id"] for _ in range(2)]
         filler = fill(small_disk)
         quick = match.client("red", timeout=1.0)
         refused = None
