@@ -60,6 +60,12 @@ def holder(r: SimRobot, cell: Cell) -> SimRobot | None:
     return None
 
 
+def held(r: SimRobot) -> set[Cell]:
+    """Every cell a teammate of ``r`` holds now (what :func:`holder` looks through, for a search
+    that asks about many cells at one instant)."""
+    return {c for o in r.host.robots.values() if o is not r for c in claim(o)}
+
+
 def crossing(r: SimRobot, cell: Cell) -> SimRobot | None:
     """For a robot that may end a move a little long: the teammate that is driving into the cell
     beyond ``cell`` (as seen from ``r``) or holds it as its own cell beyond, if one does. (A teammate
@@ -98,6 +104,7 @@ def refuge(r: SimRobot, other: SimRobot) -> list[Cell] | None:
     around walls, the team's obstacles and teammates; None when there is none within
     :data:`REFUGE_DEPTH`."""
     avoid = wants(other) | set(claim(other))
+    taken = held(r)  # one look at the teammates, not one per cell searched
     blocked = r.host.blocked
     h, w = blocked.shape
     start = r.cell()
@@ -117,7 +124,7 @@ def refuge(r: SimRobot, other: SimRobot) -> list[Cell] | None:
         x, y = c
         for n in ((x + 1, y), (x - 1, y), (x, y + 1), (x, y - 1)):
             if (n not in came and 0 <= n[0] < w and 0 <= n[1] < h and not blocked[n[1], n[0]]
-                    and holder(r, n) is None):
+                    and n not in taken):
                 came[n] = c
                 todo.append((n, depth + 1))
     return None
@@ -142,4 +149,4 @@ def passed(other: SimRobot | None, cells: Iterable[Cell]) -> bool:
     return not (wants(other) & set(cells))
 
 
-__all__ = ["REFUGE_DEPTH", "SimRobot", "claim", "crossing", "holder", "make_way", "passed", "refuge", "wants"]
+__all__ = ["REFUGE_DEPTH", "SimRobot", "claim", "crossing", "held", "holder", "make_way", "passed", "refuge", "wants"]
