@@ -67,6 +67,9 @@ SAY_TAGS = 12
 #: Robots per ``reports`` message; the host looks at the core's socket between two messages
 #: (so a stop never waits long behind a big host's reports).
 REPORT_CHUNK = 100
+#: Seconds of a tick's robot loop between two looks at the core's socket (a stop waits at most
+#: about this long behind the loop).
+LOOK_EVERY = 0.002
 
 
 #: Seconds a connection that is still saying hello and registering gets before the host tries a new
@@ -688,13 +691,21 @@ class RobotHost:
                     self._send("bump", {"tag": r.tag, "x": ev.data["x"], "y": ev.data["y"],
                                         "with": other.tag if other else None})
         self.loc.update()
-        for r in self.robots.values():
+        # The core's socket is looked at every LOOK_EVERY seconds of this loop, so a stop does not
+        # wait for hundreds of robots' moves to begin. Only the steps under way when the tick began
+        # advance: a task a message starts meanwhile begins its first step next tick, as it would
+        # have had the message come after the tick.
+        look = time.perf_counter() + LOOK_EVERY
+        for r, step in [(r, r.driver.step) for r in self.robots.values()]:
             if is_real(r.driver):  # runs without a step too: it reads odometry and scans
                 if r.driver.step is None:
                     r.driver.update(dt)
                 self.world.place(r.robot_id, self.team or "", *r.driver.pose)
-            if r.driver.step is not None and r.driver.update(dt):
+            if step is not None and r.driver.step is step and r.driver.update(dt):
                 self.runtime.boundary(r)
+            if time.perf_counter() >= look:
+                self._drain()
+                look = time.perf_counter() + LOOK_EVERY
         if self.runtime.planning:
             self.runtime.take_plans()
         if self.runtime.filming:
@@ -764,8 +775,8 @@ class RobotHost:
     def _report(self, now: float) -> None:
         """Report moving robots every report interval, idle ones once a second and when their
         readings changed (within a sensing period, :mod:`robo_comp.robots.readings`), in ``reports``
-        messages of up to ``REPORT_CHUNK`` robots; the sensors of all robots due are read in one
-        vectorised pass."""
+        messages of up to ``REPORT_CHUNK`` robots; the sensors of each message's robots due are read in
+        one vectorised pass."""
         due: list[SimRobot] = []
         standing: list[SimRobot] = []
         for r in self.by_tag.values():
@@ -773,9 +784,9 @@ class RobotHost:
         changed = self.readings_watch.changed(self.world, standing, now)
         if not due and not changed:
             return
-        sensing = [r for r in due if now - r.last_sensed >= self.sensor_interval] + changed
+        sensing = {r.tag for r in due if now - r.last_sensed >= self.sensor_interval}
+        sensing.update(r.tag for r in changed)
         due += changed
-        readings = self._sense(sensing) if sensing else {}
         sock = self.sock
         assert sock is not None  # reports go out while the host is up
         for start in range(0, len(due), REPORT_CHUNK):
@@ -784,7 +795,9 @@ class RobotHost:
                 if self.sock is not sock:  # reconnected meanwhile: the robots register again first
                     return
             chunk = due[start:start + REPORT_CHUNK]
-            body = self._pose_rows(chunk, now, {r.tag: readings[r.tag] for r in chunk if r.tag in readings})
+            sense = [r for r in chunk if r.tag in sensing]  # read chunk by chunk, a stop in between
+            readings = self._sense(sense) if sense else {}
+            body = self._pose_rows(chunk, now, readings)
             self._notify("reports", body, sock)
 
     def _drain(self) -> None:
