@@ -77,7 +77,7 @@ def test_a_standing_robot_reports_a_camera_tracked_body_at_the_next_tick(core):
         assert front == pytest.approx(62.5, abs=5 * host.world.scenario.sensors.noise)
     finally:
         host.code.close()
-        host.planner.shutdown(wait=False)
+        host.planner.shutdown()
         if host.sock is not None:
             host.sock.close(0)
 

@@ -6,21 +6,20 @@ advance every robot's movement, ask finished tasks for their next step, report p
 When the core goes silent for three heartbeat intervals every robot halts and the host
 reconnects on its own; the robots resume where they were once registered again. The robots run
 their tasks in the task runtime (:class:`robo_comp.robots.runtime.TaskRuntime`) that the engine
-runs too; this host is its :class:`~robo_comp.robots.runtime.RuntimeEnv`: it plans in a thread,
+runs too; this host is its :class:`~robo_comp.robots.runtime.RuntimeEnv`: it plans in a process
+of its own (:mod:`robo_comp.robots.planning`),
 uploads pictures to the core and reports each task's end to it.
 """
 from __future__ import annotations
 
 import gc
 import logging
-import os
 import random
 import signal
 import sys
-import threading
 import time
 from collections.abc import Callable
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import Future
 from pathlib import Path
 from typing import Any
 
@@ -36,7 +35,8 @@ from robo_comp.errors import FieldError, RoboCompError
 from robo_comp.plugins.manager import get_plugin_manager
 from robo_comp.robots.oneworld import Foreign, is_real, merge_readings
 from robo_comp.robots.readings import ReadingWatch
-from robo_comp.robots.runtime import PLANNING, RunningTask, SimRobot, TaskRuntime, plan_around
+from robo_comp.robots.planning import HostPlanner
+from robo_comp.robots.runtime import PLANNING, RunningTask, SimRobot, TaskRuntime
 from robo_comp.robots.steps import Compute, Plan, TaskSpec
 from robo_comp.robots.teamcode import TeamCode
 from robo_comp.world.arena import Arena
@@ -77,22 +77,9 @@ LOOK_EVERY = 0.002
 HANDSHAKE_PATIENCE = 3.0
 
 
-#: How much lower the planner thread's scheduling priority is than the host loop's (Linux
-#: schedules threads on their own): when many hosts plan at once on a few cores, the loops win.
-PLANNER_NICE = 10
-
-
 #: Answers to a task.done that end it: the core judged the report itself. Other refusals (an
 #: unknown session after a core restart, a full disk, ...) keep it for the next registration.
 DONE_REFUSED = frozenset({"E_FIELD", "E_TOO_LARGE", "E_MALFORMED", "E_NOT_YOURS"})
-
-
-def _lower_priority() -> None:
-    """Run in the planner thread: lower this thread's priority (where the OS has per-thread nice)."""
-    try:
-        os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), PLANNER_NICE)
-    except (AttributeError, OSError):  # not Linux, or not allowed: plans then compete as equals
-        pass
 
 
 def collect_tasks(pm: Any) -> dict[str, TaskSpec]:
@@ -157,11 +144,10 @@ class RobotHost:
         self.map = MapView()
         #: Uploaded team code: the sandbox, its modules per robot, the runs of its tasks.
         self.code = TeamCode(self)
-        # The host's one planner thread: tasks ``yield Plan(goal)`` and the path is found there (the
-        # compiled search releases the GIL), so that a burst of goTo tasks never holds up a stop,
-        # a heartbeat or a report behind hundreds of plans.
-        self.planner = ThreadPoolExecutor(max_workers=1, thread_name_prefix="planner",
-                                          initializer=_lower_priority)
+        # The host's planner: tasks ``yield Plan(goal)`` and the path is found in a process of its
+        # own at the lowest priority, so that a burst of goTo tasks never holds up a stop, a
+        # heartbeat or a report behind hundreds of plans (robo_comp.robots.planning).
+        self.planner = HostPlanner()
         #: The robots' tasks run here as they run on the engine (this host is the runtime's env).
         self.runtime = TaskRuntime(self)
         # A real positioning system: the fixes of an overhead camera (robo-comp camera run), instead
@@ -575,7 +561,7 @@ class RobotHost:
         """Plan in the host's planner thread: the robot waits at its boundary; the loop goes on."""
         occupied = r.others_cells() if step.avoid_robots else set()
         assert r.task is not None
-        r.task.plan = self.planner.submit(plan_around, self.blocked, r.free_cell(), step.goal, occupied)
+        r.task.plan = self.planner.plan(self.blocked, r.free_cell(), step.goal, occupied)
         return PLANNING
 
     def compute(self, r: SimRobot, step: Compute) -> bool:
@@ -608,11 +594,11 @@ class RobotHost:
         return self.world.camera_image(r.robot_id)
 
     def video(self, r: SimRobot, t: RunningTask, frames: list[Any], label: str) -> None:
-        """Written as WebM in the planner thread (a second of the loop's time otherwise), then sent
+        """Written as WebM in the host's low-priority thread (a second of the loop's time otherwise), then sent
         to the core from the loop (:meth:`_send_videos`); its id goes into the task's result."""
         x, y, heading = r.driver.truth()
         t.uploads += 1
-        job = self.planner.submit(encode_webm, frames)
+        job = self.planner.run(encode_webm, frames)
         self._videos.append((job, r, t, {"tag": r.tag, "x": x, "y": y, "heading": heading, "label": label,
                                          "frames": len(frames), "seconds": round(len(frames) / FPS, 3)}))
 
@@ -917,6 +903,7 @@ class RobotHost:
                 pass
         t_end = None if duration is None else time.monotonic() + duration
         self._running = True
+        self.planner.start()  # the planner process starts and loads its kernels meanwhile
         warm_up(jumps=False)  # load the compiled planner before the robots exist (they plan 4-connected)
         gc.collect()  # long-lived modules and kernels out of the collector's way (see Core.run)
         gc.freeze()
@@ -982,7 +969,7 @@ class RobotHost:
             close = getattr(r.driver, "close", None)
             if close is not None:
                 close()
-        self.planner.shutdown(wait=False, cancel_futures=True)
+        self.planner.shutdown()
         for s in (self.fix_sock, self.truth_sock):
             if s is not None:
                 s.close(0)

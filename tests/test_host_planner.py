@@ -1,0 +1,61 @@
+"""The robot host plans in a process of its own (``robo_comp.robots.planning``): real host and
+core processes. Killing the planner process loses no plan (the host plans them in its thread and
+starts a new process); killing the host leaves no planner behind."""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import time
+
+import numpy as np
+
+from conftest import CoreHandle, next_event_where, wait_for, wait_robots
+from robo_comp.robots.planning import HostPlanner
+from robo_comp.robots.runtime import plan_around
+
+
+def planners_of(pid: int) -> list[int]:
+    """The planner processes whose parent is ``pid``."""
+    out = subprocess.run(["pgrep", "-P", str(pid), "-f", "robo_comp.robots.planning"],
+                         capture_output=True, text=True).stdout.split()
+    return [int(p) for p in out]
+
+
+def test_plans_come_from_the_planner_process_and_survive_its_death() -> None:
+    walls = np.zeros((40, 60), dtype=bool)
+    walls[10, 0:55] = True
+    hp = HostPlanner()
+    try:
+        first = hp.plan(walls, (1, 1), (2, 30), set()).result(timeout=60)
+        assert first == plan_around(walls, (1, 1), (2, 30), set())
+        pid = hp.pid()
+        assert pid is not None and pid != os.getpid() and hp.starts == 1
+        walls[20, 5:60] = True  # the map changed: the process gets the new one
+        assert hp.plan(walls, (1, 1), (2, 30), {(3, 3)}).result(timeout=30) == plan_around(walls, (1, 1), (2, 30), {(3, 3)})
+        os.kill(pid, signal.SIGKILL)  # plans in flight are made in the host's thread
+        wait_for(lambda: hp.pid() is None, 10, "the host to see its planner gone")
+        futures = [hp.plan(walls, (1, 1), (59 - k, 39), set()) for k in range(20)]
+        for k, f in enumerate(futures):
+            assert f.result(timeout=60) == plan_around(walls, (1, 1), (59 - k, 39), set())
+        assert hp.starts == 2 and hp.pid() not in (None, pid)  # the next plan started a new one
+    finally:
+        hp.shutdown()
+
+
+def test_a_host_plans_out_of_its_process_and_leaves_no_planner_when_killed(core: CoreHandle) -> None:
+    host = core.robots("red", 2)
+    red = core.client("red")
+    ref = core.referee()
+    ref.watch(True)
+    rows = wait_robots(red, 2)
+    wait_for(lambda: planners_of(host.pid), 30, "the host's planner process")
+    [planner] = planners_of(host.pid)
+    red.give(rows[0]["tag"], "goTo", [9, 1])
+    done = next_event_where(ref, lambda e: e["topic"] == "task.done" and e["data"]["tag"] == rows[0]["tag"], 60)
+    assert done["data"]["ok"], done["data"]
+    host.kill()
+    host.wait()
+    wait_for(lambda: subprocess.run(["kill", "-0", str(planner)], capture_output=True).returncode != 0, 10,
+             "the planner process to end with its host")
+    time.sleep(0.1)
