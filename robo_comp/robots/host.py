@@ -184,7 +184,7 @@ class RobotHost:
         self.released: set[str] = set()
         #: robot id -> its task.done not yet answered by the core (sent again on re-registering).
         self.unacked_done: dict[str, dict[str, Any]] = {}
-        #: Videos being written in the planner thread: (job, robot, task, the request's body).
+        #: Videos being written in the host's low-priority thread: (job, robot, task, the request's body).
         self._videos: list[tuple[Future[bytes], SimRobot, RunningTask, dict[str, Any]]] = []
 
     @property
@@ -558,7 +558,7 @@ class RobotHost:
         return self._spec(r.tag, name)
 
     def plan(self, r: SimRobot, step: Plan) -> Any:
-        """Plan in the host's planner thread: the robot waits at its boundary; the loop goes on."""
+        """Plan in the host's planner process: the robot waits at its boundary; the loop goes on."""
         occupied = r.others_cells() if step.avoid_robots else set()
         assert r.task is not None
         r.task.plan = self.planner.plan(self.blocked, r.free_cell(), step.goal, occupied)
@@ -908,7 +908,8 @@ class RobotHost:
         gc.collect()  # long-lived modules and kernels out of the collector's way (see Core.run)
         gc.freeze()
         gc.set_threshold(20_000, 50, 100)
-        # The planner thread holds the GIL in its numpy glue: make the loop's wait for it short
+        # The thread that writes videos (and plans when the planner process cannot) holds the GIL in its
+        # numpy glue: make the loop's wait for it short
         # (CPython's default lets a thread keep it 5 ms before it must hand it over).
         sys.setswitchinterval(0.0005)
         self.s.last_rx = time.monotonic()
