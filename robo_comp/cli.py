@@ -195,7 +195,8 @@ def _robots(args: argparse.Namespace) -> int:
                      truth=truth, driver=args.driver, driver_options=options,
                      curve=client_keys(args.core, token, args.curve_cert, args.core_key),
                      positioning=_positioning(args.positioning), truth_pub=args.truth_pub,
-                     camera_key=args.camera_key or _default_camera_key(args.core, args.positioning))
+                     camera_key=args.camera_key or _default_camera_key(args.core, args.positioning),
+                     planner=args.planner)
     host.run(duration=args.duration or None)
     return 0
 
@@ -337,6 +338,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "robot's readings go out once a sensing period, a standing robot's when they change, "
                         "at most once a sensing period")
     r.add_argument("--seed", type=int, default=0)
+    r.add_argument("--planner", choices=("auto", "process", "thread"), default="auto",
+                   help="where paths are planned: process: a process of its own at the lowest priority (a "
+                        "busy host's stops never wait behind a plan); thread: a thread of the host; auto "
+                        "(default): a process from 32 robots, else a thread")
     r.add_argument("--scenario", help="the match's scenario file (organisers only): the camera then shows victims")
     r.add_argument("--duration", type=float, default=0.0, help="exit after S seconds (0 = run until stopped)")
     r.add_argument("--driver", choices=("sim", "er1", "ros2"), default="sim",

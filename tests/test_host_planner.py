@@ -27,10 +27,19 @@ def test_plans_come_from_the_planner_process_and_survive_its_death() -> None:
     walls[10, 0:55] = True
     hp = HostPlanner()
     try:
-        first = hp.plan(walls, (1, 1), (2, 30), set()).result(timeout=60)
+        first = hp.plan(walls, (1, 1), (2, 30), set()).result(timeout=60)  # the thread's, while it loads
         assert first == plan_around(walls, (1, 1), (2, 30), set())
+        wait_for(hp.ready, 60, "the planner process to load its kernels")
         pid = hp.pid()
         assert pid is not None and pid != os.getpid() and hp.starts == 1
+        os.kill(pid, signal.SIGSTOP)  # a plan now waits for the process: it is the process that plans
+        try:
+            held = hp.plan(walls, (1, 1), (3, 30), set())
+            time.sleep(0.5)
+            assert not held.done()
+        finally:
+            os.kill(pid, signal.SIGCONT)
+        assert held.result(timeout=30) == plan_around(walls, (1, 1), (3, 30), set())
         walls[20, 5:60] = True  # the map changed: the process gets the new one
         assert hp.plan(walls, (1, 1), (2, 30), {(3, 3)}).result(timeout=30) == plan_around(walls, (1, 1), (2, 30), {(3, 3)})
         os.kill(pid, signal.SIGKILL)  # plans in flight are made in the host's thread
@@ -44,12 +53,16 @@ def test_plans_come_from_the_planner_process_and_survive_its_death() -> None:
 
 
 def test_a_host_plans_out_of_its_process_and_leaves_no_planner_when_killed(core: CoreHandle) -> None:
-    host = core.robots("red", 2)
+    host = core.robots("red", 2, "--planner", "process")
+    few = core.robots("blue", 2)  # --planner auto: a host of a few robots plans in its thread
     red = core.client("red")
     ref = core.referee()
     ref.watch(True)
     rows = wait_robots(red, 2)
+    wait_robots(core.client("blue"), 2)
     wait_for(lambda: planners_of(host.pid), 30, "the host's planner process")
+    time.sleep(1.0)  # both hosts are up and registered: one started its planner, the other none
+    assert not planners_of(few.pid)
     [planner] = planners_of(host.pid)
     red.give(rows[0]["tag"], "goTo", [9, 1])
     done = next_event_where(ref, lambda e: e["topic"] == "task.done" and e["data"]["tag"] == rows[0]["tag"], 60)

@@ -35,7 +35,7 @@ from robo_comp.errors import FieldError, RoboCompError
 from robo_comp.plugins.manager import get_plugin_manager
 from robo_comp.robots.oneworld import Foreign, is_real, merge_readings
 from robo_comp.robots.readings import ReadingWatch
-from robo_comp.robots.planning import HostPlanner
+from robo_comp.robots.planning import PROCESS_FROM, HostPlanner
 from robo_comp.robots.runtime import PLANNING, RunningTask, SimRobot, TaskRuntime
 from robo_comp.robots.steps import Compute, Plan, TaskSpec
 from robo_comp.robots.teamcode import TeamCode
@@ -72,6 +72,9 @@ REPORT_CHUNK = 100
 LOOK_EVERY = 0.002
 
 
+#: Seconds a host waits for its planner process to load its kernels before its robots register.
+PLANNER_PATIENCE = 30.0
+
 #: Seconds a connection that is still saying hello and registering gets before the host tries a new
 #: one (a link that delays every byte by 150 ms needs about a second for the handshake's round trips).
 HANDSHAKE_PATIENCE = 3.0
@@ -100,7 +103,7 @@ class RobotHost:
                  plugins: Any = None, ctx: zmq.Context | None = None, seed: int = 0,
                  truth: Scenario | None = None, curve: ClientKeys | None = None,
                  positioning: str | None = None, truth_pub: str | None = None,
-                 camera_key: str | Path | None = None) -> None:
+                 camera_key: str | Path | None = None, planner: str = "auto") -> None:
         self.url = core_url
         self.token = token
         self.count = count
@@ -147,7 +150,9 @@ class RobotHost:
         # The host's planner: tasks ``yield Plan(goal)`` and the path is found in a process of its
         # own at the lowest priority, so that a burst of goTo tasks never holds up a stop, a
         # heartbeat or a report behind hundreds of plans (robo_comp.robots.planning).
-        self.planner = HostPlanner()
+        if planner not in ("auto", "process", "thread"):
+            raise FieldError(f"planner must be auto, process or thread, not {planner!r}")
+        self.planner = HostPlanner(use_process=planner == "process" or (planner == "auto" and count >= PROCESS_FROM))
         #: The robots' tasks run here as they run on the engine (this host is the runtime's env).
         self.runtime = TaskRuntime(self)
         # A real positioning system: the fixes of an overhead camera (robo-comp camera run), instead
@@ -905,6 +910,9 @@ class RobotHost:
         self._running = True
         self.planner.start()  # the planner process starts and loads its kernels meanwhile
         warm_up(jumps=False)  # load the compiled planner before the robots exist (they plan 4-connected)
+        if self.planner.use_process and not self.planner.wait_ready(PLANNER_PATIENCE):
+            log.warning("the planner process is not up after %.0f s: planning in the host's thread until it is",
+                        PLANNER_PATIENCE)
         gc.collect()  # long-lived modules and kernels out of the collector's way (see Core.run)
         gc.freeze()
         gc.set_threshold(20_000, 50, 100)

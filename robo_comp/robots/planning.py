@@ -14,7 +14,14 @@ map goes over only when it changed since the last request (a robot found an obst
 the host writes the requests, so the loop never waits for the pipe. The process ends when the host
 closes its stdin or dies (Linux's parent-death signal, else the closed pipe).
 If it dies, the plans it held are planned again in the host's own planner thread and the next plan
-starts a new process. Where no process can be started, the thread plans everything.
+starts a new process. The host waits for its first process to load its kernels before its robots
+register (:meth:`HostPlanner.wait_ready`); a process started later (after one died) gets no plan
+until it has, they are made in the thread meanwhile. Where no process can be started, the thread
+plans everything.
+
+A process pays off where a host plans a lot: a host of :data:`PROCESS_FROM` robots or more starts
+one (``robo-comp robots --planner auto``, the default); a host of a few robots plans in its thread
+and spends no process (``--planner process`` or ``thread`` choose).
 """
 from __future__ import annotations
 
@@ -40,6 +47,10 @@ PROCESS_NICE = 19
 #: How much lower the host's planner thread's priority is than its loop's (Linux schedules threads
 #: on their own). The thread writes videos, and plans only when the process cannot.
 THREAD_NICE = 10
+#: Robots from which a host plans in a process of its own (``--planner auto``).
+PROCESS_FROM = 32
+#: The job number of the planner process's first answer: it has loaded its kernels.
+READY = 0
 
 Path_ = list[tuple[int, int]] | None
 _LEN = struct.Struct("<I")
@@ -103,6 +114,7 @@ def serve(parent: int) -> None:
     warm_up(jumps=False)
     inp, out = sys.stdin.buffer, sys.stdout.buffer
     sys.stdout = sys.stderr  # nothing but answers on the answer pipe
+    _write(out, (READY, True, None))
     walls: Any = None
     while True:
         req = _read(inp)
@@ -128,6 +140,8 @@ class HostPlanner:
                                          initializer=_lower_thread_priority)
         self.use_process = use_process
         self._proc: subprocess.Popen[bytes] | None = None
+        self._ready: subprocess.Popen[bytes] | None = None  # the process once it has said it is ready
+        self._said_ready = threading.Event()
         self._lock = threading.Lock()
         self._pending: dict[int, tuple[Future[Path_], tuple[Any, ...]]] = {}
         self._jobs = 0
@@ -196,6 +210,10 @@ class HostPlanner:
             if ans is None:
                 break
             job, ok, value = ans
+            if job == READY:
+                self._ready = proc
+                self._said_ready.set()
+                continue
             with self._lock:
                 item = self._pending.pop(job, None)
             if item is None:
@@ -229,7 +247,7 @@ class HostPlanner:
         """A future of :func:`~robo_comp.robots.runtime.plan_around`'s answer."""
         args = (walls, start, goal, occupied)
         proc = self._process()
-        if proc is None:
+        if proc is None or self._ready is not proc:  # none, or still loading its kernels
             return self.thread.submit(plan_around, *args)
         outer: Future[Path_] = Future()
         with self._lock:
@@ -247,6 +265,19 @@ class HostPlanner:
         """The planner process's pid, while it runs (for tests and benches)."""
         proc = self._proc
         return proc.pid if proc is not None and proc.poll() is None else None
+
+    def wait_ready(self, timeout: float) -> bool:
+        """Wait up to ``timeout`` seconds for the planner process (if any) to load its kernels;
+        whether plans go to it now."""
+        if self._process() is None:
+            return False
+        self._said_ready.wait(timeout)
+        return self.ready()
+
+    def ready(self) -> bool:
+        """Whether plans go to the planner process now (it runs and has loaded its kernels)."""
+        proc = self._proc
+        return proc is not None and self._ready is proc and proc.poll() is None
 
     def shutdown(self) -> None:
         """Stop planning: the process ends, plans not answered are cancelled."""
@@ -293,4 +324,4 @@ if __name__ == "__main__":
     serve(int(sys.argv[1]) if len(sys.argv) > 1 else os.getppid())
 
 
-__all__ = ["HostPlanner", "PROCESS_NICE", "PlannerGone", "THREAD_NICE", "serve"]
+__all__ = ["HostPlanner", "PROCESS_FROM", "PROCESS_NICE", "PlannerGone", "READY", "THREAD_NICE", "serve"]
