@@ -250,8 +250,12 @@ def test_cli_screenshots_live_and_from_a_replay_in_tiles(core, tmp_path):
     arena = ref.arena()
     colours = {t["name"]: C.hex_rgb(t["colour"]) for t in arena["teams"]}
     geom = MapGeometry.of(Layout.of((900, 560)), arena["width"], arena["height"], ViewState())
-    for row in rows:  # every robot, in its team's colour, where the core says it is
-        assert tuple(img.get_at(geom.cell_centre(row["x"], row["y"])))[:3] == colours[row["team"]]
+    for row in rows:  # every robot, in its team's colour, where the core says it is (a standing
+        # robot's reported pose moves with the positioning's noise, a pixel or two, which can put
+        # the centre pixel on its heading line: the team's colour within 3 pixels of it)
+        cx, cy = geom.cell_centre(row["x"], row["y"])
+        near = {tuple(img.get_at((cx + dx, cy + dy)))[:3] for dx in range(-3, 4) for dy in range(-3, 4)}
+        assert colours[row["team"]] in near, (row, near)
     # a recorded match: 4 tiles of a 2x2 wall from 4 processes stitch to the single window
     ref.give(rows[0]["tag"], "goTo", [4, 4])
     wait_for(lambda: ref.tasks(rows[0]["tag"])["done"], 15, "the goTo to finish")
