@@ -6,8 +6,8 @@ advance every robot's movement, ask finished tasks for their next step, report p
 When the core goes silent for three heartbeat intervals every robot halts and the host
 reconnects on its own; the robots resume where they were once registered again. The robots run
 their tasks in the task runtime (:class:`robo_comp.robots.runtime.TaskRuntime`) that the engine
-runs too; this host is its :class:`~robo_comp.robots.runtime.RuntimeEnv`: it plans in a process
-of its own (:mod:`robo_comp.robots.planning`),
+runs too; this host is its :class:`~robo_comp.robots.runtime.RuntimeEnv`: it plans off its loop
+(a host of many robots in a process of its own, :mod:`robo_comp.robots.planning`),
 uploads pictures to the core and reports each task's end to it.
 """
 from __future__ import annotations
@@ -147,9 +147,10 @@ class RobotHost:
         self.map = MapView()
         #: Uploaded team code: the sandbox, its modules per robot, the runs of its tasks.
         self.code = TeamCode(self)
-        # The host's planner: tasks ``yield Plan(goal)`` and the path is found in a process of its
-        # own at the lowest priority, so that a burst of goTo tasks never holds up a stop, a
-        # heartbeat or a report behind hundreds of plans (robo_comp.robots.planning).
+        # The host's planner: tasks ``yield Plan(goal)`` and the path is found off the loop, in a
+        # process of its own at the lowest priority for a host of PROCESS_FROM robots or more (else
+        # in a thread), so that a burst of goTo tasks never holds up a stop, a heartbeat or a report
+        # behind hundreds of plans (robo_comp.robots.planning).
         if planner not in ("auto", "process", "thread"):
             raise FieldError(f"planner must be auto, process or thread, not {planner!r}")
         self.planner = HostPlanner(use_process=planner == "process" or (planner == "auto" and count >= PROCESS_FROM))
@@ -563,7 +564,7 @@ class RobotHost:
         return self._spec(r.tag, name)
 
     def plan(self, r: SimRobot, step: Plan) -> Any:
-        """Plan in the host's planner process: the robot waits at its boundary; the loop goes on."""
+        """Plan off the loop (the host's planner process or thread): the robot waits at its boundary."""
         occupied = r.others_cells() if step.avoid_robots else set()
         assert r.task is not None
         r.task.plan = self.planner.plan(self.blocked, r.free_cell(), step.goal, occupied)

@@ -1,6 +1,6 @@
 """Where a robot host plans its robots' paths: a process of its own, at the lowest priority.
 
-A host of hundreds of robots plans a path whenever a task ``yield``\\ s ``Plan(goal)`` (and again
+A host of hundreds of robots plans a path whenever a task yields ``Plan(goal)`` (and again
 whenever a robot waits for a teammate). The search itself is compiled and releases the GIL, but
 the glue around it holds it; a planner *thread* at a low priority that the OS preempts while it
 holds the GIL keeps the host's loop waiting for as long as the thread waits for a core (12 ms on

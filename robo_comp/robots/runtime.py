@@ -20,7 +20,7 @@ answers :class:`~robo_comp.robots.steps.Replan` too: the task plans again from w
 
 It does this through a :class:`RuntimeEnv`, which is what differs between its two drivers:
 
-* a robot host (:class:`robo_comp.robots.host.RobotHost`) plans in a process of its own, uploads pictures to
+* a robot host (:class:`robo_comp.robots.host.RobotHost`) plans off its loop (:mod:`robo_comp.robots.planning`), uploads pictures to
   the core, reports a task's end to the core and waits for a tick while team code computes;
 * the engine (:class:`robo_comp.engine.bench.Bench`) plans at once, gives pictures and ends to
   the match in the same process, and waits for team code with its simulated clock stopped.
@@ -128,7 +128,7 @@ class GiveWay:
 def plan_around(walls: Any, start: tuple[int, int], goal: tuple[int, int],
                 occupied: set[tuple[int, int]]) -> list[tuple[int, int]] | None:
     """A path from ``start`` to ``goal`` around the ``occupied`` cells, straight through them when
-    there is no way around (None: no path at all). Pure: a host runs it in its planner process (:mod:`robo_comp.robots.planning`)."""
+    there is no way around (None: no path at all). Pure: a host runs it in its planner process or thread (:mod:`robo_comp.robots.planning`)."""
     occupied = occupied - {start, goal}
     if occupied:
         blocked = walls.copy()
