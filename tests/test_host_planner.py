@@ -72,3 +72,18 @@ def test_a_host_plans_out_of_its_process_and_leaves_no_planner_when_killed(core:
     wait_for(lambda: subprocess.run(["kill", "-0", str(planner)], capture_output=True).returncode != 0, 10,
              "the planner process to end with its host")
     time.sleep(0.1)
+
+
+def test_a_planner_that_never_comes_up_is_not_started_again_for_every_plan() -> None:
+    hp = HostPlanner()
+    try:
+        hp.start()
+        pid = hp.pid()
+        assert pid is not None
+        os.kill(pid, signal.SIGKILL)  # dead before it said it was ready
+        wait_for(lambda: not hp.use_process, 10, "the host to give up on the planner process")
+        walls = np.zeros((10, 10), dtype=bool)
+        assert hp.plan(walls, (0, 0), (9, 9), set()).result(timeout=30) == plan_around(walls, (0, 0), (9, 9), set())
+        assert hp.starts == 1 and hp.pid() is None  # planned in the thread, no new process
+    finally:
+        hp.shutdown()

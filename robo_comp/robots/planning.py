@@ -223,6 +223,10 @@ class HostPlanner:
             else:
                 _settle(item[0], None, PlannerGone(f"planner: {value}"))
         proc.wait()
+        if self._ready is not proc and self.use_process:  # it never came up: do not start one a plan
+            log.warning("the planner process ended before it was ready (code %s); planning in the host's thread",
+                        proc.returncode)
+            self.use_process = False
         with self._lock:
             if self._proc is proc:
                 self._proc = None
