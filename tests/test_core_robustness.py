@@ -22,10 +22,17 @@ class Raw:
         secure_plain_client(self.s, token)  # the core lets in no connection without a token
         self.s.connect(url)
 
+    #: What the core pushes to a robot host's connection unasked (a registered host gets the
+    #: team's map, heartbeats, holds): not the answer to a request.
+    PUSHES = frozenset({"map.delta", "heartbeat", "hold", "event"})
+
     def ask(self, *frames: bytes, timeout: float = 3.0) -> dict:
         self.s.send_multipart(list(frames))
-        assert self.s.poll(timeout * 1000), "no reply from the core"
-        return msgpack.unpackb(self.s.recv(), raw=False)
+        while True:
+            assert self.s.poll(timeout * 1000), "no reply from the core"
+            msg = msgpack.unpackb(self.s.recv(), raw=False)
+            if not (isinstance(msg, dict) and msg.get("type") in self.PUSHES):
+                return msg
 
     def close(self) -> None:
         self.s.close(0)
