@@ -98,8 +98,14 @@ def test_a_key_the_core_does_not_offer_is_struck_through_not_only_dimmed() -> No
         app = TeamApp(link=CannedLink("team", "red", upload=False), **FIXED)  # type: ignore[arg-type]
         async with app.run_test(size=(100, 30)) as pilot:
             await until(pilot, lambda: app.core_features.get("upload") is False, 15, "feature detection")
-            await pilot.pause(0.3)
-            off = [k for k in app.screen.query("FooterKey") if getattr(k, "action", "") == "app.upload"]
+
+            def upload_keys() -> list:
+                return [k for k in app.screen.query("FooterKey") if getattr(k, "action", "") == "app.upload"]
+
+            # the footer is composed again after the features arrive (later on a loaded machine)
+            await until(pilot, lambda: any(k.has_class("-disabled") and k.rich_style.strike for k in upload_keys()),
+                        15, "the upload key dimmed and struck through")
+            off = upload_keys()
             assert off and off[0].has_class("-disabled")
             assert off[0].rich_style.strike, off[0].rich_style
 
