@@ -11,7 +11,7 @@ import pytest
 
 from robo_comp.tui.referee_app import RefereeApp
 from robo_comp.tui.team_app import TeamApp
-from robo_comp.tui.testing import CannedLink, screen_text, until
+from robo_comp.tui.testing import CannedLink, screen_text, until, until_shown
 from robo_comp.world.scenario import bundled_scenario_path, load_scenario
 
 FIXED = {"clock": lambda: 100.0, "wall_clock": lambda: 1002.5, "poll": False}
@@ -119,10 +119,7 @@ def test_the_map_legend_says_whose_robots_and_which_is_selected() -> None:
         app = RefereeApp(link=arena_link("referee", "demo_room", robots=True), **FIXED)  # type: ignore[arg-type]
         async with app.run_test(size=(160, 48)) as pilot:
             await until(pilot, lambda: app.selected == 101, 15, "the first robot selected")
-            await pilot.pause(0.5)
-            shown = screen_text(app)
-            assert "red 1 2 · blue 3 4" in shown, shown
-            assert "▸ 101 selected" in shown, shown
+            await until_shown(pilot, app, "red 1 2 · blue 3 4", "▸ 101 selected")
         team = TeamApp(link=arena_link("team", "demo_room", robots=True), **FIXED)  # type: ignore[arg-type]
         async with team.run_test(size=(160, 48)) as pilot:
             await until(pilot, lambda: team.selected == 101, 15, "the first robot selected")

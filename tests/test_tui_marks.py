@@ -10,7 +10,7 @@ from robo_comp.tui.referee_app import RefereeApp
 from robo_comp.tui.screens.give_task import GiveTaskScreen
 from robo_comp.tui.screens.upload import UploadScreen
 from robo_comp.tui.team_app import TeamApp
-from robo_comp.tui.testing import CannedLink, screen_text, until
+from robo_comp.tui.testing import CannedLink, until, until_shown
 from robo_comp.tui.widgets.map_view import MapView
 
 FIXED = {"clock": lambda: 100.0, "wall_clock": lambda: 1002.5, "poll": False}
@@ -25,23 +25,17 @@ def test_radio_buttons_and_check_boxes_show_their_state_by_a_mark(tmp_path: Path
             await until(pilot, lambda: app.core_features.get("upload") and app.selected == 101, 15, "the console")
             await pilot.press("u")
             await until(pilot, lambda: isinstance(app.screen, UploadScreen), 15, "the upload dialog")
-            await pilot.pause(0.3)
-            shown = screen_text(app)
-            assert "▐●▌ extension" in shown and "▐ ▌ code" in shown and "▐ ▌ run it now" in shown, shown
+            await until_shown(pilot, app, "▐●▌ extension", "▐ ▌ code", "▐ ▌ run it now")
             await pilot.click("#code")
             await pilot.click("#run")
-            await pilot.pause(0.3)
-            shown = screen_text(app)
-            assert "▐ ▌ extension" in shown and "▐●▌ code" in shown and "▐X▌ run it now" in shown, shown
+            await until_shown(pilot, app, "▐ ▌ extension", "▐●▌ code", "▐X▌ run it now")
             await pilot.press("escape")
             await until(pilot, lambda: not isinstance(app.screen, UploadScreen), 15, "the dialog closed")
             await pilot.press("t")
             await until(pilot, lambda: isinstance(app.screen, GiveTaskScreen), 15, "the task form")
-            await pilot.pause(0.3)
-            assert "▐●▌ now" in screen_text(app) and "▐ ▌ queue" in screen_text(app)
+            await until_shown(pilot, app, "▐●▌ now", "▐ ▌ queue")
             await pilot.click("#queue")
-            await pilot.pause(0.3)
-            assert "▐ ▌ now" in screen_text(app) and "▐●▌ queue" in screen_text(app)
+            await until_shown(pilot, app, "▐ ▌ now", "▐●▌ queue")
 
     asyncio.run(scenario())
 
@@ -53,21 +47,14 @@ def test_the_highlighted_robot_and_team_carry_a_mark() -> None:
         app = RefereeApp(link=CannedLink("referee", None), **FIXED)  # type: ignore[arg-type]
         async with app.run_test(size=(120, 40)) as pilot:
             await until(pilot, lambda: app.selected == 101, 15, "the first robot selected")
-            await pilot.pause(0.3)
-            shown = screen_text(app)
-            assert "▸101" in shown and " 102" in shown and "▸102" not in shown, shown
-            assert "▸1   red" in shown and " 2   blue" in shown, shown
+            await until_shown(pilot, app, "▸101", " 102", "▸1   red", " 2   blue", absent=("▸102",))
             app.screen.query_one("#robots").focus()
             await pilot.press("down")
             await until(pilot, lambda: app.selected == 102, 15, "robot 102 selected")
-            await pilot.pause(0.3)
-            shown = screen_text(app)
-            assert "▸102" in shown and "▸101" not in shown, shown
+            await until_shown(pilot, app, "▸102", absent=("▸101",))
             app.screen.query_one("#scores").focus()
             await pilot.press("down")
-            await pilot.pause(0.3)
-            shown = screen_text(app)
-            assert "▸2   blue" in shown and "▸1   red" not in shown, shown
+            await until_shown(pilot, app, "▸2   blue", absent=("▸1   red",))
 
     asyncio.run(scenario())
 
@@ -83,12 +70,20 @@ def test_a_failed_task_and_a_refused_find_are_said_not_only_coloured() -> None:
         app = RefereeApp(link=link, **FIXED)  # type: ignore[arg-type]
         async with app.run_test(size=(160, 48)) as pilot:
             await until(pilot, lambda: len(app.model.finds) == 2, 15, "the finds")
-            await pilot.pause(0.5)
-            assert "robot 101 followPath #5 FAILED: blocked by a wall at (2, 2)" in screen_text(app)
+            await until_shown(pilot, app, "robot 101 followPath #5 FAILED: blocked by a wall at (2, 2)")
             m = app.screen.query_one(MapView)
-            drawn = m.render().plain.splitlines()
-            spot = {(f["x"], f["y"]): m.cell_to_screen(f["x"], f["y"]) for f in app.model.finds}
-            assert {xy: drawn[line][col] for xy, (col, line) in spot.items()} == {(11.0, 9.0): "+", (20.0, 9.0): "-"}
+
+            def marks() -> dict | None:
+                drawn = m.render().plain.splitlines()
+                spot = {(f["x"], f["y"]): m.cell_to_screen(f["x"], f["y"]) for f in app.model.finds}
+                try:
+                    return {xy: drawn[line][col] for xy, (col, line) in spot.items()}
+                except IndexError:  # the map not laid out at its size yet
+                    return None
+
+            expected = {(11.0, 9.0): "+", (20.0, 9.0): "-"}
+            await until(pilot, lambda: marks() == expected, 15, "the finds drawn on the map")
+            assert marks() == expected
 
     asyncio.run(scenario())
 

@@ -15,7 +15,7 @@ from robo_comp.protocol.logfile import read_log
 from robo_comp.tui.referee_app import RefereeApp
 from robo_comp.tui.screens.forms import FormScreen
 from robo_comp.tui.screens.recovery import RecoveryScreen
-from robo_comp.tui.testing import notifications, screen_text, until
+from robo_comp.tui.testing import notifications, until, until_shown
 
 
 def _damage_one_score_line(log: Path) -> int:
@@ -40,27 +40,21 @@ def test_the_referee_console_shows_what_a_restarted_core_lost_and_sets_the_outag
             app = RefereeApp(str(state), match.token("referee"))
             async with app.run_test(size=(120, 40)) as pilot:
                 await until(pilot, lambda: app.model.recovery_known and app.model.outage, 30, "the core's report")
-                await pilot.pause(0.4)
-                shown = screen_text(app)
-                assert "log: started on an empty folder · outage: clock pauses (o)" in shown, shown
+                await until_shown(pilot, app, "log: started on an empty folder · outage: clock pauses (o)")
                 # kill -9, one byte of a score line changed, a restart: the console reconnects by itself
                 await asyncio.to_thread(_kill9_between_writes, match.proc)
                 seq = _damage_one_score_line(state / "events.log")
                 match.proc = await asyncio.to_thread(start_core, state)
                 await until(pilot, lambda: (app.model.recovered or {}).get("lost"), 60,
                             "the console to hear what the restarted core lost")
-                await pilot.pause(0.4)
-                shown = screen_text(app)
-                assert f"⚠ LOG DAMAGED, 1 event lost: {seq} score.change (r)" in shown, shown
+                await until_shown(pilot, app, f"⚠ LOG DAMAGED, 1 event lost: {seq} score.change (r)")
                 assert app.screen.query_one("#core-line").has_class("-lost")
                 assert any(f"The core's event log was damaged: 1 event lost: {seq} score.change" in n
                            for n in notifications(app)), notifications(app)
                 # the report names the lost event, its topic and the damage; the same as ctl recovery
                 await pilot.press("r")
                 await until(pilot, lambda: isinstance(app.screen, RecoveryScreen), 15, "the report")
-                await pilot.pause(0.2)
-                report = screen_text(app)
-                assert f"seq {seq:>7}  score.change" in report, report
+                report = await until_shown(pilot, app, f"seq {seq:>7}  score.change")
                 assert "1 event LOST from the log" in report and "lost event" in report, report
                 assert "Outage rule 'pause': a core outage pauses the clock" in report, report
                 await pilot.press("escape")
@@ -73,8 +67,7 @@ def test_the_referee_console_shows_what_a_restarted_core_lost_and_sets_the_outag
                 await pilot.click("#ok")
                 await until(pilot, lambda: app.model.outage == "count", 20, "the core's answer")
                 assert match.referee().score()["outage"] == "count"
-                await pilot.pause(0.6)
-                assert "outage: clock counts it (o)" in screen_text(app)
+                await until_shown(pilot, app, "outage: clock counts it (o)")
                 assert any("a core outage now counts as match time" in n for n in notifications(app))
 
         asyncio.run(scenario())

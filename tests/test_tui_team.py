@@ -11,7 +11,7 @@ from robo_comp.link import LinkState
 from robo_comp.tui.screens.give_task import GiveTaskScreen
 from robo_comp.tui.screens.upload import UploadScreen
 from robo_comp.tui.team_app import TeamApp
-from robo_comp.tui.testing import CannedLink, notifications, screen_text, until
+from robo_comp.tui.testing import CannedLink, notifications, screen_text, until, until_shown
 
 
 def team_app(core: CoreHandle, team: str = "red", **kw: object) -> TeamApp:
@@ -168,8 +168,7 @@ def test_reconnects_when_the_core_restarts(core: CoreHandle) -> None:
                                                 port=port)
             await until(pilot, lambda: app.link.state is LinkState.CONNECTED, 30, "reconnected")
             await until(pilot, lambda: any("Reconnected" in n for n in notifications(app)), 15, "the toast")
-            await pilot.pause(0.3)
-            assert "online" in screen_text(app)
+            await until_shown(pilot, app, "online")
             # and the session works again: the robot host re-registers with the new core
             await until(pilot, lambda: app.model.robots.get(101, {}).get("status") == "connected", 15,
                         "robot 101 back in the table")
@@ -196,7 +195,6 @@ def test_wrong_token_is_said_on_screen(core: CoreHandle) -> None:
         app = TeamApp(str(core.state), "not-a-token")
         async with app.run_test() as pilot:
             await until(pilot, lambda: any("Cannot connect" in n for n in notifications(app)), 20, "the refusal")
-            await pilot.pause(0.6)
-            assert "offline" in screen_text(app)
+            await until_shown(pilot, app, "offline")
 
     asyncio.run(scenario())
