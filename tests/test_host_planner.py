@@ -71,7 +71,6 @@ def test_a_host_plans_out_of_its_process_and_leaves_no_planner_when_killed(core:
     host.wait()
     wait_for(lambda: subprocess.run(["kill", "-0", str(planner)], capture_output=True).returncode != 0, 10,
              "the planner process to end with its host")
-    time.sleep(0.1)
 
 
 def test_a_planner_that_never_comes_up_is_not_started_again_for_every_plan() -> None:

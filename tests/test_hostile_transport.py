@@ -177,7 +177,13 @@ def test_an_unfinished_message_from_a_peer_with_a_token_is_cut(core: CoreHandle,
     s.close()
     assert sent < 256 * MiB, "the core never cut a connection holding 256 MiB of one unfinished message"
     assert grown < 50 * MiB, f"the core grew by {grown / MiB:.0f} MiB for one unfinished message"
-    found = wait_for(lambda: _cuts(core, "did not finish"), 5.0, "the cut in the log")
+    # cut as unfinished, as more than HOLD_MAX, or as handed nothing at two looks in a row: on a
+    # loaded machine the core's looks may come late or find other clients' messages waiting
+    try:
+        found = wait_for(lambda: _cuts(core, "held"), 5.0, "the cut in the log")
+    except AssertionError:
+        raise AssertionError(f"no cut for what a connection held in the log; refusals: {core.logged_events('refused')}; "
+                             f"stats: {core.referee().request('stats')}") from None
     assert found[0]["data"]["code"] == "E_RATE" and found[0]["data"]["address"] == "127.0.0.1"
     assert blue.robots() == []  # still serving
     assert core.referee().request("stats")["connections_cut"] == 1
