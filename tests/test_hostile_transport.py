@@ -304,6 +304,53 @@ def test_a_backlog_the_core_does_not_take_is_cut() -> None:
         ctx.term()
 
 
+def test_a_cut_decided_for_a_closed_connection_spares_the_one_that_got_its_number() -> None:
+    """The guard reads a connection's counts in place and cuts it through a duplicate of libzmq's
+    descriptor; libzmq's I/O thread may close that connection in between (it broke a limit of its
+    own) and give the number to the next connection it accepts: an honest client connecting at
+    that moment (CI saw one fail its handshake right after an attack). Real ROUTER, real TCP peers,
+    the guard a core uses: peer A is accepted and seen by the guard; A goes away and peer B gets
+    A's descriptor before the guard hears of it; the cut the guard decided for A does not touch B,
+    which then gets its answer."""
+    ctx = zmq.Context()
+    router = ctx.socket(zmq.ROUTER)
+    router.setsockopt(zmq.LINGER, 0)
+    port = router.bind_to_random_port("tcp://127.0.0.1")
+    guard = ConnectionGuard.watch(router, port, GuardLimits(64), hold=True)
+    try:
+        a = socket.create_connection(("127.0.0.1", port), timeout=5.0)
+        zmtp_null_handshake(a)
+        t_end = time.monotonic() + 10
+        while not guard.conns and time.monotonic() < t_end:
+            guard.serve()
+            time.sleep(0.01)
+        [(fd, address)] = guard.conns.items()
+        a.close()
+        time.sleep(0.3)  # libzmq closes A's descriptor (the guard is not told yet: serve is not called)
+        b = socket.create_connection(("127.0.0.1", port), timeout=5.0)
+        zmtp_null_handshake(b)
+        with guard._peek(fd) as sock:  # noqa: SLF001  (the descriptor number, now B's)
+            if sock is None or sock.getpeername()[1] != b.getsockname()[1]:
+                pytest.skip("libzmq gave B another descriptor number than A's: no reuse to test")
+        guard._cut_fd(fd, address, "a cut decided for A")  # noqa: SLF001  (the guard's own cut, as a sweep makes it)
+        assert guard.cut_total == 0, "the guard cut the connection that got a closed one's descriptor"
+        b.sendall(zmtp_frame(b"", more=True) + zmtp_frame(b"hello from B"))
+        assert router.poll(5000), "B's message never reached the ROUTER"
+        ident, _, body = router.recv_multipart()
+        router.send_multipart([ident, b"", b"answer"])
+        b.settimeout(5.0)
+        got = b""
+        while b"answer" not in got:
+            chunk = b.recv(4096)
+            assert chunk, "B was cut"
+            got += chunk
+        b.close()
+    finally:
+        guard.close()
+        router.close(0)
+        ctx.term()
+
+
 @pytest.mark.parametrize("mechanism", ["PLAIN", "CURVE"])
 def test_what_the_core_was_handed_is_counted_as_it_crossed_the_wire(mechanism: str) -> None:
     """The count the bound rests on (real ROUTER and DEALER, the guard a core uses, the core's

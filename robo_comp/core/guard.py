@@ -145,9 +145,9 @@ def copy_received(ctx: zmq.Context) -> None:
 class _Kernel:
     """What the kernel counts of a TCP connection, read through libzmq's descriptor in place (no
     duplicate descriptor, no Python socket: a look costs a system call or two a connection), and
-    this process's resident memory. Whether a descriptor is still the connection it was is checked
-    only before a cut (:meth:`ConnectionGuard._peek`): a number reused meanwhile reads as another
-    socket's counts at worst, or as nothing."""
+    this process's resident memory. Whether a descriptor is still the connection it was (its port
+    and its peer) is checked only before a cut (:meth:`ConnectionGuard._peek`): a number reused
+    meanwhile reads as another socket's counts at worst, or as nothing."""
 
     def __init__(self) -> None:
         self._getsockopt = ctypes.CDLL(None, use_errno=True).getsockopt
@@ -244,6 +244,9 @@ class ConnectionGuard:
     floor: int = 0
     #: Open connections: descriptor -> peer address.
     conns: dict[int, str] = field(default_factory=dict)
+    #: Per descriptor, the peer's (address, port) when it was accepted: a cut checks that the
+    #: descriptor is still that connection (libzmq may have closed it and given the number to a new one).
+    peers: dict[int, tuple[str, int]] = field(default_factory=dict)
     per_address: dict[str, int] = field(default_factory=dict)
     cut_total: int = 0
     #: The watched socket, when the guard bounds what its connections hold (the ROUTER; see :meth:`took`).
@@ -418,10 +421,11 @@ class ConnectionGuard:
                 self._closed(fd)
 
     @contextlib.contextmanager
-    def _peek(self, fd: int) -> Iterator[socket.socket | None]:
-        """A duplicate of libzmq's descriptor ``fd`` while it is a connection to this socket's port
-        (None: closed again, or the number reused by another socket), closed afterwards; libzmq's
-        own descriptor stays until libzmq closes it. An ``OSError`` inside (the peer went away
+    def _peek(self, fd: int, peer: tuple[str, int] | None = None) -> Iterator[socket.socket | None]:
+        """A duplicate of libzmq's descriptor ``fd`` while it is a connection to this socket's port,
+        and with ``peer`` given, the connection from that (address, port) (None: closed again, or the
+        number reused by another socket or another connection), closed afterwards; libzmq's own
+        descriptor stays until libzmq closes it. An ``OSError`` inside (the peer went away
         meanwhile) ends the look quietly."""
         try:
             sock = socket.socket(fileno=os.dup(fd))
@@ -430,6 +434,8 @@ class ConnectionGuard:
             return
         try:
             ours = sock.getsockname()[1] == self.port
+            if ours and peer is not None:
+                ours = tuple(sock.getpeername()[:2]) == peer
         except OSError:
             ours = False
         try:
@@ -443,12 +449,14 @@ class ConnectionGuard:
         with self._peek(fd) as sock:
             if sock is None:
                 return
-            address = str(sock.getpeername()[0])
+            name = sock.getpeername()
+            address = str(name[0])
             # a descriptor number reused before its close was seen; what the core was handed from
             # it is kept (a message may be received before its connection's accept is seen here)
             early = self.handed.pop(fd, 0)
             self._closed(fd)
             self.conns[fd] = address
+            self.peers[fd] = (address, int(name[1]))
             if self.holder is not None:
                 self.handed[fd] = early
                 self.holding[fd] = Holding(time.monotonic(), seen=early)
@@ -471,13 +479,16 @@ class ConnectionGuard:
 
     def _cut_fd(self, fd: int, address: str, reason: str) -> None:
         """Cut the connection on descriptor ``fd`` and count it as gone now (a cut connection is not
-        cut twice); libzmq then frees what it held."""
-        with self._peek(fd) as sock:
+        cut twice); libzmq then frees what it held. A descriptor that is no longer the connection
+        accepted under that number (libzmq closed it and gave the number to a new connection since
+        the guard's look) is not cut: the new connection is another peer."""
+        with self._peek(fd, self.peers.get(fd)) as sock:
             if sock is not None:
                 self._cut(sock, address, reason)
         self._closed(fd)
 
     def _closed(self, fd: int) -> None:
+        self.peers.pop(fd, None)
         self.holding.pop(fd, None)
         self.handed.pop(fd, None)
         address = self.conns.pop(fd, None)
