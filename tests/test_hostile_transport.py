@@ -76,6 +76,15 @@ def _push_unfinished(s: socket.socket, total: int, part: int = 8 * MiB) -> int:
     return sent
 
 
+def _read_until(s: socket.socket, word: bytes, closed: str) -> None:
+    """Read from ``s`` until ``word`` has come; fail with ``closed`` if the other side closes first."""
+    got = b""
+    while word not in got:
+        chunk = s.recv(4096)
+        assert chunk, closed
+        got += chunk
+
+
 # ------------------------------------------------------------------ nothing buffered without a credential
 @pytest.mark.parametrize("mechanism", ["NULL", "PLAIN"])
 def test_unfinished_multipart_from_a_peer_without_a_credential_holds_no_memory(
@@ -206,11 +215,7 @@ def test_whole_frames_from_a_peer_with_a_token_are_not_cut(core: CoreHandle) -> 
     for k in range(0, len(whole), 64 << 10):
         s.sendall(whole[k:k + (64 << 10)])
         time.sleep(0.06)  # spread over about 18 looks of the guard
-    got = b""
-    while b"E_TOO_LARGE" not in got:
-        chunk = s.recv(4096)
-        assert chunk, "the core closed the connection of a peer sending a whole frame slowly"
-        got += chunk
+    _read_until(s, b"E_TOO_LARGE", "the core closed the connection of a peer sending a whole frame slowly")
     s.close()
     assert burst.own("hello", {"token": core.token("red")})["ok"]
     burst.close()
@@ -336,14 +341,10 @@ def test_a_cut_decided_for_a_closed_connection_spares_the_one_that_got_its_numbe
         assert guard.cut_total == 0, "the guard cut the connection that got a closed one's descriptor"
         b.sendall(zmtp_frame(b"", more=True) + zmtp_frame(b"hello from B"))
         assert router.poll(5000), "B's message never reached the ROUTER"
-        ident, _, body = router.recv_multipart()
+        ident, _, _body = router.recv_multipart()
         router.send_multipart([ident, b"", b"answer"])
         b.settimeout(5.0)
-        got = b""
-        while b"answer" not in got:
-            chunk = b.recv(4096)
-            assert chunk, "B was cut"
-            got += chunk
+        _read_until(b, b"answer", "B was cut")
         b.close()
     finally:
         guard.close()
