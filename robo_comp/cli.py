@@ -338,10 +338,12 @@ def build_parser() -> argparse.ArgumentParser:
                         "robot's readings go out once a sensing period, a standing robot's when they change, "
                         "at most once a sensing period")
     r.add_argument("--seed", type=int, default=0)
-    r.add_argument("--planner", choices=("auto", "process", "thread"), default="auto",
+    from robo_comp.robots.planning import PLANNER_CHOICES, PROCESS_FROM
+
+    r.add_argument("--planner", choices=PLANNER_CHOICES, default="auto",
                    help="where paths are planned: process: a process of its own at the lowest priority (a "
                         "busy host's stops never wait behind a plan); thread: a thread of the host; auto "
-                        "(default): a process from 32 robots, else a thread")
+                        f"(default): a process from {PROCESS_FROM} robots, else a thread")
     r.add_argument("--scenario", help="the match's scenario file (organisers only): the camera then shows victims")
     r.add_argument("--duration", type=float, default=0.0, help="exit after S seconds (0 = run until stopped)")
     r.add_argument("--driver", choices=("sim", "er1", "ros2"), default="sim",

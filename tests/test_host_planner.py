@@ -9,9 +9,11 @@ import subprocess
 import time
 
 import numpy as np
+import pytest
 
 from conftest import CoreHandle, next_event_where, wait_for, wait_robots
-from robo_comp.robots.planning import HostPlanner
+from robo_comp.errors import FieldError
+from robo_comp.robots.planning import PROCESS_FROM, HostPlanner
 from robo_comp.robots.runtime import plan_around
 
 
@@ -86,3 +88,14 @@ def test_a_planner_that_never_comes_up_is_not_started_again_for_every_plan() -> 
         assert hp.starts == 1 and hp.pid() is None  # planned in the thread, no new process
     finally:
         hp.shutdown()
+
+
+def test_where_a_host_plans_follows_its_choice_and_its_size() -> None:
+    """``--planner auto`` plans in a process from PROCESS_FROM robots, in a thread below; another
+    word is refused with a sentence that names the choices."""
+    assert not HostPlanner.for_host("auto", PROCESS_FROM - 1).use_process
+    assert HostPlanner.for_host("auto", PROCESS_FROM).use_process
+    assert HostPlanner.for_host("process", 1).use_process
+    assert not HostPlanner.for_host("thread", 1000).use_process
+    with pytest.raises(FieldError, match="planner must be one of auto, process, thread, not 'gpu'"):
+        HostPlanner.for_host("gpu", 3)

@@ -35,7 +35,7 @@ from robo_comp.errors import FieldError, RoboCompError
 from robo_comp.plugins.manager import get_plugin_manager
 from robo_comp.robots.oneworld import Foreign, is_real, merge_readings
 from robo_comp.robots.readings import ReadingWatch
-from robo_comp.robots.planning import PROCESS_FROM, HostPlanner
+from robo_comp.robots.planning import HostPlanner
 from robo_comp.robots.runtime import PLANNING, RunningTask, SimRobot, TaskRuntime
 from robo_comp.robots.steps import Compute, Plan, TaskSpec
 from robo_comp.robots.teamcode import TeamCode
@@ -151,9 +151,7 @@ class RobotHost:
         # process of its own at the lowest priority for a host of PROCESS_FROM robots or more (else
         # in a thread), so that a burst of goTo tasks never holds up a stop, a heartbeat or a report
         # behind hundreds of plans (robo_comp.robots.planning).
-        if planner not in ("auto", "process", "thread"):
-            raise FieldError(f"planner must be auto, process or thread, not {planner!r}")
-        self.planner = HostPlanner(use_process=planner == "process" or (planner == "auto" and count >= PROCESS_FROM))
+        self.planner = HostPlanner.for_host(planner, count)
         #: The robots' tasks run here as they run on the engine (this host is the runtime's env).
         self.runtime = TaskRuntime(self)
         # A real positioning system: the fixes of an overhead camera (robo-comp camera run), instead

@@ -37,7 +37,7 @@ import threading
 from concurrent.futures import Future, InvalidStateError, ThreadPoolExecutor
 from typing import IO, Any
 
-from robo_comp.robots.runtime import plan_around
+from robo_comp.errors import FieldError
 
 log = logging.getLogger("robo_comp.robots")
 
@@ -49,6 +49,9 @@ PROCESS_NICE = 19
 THREAD_NICE = 10
 #: Robots from which a host plans in a process of its own (``--planner auto``).
 PROCESS_FROM = 32
+#: Where a host may plan (``robo-comp robots --planner``): a process from :data:`PROCESS_FROM`
+#: robots, always a process, always a thread.
+PLANNER_CHOICES = ("auto", "process", "thread")
 #: The job number of the planner process's first answer: it has loaded its kernels.
 READY = 0
 
@@ -99,6 +102,14 @@ def _die_with_parent(parent: int) -> None:
         os._exit(0)
 
 
+def _plan(walls: Any, start: tuple[int, int], goal: tuple[int, int], occupied: set[tuple[int, int]]) -> Path_:
+    """:func:`~robo_comp.robots.runtime.plan_around`, imported when first used: the command line
+    reads :data:`PLANNER_CHOICES` from this module without loading the planner."""
+    from robo_comp.robots.runtime import plan_around
+
+    return plan_around(walls, start, goal, occupied)
+
+
 def serve(parent: int) -> None:
     """The planner process: take ``("walls", array)`` (the map from now on) and answer
     ``(job, start, goal, occupied)`` with ``(job, ok, path or error)`` until stdin ends. Requests
@@ -109,6 +120,7 @@ def serve(parent: int) -> None:
         os.setpriority(os.PRIO_PROCESS, 0, PROCESS_NICE)
     except (AttributeError, OSError):
         pass
+    import robo_comp.robots.runtime  # noqa: F401  (loaded before it says it is ready, not at the first plan)
     from robo_comp.world.planner import warm_up
 
     warm_up(jumps=False)
@@ -125,7 +137,7 @@ def serve(parent: int) -> None:
             continue
         job, start, goal, occupied = req
         try:
-            answer: tuple[Any, ...] = (job, True, plan_around(walls, start, goal, occupied))
+            answer: tuple[Any, ...] = (job, True, _plan(walls, start, goal, occupied))
         except Exception as e:  # a planner bug fails that plan (and its task), not the host
             answer = (job, False, repr(e))
         _write(out, answer)
@@ -134,6 +146,14 @@ def serve(parent: int) -> None:
 class HostPlanner:
     """A host's planner: :meth:`plan` returns a future of a path (see the module docstring);
     :meth:`run` runs other slow work (a video's encoding) in the host's low-priority thread."""
+
+    @classmethod
+    def for_host(cls, choice: str, robots: int) -> HostPlanner:
+        """The planner of a host of ``robots`` robots that chose ``choice`` (one of
+        :data:`PLANNER_CHOICES`; :class:`~robo_comp.errors.FieldError` for another)."""
+        if choice not in PLANNER_CHOICES:
+            raise FieldError(f"planner must be one of {', '.join(PLANNER_CHOICES)}, not {choice!r}")
+        return cls(use_process=choice == "process" or (choice == "auto" and robots >= PROCESS_FROM))
 
     def __init__(self, use_process: bool = True) -> None:
         self.thread = ThreadPoolExecutor(max_workers=1, thread_name_prefix="planner",
@@ -240,7 +260,7 @@ class HostPlanner:
 
     def _in_thread(self, outer: Future[Path_], args: tuple[Any, ...]) -> None:
         try:
-            redo = self.thread.submit(plan_around, *args)
+            redo = self.thread.submit(_plan, *args)
         except RuntimeError as e:  # the host is shutting down
             _settle(outer, None, e)
             return
@@ -252,7 +272,7 @@ class HostPlanner:
         args = (walls, start, goal, occupied)
         proc = self._process()
         if proc is None or self._ready is not proc:  # none, or still loading its kernels
-            return self.thread.submit(plan_around, *args)
+            return self.thread.submit(_plan, *args)
         outer: Future[Path_] = Future()
         with self._lock:
             self._jobs += 1
@@ -328,4 +348,4 @@ if __name__ == "__main__":
     serve(int(sys.argv[1]) if len(sys.argv) > 1 else os.getppid())
 
 
-__all__ = ["HostPlanner", "PROCESS_FROM", "PROCESS_NICE", "PlannerGone", "READY", "THREAD_NICE", "serve"]
+__all__ = ["HostPlanner", "PLANNER_CHOICES", "PROCESS_FROM", "PROCESS_NICE", "PlannerGone", "READY", "THREAD_NICE", "serve"]
