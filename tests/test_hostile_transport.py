@@ -37,8 +37,8 @@ from test_hostile_clients import Peer, code, router
 from robo_comp import protocol as P
 from robo_comp.core.guard import HOLD_MAX, HOLD_TOTAL, HOLD_UNFINISHED, ConnectionGuard, GuardLimits, _the_kernel
 from robo_comp.testing.zmtp import (
-    core_peak, core_rss, reset_core_peak, router_address, zmtp_command, zmtp_frame, zmtp_greeting, zmtp_initiate,
-    zmtp_null_handshake, zmtp_open, zmtp_plain_handshake,
+    core_peak, core_rss, reset_core_peak, router_address, zmtp_command, zmtp_expect, zmtp_frame, zmtp_greeting,
+    zmtp_initiate, zmtp_null_handshake, zmtp_open, zmtp_plain_handshake,
 )
 
 MiB = 1 << 20
@@ -74,15 +74,6 @@ def _push_unfinished(s: socket.socket, total: int, part: int = 8 * MiB) -> int:
     except OSError:  # the core closed the connection: what it took is what we sent so far
         pass
     return sent
-
-
-def _read_until(s: socket.socket, word: bytes, closed: str) -> None:
-    """Read from ``s`` until ``word`` has come; fail with ``closed`` if the other side closes first."""
-    got = b""
-    while word not in got:
-        chunk = s.recv(4096)
-        assert chunk, closed
-        got += chunk
 
 
 # ------------------------------------------------------------------ nothing buffered without a credential
@@ -215,7 +206,7 @@ def test_whole_frames_from_a_peer_with_a_token_are_not_cut(core: CoreHandle) -> 
     for k in range(0, len(whole), 64 << 10):
         s.sendall(whole[k:k + (64 << 10)])
         time.sleep(0.06)  # spread over about 18 looks of the guard
-    _read_until(s, b"E_TOO_LARGE", "the core closed the connection of a peer sending a whole frame slowly")
+    zmtp_expect(s, b"E_TOO_LARGE")  # ConnectionError: the core closed the connection of a peer sending slowly
     s.close()
     assert burst.own("hello", {"token": core.token("red")})["ok"]
     burst.close()
@@ -344,7 +335,7 @@ def test_a_cut_decided_for_a_closed_connection_spares_the_one_that_got_its_numbe
         ident, _, _body = router.recv_multipart()
         router.send_multipart([ident, b"", b"answer"])
         b.settimeout(5.0)
-        _read_until(b, b"answer", "B was cut")
+        zmtp_expect(b, b"answer")  # ConnectionError: B was cut
         b.close()
     finally:
         guard.close()

@@ -54,11 +54,17 @@ def zmtp_null_handshake(sock: socket.socket, socket_type: bytes = b"DEALER") -> 
     before this returns may be cut by libzmq rather than by what a test means to check.)
     :class:`ConnectionError` if the other side closes the connection instead."""
     sock.sendall(zmtp_greeting("NULL") + zmtp_command(b"READY", {b"Socket-Type": socket_type}))
+    zmtp_expect(sock, b"READY")
+
+
+def zmtp_expect(sock: socket.socket, word: bytes) -> None:
+    """Read from a connected blocking ``sock`` until ``word`` has come (a command's name, a reply's
+    error code); :class:`ConnectionError` if the other side closes the connection first."""
     got = b""
-    while b"READY" not in got:
+    while word not in got:
         chunk = sock.recv(4096)
         if not chunk:
-            raise ConnectionError("the other side closed the connection before READY")
+            raise ConnectionError(f"the other side closed the connection before {word.decode(errors='replace')}")
         got += chunk
 
 
@@ -70,18 +76,10 @@ def zmtp_initiate() -> bytes:
 def zmtp_plain_handshake(sock: socket.socket, password: bytes) -> None:
     """Complete a PLAIN handshake on a connected blocking ``sock`` (the core then hands this
     peer's messages to its loop); :class:`ConnectionError` if the core closes it instead."""
-    def expect(word: bytes) -> None:
-        got = b""
-        while word not in got:
-            chunk = sock.recv(4096)
-            if not chunk:
-                raise ConnectionError(f"the core closed the connection before {word.decode()}")
-            got += chunk
-
     sock.sendall(zmtp_open("PLAIN", password))
-    expect(b"WELCOME")
+    zmtp_expect(sock, b"WELCOME")
     sock.sendall(zmtp_initiate())
-    expect(b"READY")
+    zmtp_expect(sock, b"READY")
 
 
 def router_address(state: Path) -> tuple[str, int]:
@@ -120,4 +118,4 @@ def core_peak(state: Path) -> int:
 
 
 __all__ = ["core_peak", "core_rss", "reset_core_peak", "router_address", "zmtp_command", "zmtp_frame", "zmtp_greeting",
-           "zmtp_initiate", "zmtp_null_handshake", "zmtp_open", "zmtp_plain_handshake", "zmtp_plain_hello"]
+           "zmtp_expect", "zmtp_initiate", "zmtp_null_handshake", "zmtp_open", "zmtp_plain_handshake", "zmtp_plain_hello"]

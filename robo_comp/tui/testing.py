@@ -175,15 +175,16 @@ async def until_shown(pilot: Any, app: Any, *texts: str, absent: tuple[str, ...]
     """Let the app run until its screen shows every one of ``texts`` and none of ``absent``; return
     the screen's text then. Fail after ``timeout`` seconds with what the screen showed (a loaded
     machine may take a while to compose a screen again after a key or a message)."""
-    t_end = time.monotonic() + timeout
-    while True:
+    def showing() -> str | None:
         shown = screen_text(app)
-        if all(t in shown for t in texts) and not any(t in shown for t in absent):
-            return shown
-        if time.monotonic() > t_end:
-            raise AssertionError(f"timed out after {timeout} s waiting for the screen to show {list(texts)}"
-                                 f"{f' and not {list(absent)}' if absent else ''}; it shows:\n{shown}")
-        await pilot.pause(0.05)
+        return shown if all(t in shown for t in texts) and not any(t in shown for t in absent) else None
+
+    what = f"the screen to show {list(texts)}" + (f" and not {list(absent)}" if absent else "")
+    try:
+        shown: str = await until(pilot, showing, timeout, what)
+    except AssertionError as e:
+        raise AssertionError(f"{e}; it shows:\n{screen_text(app)}") from None
+    return shown
 
 
 def screen_text(app: Any) -> str:
