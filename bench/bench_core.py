@@ -492,6 +492,22 @@ def handle_ns(n: int = 100_000, repeats: int = 7) -> float:
         return best
 
 
+def unpack_ns(n: int = 100_000, repeats: int = 7) -> float:
+    """Nanoseconds per plain ``msgpack.unpackb`` of a report frame of the same shape and size as
+    :func:`handle_ns`'s (the receive-and-unpack peer's whole work on a message); the best of ``repeats``."""
+    import msgpack
+
+    frame = _frame("report", 0, {"tag": 101, "x": 1.5, "y": 2.5, "heading": 90.0, "moving": True}, "0" * 32)
+    unpack = msgpack.unpackb
+    best = float("inf")
+    for _ in range(repeats):
+        t0 = time.perf_counter_ns()
+        for _ in range(n):
+            unpack(frame, raw=False)
+        best = min(best, (time.perf_counter_ns() - t0) / n)
+    return best
+
+
 def measure_tree(robots: int, seconds: float, stop_samples: int) -> dict:
     """Child mode: report throughput and stop latency of this process's robo_comp."""
     with tempfile.TemporaryDirectory() as tmp:
@@ -623,6 +639,9 @@ def main() -> int:
             print(f"core, position reports absorbed: {rate:10,.0f} msg/s  = {rate / sink:.0%} of the receive-only "
                   f"ROUTER (target >= 70%), {rate / sink_dec:.0%} of receive-and-unpack, {rate / raw:.0%} of the echo "
                   f"(which sends back as much as it takes); {events:,} position events read by a subscriber")
+            h_ns, u_ns = handle_ns(), unpack_ns()
+            print(f"one report through Core._handle, in-process (best of 7 x 100,000): {h_ns:,.0f} ns; msgpack.unpackb "
+                  f"of the same frame (the receive-and-unpack peer's work): {u_ns:,.0f} ns")
             lat = stop_latency(state, a.robots, a.stop_samples)
             print(f"stop latency, {a.robots} robots at 10 Hz: p50 {statistics.median(lat):.2f} ms  "
                   f"p99 {pct(lat, 99):.2f} ms  max {max(lat):.2f} ms  (target p99 < 5 ms; thesis: 558 ms mean)")
